@@ -1,0 +1,46 @@
+"""lagrax: equations of motion of mechanical systems from their energies, with JAX.
+
+Write a kinetic energy ``T(q, qd, params)`` and a potential ``V(q, params)``; lagrax forms
+``M(q) q̈ + C(q, q̇) q̇ + G(q) = τ`` by automatic differentiation and integrates it with
+diffrax.
+
+lagrax enables JAX's 64-bit mode on import (``jax_enable_x64``): float64 is the default
+for accuracy. Arrays you pass in float32 stay float32.
+"""
+
+import importlib.metadata
+
+import jax as _jax
+
+_jax.config.update("jax_enable_x64", True)
+
+from . import models as models  # noqa: E402
+from . import newton_euler as newton_euler  # noqa: E402
+from ._errors import LagraxError as LagraxError  # noqa: E402
+from ._errors import MassMatrixError as MassMatrixError  # noqa: E402
+from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
+from ._errors import ParameterError as ParameterError  # noqa: E402
+from ._errors import ShapeError as ShapeError  # noqa: E402
+from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._simulate import Solution as Solution  # noqa: E402
+from ._simulate import simulate as simulate  # noqa: E402
+from ._system import LagrangianSystem as LagrangianSystem  # noqa: E402
+
+try:
+    __version__ = importlib.metadata.version("lagrax")
+except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tree
+    __version__ = "0.0.0"
+
+__all__ = [
+    "LagrangianSystem",
+    "simulate",
+    "Solution",
+    "models",
+    "newton_euler",
+    "LagraxError",
+    "MassMatrixError",
+    "NonFiniteError",
+    "ParameterError",
+    "ShapeError",
+    "SimulationError",
+]

@@ -1,0 +1,28 @@
+"""Exception types raised by lagrax.  All derive from the built-in they refine."""
+
+
+class LagraxError(Exception):
+    """Base class of every error lagrax raises on purpose."""
+
+
+class ShapeError(LagraxError, ValueError):
+    """An array has the wrong shape for the system (e.g. ``q`` of length 3 for a 2-DOF arm)."""
+
+
+class NonFiniteError(LagraxError, ValueError):
+    """An input or a state contains NaN or infinity."""
+
+
+class ParameterError(LagraxError, KeyError):
+    """``params`` lacks an entry that an energy or force function reads."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0])
+
+
+class MassMatrixError(LagraxError, ValueError):
+    """The mass matrix ``M(q) = ∂²T/∂q̇²`` is singular or not positive-definite."""
+
+
+class SimulationError(LagraxError, RuntimeError):
+    """A solve failed (step budget exhausted, non-finite state, singular mass matrix)."""

@@ -1,0 +1,270 @@
+"""One trajectory: ``simulate`` and its ``Solution``, on diffrax."""
+
+from collections.abc import Callable
+from typing import Any
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from ._errors import MassMatrixError, ShapeError, SimulationError
+from ._system import LagrangianSystem, _is_traced, _pivot_threshold
+from ._typing import Coordinates, Params, Velocities
+
+TauFn = Callable[[Any, Array, Array], Array]
+
+
+class Solution(eqx.Module):
+    """A simulated trajectory at the saved times.
+
+    **Fields:**
+
+    - ``ts``: saved times, shape ``(T,)``.
+    - ``q``, ``qd``: coordinates and velocities at ``ts``, shape ``(T, n)``.
+    - ``energy``: ``T + V`` at ``ts``, shape ``(T,)``.
+    - ``result``: diffrax's result code (``diffrax.RESULTS``); ``ok`` tells success.
+    - ``stats``: solver counters (``num_steps``, ``num_accepted_steps``,
+      ``num_rejected_steps``, ``max_steps``).
+
+    After a failed solve with ``throw=False``, entries past the failure time are ``inf``
+    (diffrax's fill value), never silently wrong numbers; check ``ok`` first.
+    """
+
+    ts: Float[Array, " T"]
+    q: Float[Array, "T n"]
+    qd: Float[Array, "T n"]
+    energy: Float[Array, " T"]
+    result: dfx.RESULTS
+    stats: dict[str, Int[Array, ""]]
+
+    @property
+    def ok(self) -> Array:
+        """``True`` where the solve succeeded (an array under ``vmap``)."""
+        return self.result == dfx.RESULTS.successful
+
+    @property
+    def energy_error(self) -> Float[Array, " T"]:
+        """Relative energy change ``(E(t) − E(t0)) / max(|E(t0)|, tiny)`` along the path."""
+        e0 = self.energy[..., :1]
+        return (self.energy - e0) / jnp.maximum(jnp.abs(e0), jnp.finfo(e0.dtype).tiny)
+
+
+def _default_solver():
+    return dfx.Tsit5()
+
+
+class _VectorField(eqx.Module):
+    system: LagrangianSystem
+    tau_fn: TauFn | None
+
+    def __call__(self, t, y, args):
+        q, qd = y
+        params, tau_const = args
+        tau = tau_const
+        if self.tau_fn is not None:
+            tau = jnp.asarray(self.tau_fn(t, q, qd), q.dtype)
+            if tau.shape != q.shape:
+                raise ShapeError(
+                    f"tau(t, q, qd) returned shape {tau.shape}; expected {q.shape}"
+                )
+            if tau_const is not None:
+                tau = tau + tau_const
+        qdd, _ = self.system._forward(t, q, qd, params, tau)
+        return qd, qdd
+
+
+@eqx.filter_jit
+def _solve(
+    system: LagrangianSystem,
+    solver: dfx.AbstractSolver,
+    tau_fn: TauFn | None,
+    y0,
+    params,
+    tau_const,
+    t0,
+    t1,
+    ts,
+    n_save: int,
+    rtol,
+    atol,
+    dt0,
+    max_steps: int,
+    saveat: dfx.SaveAt | None,
+    stepsize_controller: dfx.AbstractStepSizeController | None,
+):
+    if saveat is None:
+        if ts is None:
+            ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, n_save, dtype=t0.dtype)
+        saveat = dfx.SaveAt(ts=ts)
+    if stepsize_controller is None:
+        stepsize_controller = dfx.PIDController(rtol=rtol, atol=atol)
+    sol = dfx.diffeqsolve(
+        dfx.ODETerm(_VectorField(system, tau_fn)),
+        solver,
+        t0,
+        t1,
+        dt0,
+        y0,
+        args=(params, tau_const),
+        saveat=saveat,
+        stepsize_controller=stepsize_controller,
+        max_steps=max_steps,
+        throw=False,
+    )
+    q, qd = sol.ys
+    energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
+    return Solution(sol.ts, q, qd, energy, sol.result, dict(sol.stats))
+
+
+def simulate(
+    system: LagrangianSystem,
+    q0: Coordinates,
+    qd0: Velocities,
+    params: Params,
+    *,
+    t1: float,
+    t0: float = 0.0,
+    ts: Float[Array, " T"] | None = None,
+    n_save: int = 501,
+    tau: Velocities | TauFn | None = None,
+    solver: dfx.AbstractSolver | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt0: float | None = None,
+    max_steps: int = 100_000,
+    saveat: dfx.SaveAt | None = None,
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    throw: bool = True,
+) -> Solution:
+    """Integrate ``M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇`` from ``(q0, q̇0)`` over ``[t0, t1]``.
+
+    The state ``(q, q̇)`` is integrated as a first-order system with diffrax; the
+    accelerations come from :meth:`LagrangianSystem.forward_dynamics` (unchecked inside the
+    solver loop; failures are diagnosed after it, see *Raises*).
+
+    **Arguments:**
+
+    - ``system``, ``q0``, ``qd0``, ``params``: the model, its initial state and parameters.
+    - ``t1``, ``t0``: time interval.
+    - ``ts``: times at which to save; default ``n_save`` evenly spaced points in
+      ``[t0, t1]``. ``saveat`` (a ``diffrax.SaveAt``) overrides both.
+    - ``tau``: input generalized forces, a constant ``(n,)`` array or a function
+      ``tau(t, q, qd) -> (n,)`` (a controller). Added to the system's own ``force``.
+    - ``solver``: a diffrax solver; default ``diffrax.Tsit5()`` (explicit, 5th order,
+      adaptive). Use ``diffrax.Kvaerno5()`` for stiff scenes.
+    - ``rtol``, ``atol``: error-control tolerances of the adaptive step (default 1e-8).
+      Changing them, ``params``, the initial state or ``t1`` does not recompile.
+    - ``dt0``: initial step (default: chosen by diffrax).
+    - ``max_steps``: step budget (accepted + rejected).
+    - ``stepsize_controller``: override the default ``diffrax.PIDController(rtol, atol)``.
+    - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
+      in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
+      need: one bad member does not kill the batch.
+
+    **Returns:** a :class:`Solution`.
+
+    **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
+    for bad input (checked at the initial state), and ``SimulationError`` when the solve
+    fails: the message names the cause (step budget, non-finite state, singular mass
+    matrix), the time reached and what to try.
+
+    **Example:**
+
+    ```python
+    system, params = lagrax.models.planar_2r()
+    sol = lagrax.simulate(system, [0.5, 0.8], [0.0, 0.0], params, t1=10.0)
+    sol.q[-1], sol.energy_error.max()
+    ```
+    """
+    q0, qd0 = system._state(q0, qd0)
+    dtype = jnp.result_type(q0, qd0)
+    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    eager = not _is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau)
+    tau_fn = tau if callable(tau) else None
+    tau_const = None
+    if tau is not None and not callable(tau):
+        (tau_const,) = system._state(q0, tau=tau)[1:]
+        tau_const = system._finite(tau_const.astype(dtype), "tau")
+    if eager:
+        system.check_state(q0, qd0, params)
+        if not float(t1) > float(t0):
+            raise ValueError(f"t1 must be greater than t0, got t0={t0}, t1={t1}")
+    if saveat is None and ts is not None:
+        ts = jnp.asarray(ts, dtype)
+        if ts.ndim != 1:
+            raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
+    tdt = jnp.asarray(0.0, dtype).dtype
+    sol = _solve(
+        system,
+        _default_solver() if solver is None else solver,
+        tau_fn,
+        (q0, qd0),
+        params,
+        tau_const,
+        jnp.asarray(t0, tdt),
+        jnp.asarray(t1, tdt),
+        ts,
+        int(n_save),
+        jnp.asarray(rtol, tdt),
+        jnp.asarray(atol, tdt),
+        None if dt0 is None else jnp.asarray(dt0, tdt),
+        int(max_steps),
+        saveat,
+        stepsize_controller,
+    )
+    if not throw:
+        return sol
+    if not eager:  # inside a user's jit: fail at run time with diffrax's message
+        return eqx.error_if(
+            sol,
+            ~sol.ok,
+            "lagrax.simulate failed (max steps, non-finite state or singular mass "
+            "matrix); call it outside jit, or with throw=False, for a diagnosis",
+        )
+    if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q))):
+        raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
+    return sol
+
+
+def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
+    """A readable account of why a solve failed, from what it saved."""
+    q = np.asarray(sol.q)
+    qd = np.asarray(sol.qd)
+    ts = np.asarray(sol.ts)
+    finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qd), axis=1)
+    last = int(np.nonzero(finite)[0][-1]) if finite.any() else None
+    steps = int(sol.stats["num_steps"])
+    where = (
+        f"the last saved finite state is t={ts[last]:.6g}, q={q[last]}, qd={qd[last]}"
+        if last is not None
+        else "no finite state was saved"
+    )
+    reason = str(dfx.RESULTS[sol.result]) if not bool(sol.ok) else "non-finite values"
+    lines = [f"simulate failed for {system.name}: {reason}", f"  {where}"]
+    if last is not None:
+        try:
+            mass = np.asarray(system.mass_matrix(q[last], params, qd[last]))
+            eigs = np.linalg.eigvalsh(mass)
+            ratio = eigs[0] / max(abs(eigs[-1]), 1e-300)
+            if not ratio > 1e3 * _pivot_threshold(mass.dtype):
+                lines.append(
+                    f"  the mass matrix is (nearly) singular there: eigenvalues {eigs}. "
+                    "The coordinates are singular at this configuration (or a mass/inertia "
+                    "is zero); use coordinates without this singularity."
+                )
+        except (MassMatrixError, ValueError):  # pragma: no cover - diagnosis only
+            pass
+    if sol.result == dfx.RESULTS.max_steps_reached:
+        lines.append(
+            f"  all {steps} steps of max_steps={max_steps} were used (rtol={rtol}, "
+            f"atol={atol}). Try: a larger max_steps; looser tolerances; or, if the scene "
+            "is stiff (stiff springs or dampers), an implicit solver such as "
+            "solver=diffrax.Kvaerno5()."
+        )
+    lines.append(
+        "  Pass throw=False to get the partial Solution (entries past the failure are inf)."
+    )
+    return "\n".join(lines)

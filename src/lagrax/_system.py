@@ -1,0 +1,410 @@
+"""Equations of motion from energies: ``LagrangianSystem``."""
+
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import core as _jax_core
+
+from ._errors import MassMatrixError, NonFiniteError, ParameterError, ShapeError
+from ._linalg import cholesky_solve
+from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
+
+KineticFn = Callable[[Vector, Vector, Params], Scalar]
+PotentialFn = Callable[[Vector, Params], Scalar]
+DissipationFn = Callable[[Vector, Vector, Params], Scalar]
+ForceFn = Callable[[Scalar, Vector, Vector, Params], Vector]
+
+# A mass matrix whose smallest Cholesky pivot is below this multiple of machine epsilon
+# (relative to its largest diagonal entry) is reported as singular.
+_SINGULAR_RTOL = 64.0
+
+
+def _is_traced(*xs: Any) -> bool:
+    return any(isinstance(x, _jax_core.Tracer) for x in jax.tree_util.tree_leaves(xs))
+
+
+def _describe_params(params: Params) -> str:
+    if isinstance(params, dict):
+        return f"params has keys {sorted(map(str, params))}"
+    if hasattr(params, "_fields"):
+        return f"params has fields {list(params._fields)}"
+    return f"params is a {type(params).__name__}"
+
+
+def _call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
+    """Call a user function and turn a missing-parameter lookup into a readable error."""
+    try:
+        return fn(*args, params)
+    except (KeyError, AttributeError) as err:
+        missing = err.args[0] if err.args else "?"
+        raise ParameterError(
+            f"the {role} function looked up {missing!r} in params, which is not there; "
+            f"{_describe_params(params)}. Add the missing entry to params."
+        ) from err
+
+
+def _pivot_threshold(dtype: Any) -> float:
+    return _SINGULAR_RTOL * float(jnp.finfo(dtype).eps)
+
+
+class LagrangianSystem(eqx.Module):
+    r"""A mechanical system given by its energies; its equations of motion by autodiff.
+
+    With ``L(q, q̇) = T(q, q̇) − V(q)``, generalized input forces ``τ``, an applied
+    generalized force ``F(t, q, q̇)`` and a Rayleigh dissipation function ``D(q, q̇)``,
+    the Euler–Lagrange equations
+
+    .. math::  \frac{d}{dt}\frac{∂L}{∂q̇} − \frac{∂L}{∂q} = τ + F − \frac{∂D}{∂q̇}
+
+    expand to ``M(q) q̈ + C(q, q̇) q̇ + G(q) = τ + F − ∂D/∂q̇`` with
+
+    - ``M = ∂²T/∂q̇²`` (``mass_matrix``), symmetric positive-definite for a physical system;
+    - ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q`` (``coriolis``), one forward-over-reverse
+      product, no Jacobian formed;
+    - ``G = ∂V/∂q`` (``gravity``).
+
+    Every method is a pure function of its array arguments and works under ``jax.jit``,
+    ``jax.vmap`` (over states and over ``params``) and ``jax.grad``.
+
+    **Arguments:**
+
+    - ``kinetic``: ``T(q, qd, params) -> scalar``. For a mechanical system, a quadratic
+      form in ``qd`` whose Hessian ``M(q)`` is positive-definite.
+    - ``potential``: ``V(q, params) -> scalar`` (gravity, springs). Optional.
+    - ``dissipation``: Rayleigh ``D(q, qd, params) -> scalar``; the damping force is
+      ``−∂D/∂q̇``. Optional.
+    - ``force``: ``F(t, q, qd, params) -> (n,)`` applied generalized force (controllers,
+      prescribed torques, non-conservative loads). Optional.
+    - ``n_dof``: number of generalized coordinates, if known; inputs of another length are
+      refused with a ``ShapeError`` (without it, ``q`` of any length is passed to ``T``).
+    - ``name``: a label used in messages and plots.
+
+    **Example:**
+
+    ```python
+    import jax.numpy as jnp
+    import lagrax as lx
+
+    def T(q, qd, p):   # simple pendulum of mass m, length l
+        return 0.5 * p["m"] * p["l"] ** 2 * qd[0] ** 2
+
+    def V(q, p):
+        return -p["m"] * p["g"] * p["l"] * jnp.cos(q[0])
+
+    pendulum = lx.LagrangianSystem(T, V, n_dof=1)
+    params = {"m": 1.0, "l": 1.0, "g": 9.81}
+    pendulum.forward_dynamics(jnp.array([0.3]), jnp.array([0.0]), params)  # -g/l sin(0.3)
+    ```
+    """
+
+    kinetic: KineticFn
+    potential: PotentialFn | None = None
+    dissipation: DissipationFn | None = None
+    force: ForceFn | None = None
+    n_dof: int | None = eqx.field(default=None, static=True)
+    name: str = eqx.field(default="system", static=True)
+
+    # ------------------------------------------------------------------ input checks
+    def _coords(self, q: Coordinates, name: str = "q") -> Vector:
+        q = jnp.asarray(q)
+        if not jnp.issubdtype(q.dtype, jnp.floating):
+            q = q.astype(jnp.result_type(float))
+        if q.ndim != 1:
+            raise ShapeError(
+                f"{name} must be a 1-D array of generalized coordinates, got shape {q.shape}"
+                " (use jax.vmap for batches)"
+            )
+        if self.n_dof is not None and q.shape[0] != self.n_dof:
+            raise ShapeError(
+                f"{name} has length {q.shape[0]} but {self.name} has {self.n_dof} degrees "
+                f"of freedom"
+            )
+        return q
+
+    def _state(self, q: Coordinates, qd: Velocities | None = None, **others: Any):
+        q = self._coords(q, "q")
+        out = [q]
+        named = {"qd": qd, **others} if qd is not None else dict(others)
+        for key, value in named.items():
+            if value is None:
+                out.append(None)
+                continue
+            v = self._coords(value, key)
+            if v.shape != q.shape:
+                raise ShapeError(
+                    f"{key} has shape {v.shape} but q has shape {q.shape}; they must match"
+                )
+            out.append(v.astype(jnp.result_type(q, v)))
+        return out
+
+    @staticmethod
+    def _finite(x: jax.Array, name: str) -> jax.Array:
+        """Refuse NaN/inf: eagerly with the value when concrete, by ``error_if`` under jit."""
+        if not _is_traced(x):
+            if not bool(np.all(np.isfinite(np.asarray(x)))):
+                raise NonFiniteError(f"{name} contains non-finite values: {np.asarray(x)}")
+            return x
+        return eqx.error_if(
+            x, ~jnp.all(jnp.isfinite(x)), f"{name} contains non-finite values (NaN or inf)"
+        )
+
+    # ------------------------------------------------------------------ energies
+    def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``T(q, q̇)``."""
+        q, qd = self._state(q, qd)
+        return jnp.asarray(_call_user(self.kinetic, "kinetic energy", params, q, qd))
+
+    def potential_energy(self, q: Coordinates, params: Params) -> Scalar:
+        """``V(q)`` (zero when the system has no potential)."""
+        (q,) = self._state(q)
+        return self._V(q, params)
+
+    def _V(self, q, params):
+        if self.potential is None:
+            return jnp.zeros((), q.dtype)
+        return jnp.asarray(_call_user(self.potential, "potential energy", params, q))
+
+    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """Total mechanical energy ``E = T + V``."""
+        q, qd = self._state(q, qd)
+        return _call_user(self.kinetic, "kinetic energy", params, q, qd) + self._V(q, params)
+
+    def lagrangian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``L = T − V``."""
+        q, qd = self._state(q, qd)
+        return _call_user(self.kinetic, "kinetic energy", params, q, qd) - self._V(q, params)
+
+    def momentum(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Generalized momenta ``p = ∂L/∂q̇`` (one reverse pass of ``T``)."""
+        q, qd = self._state(q, qd)
+        return self._grad_T(q, qd, params)[1]
+
+    def hamiltonian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``H = p·q̇ − L``; equals ``T + V`` when ``T`` is quadratic in ``q̇``."""
+        q, qd = self._state(q, qd)
+        p = self._grad_T(q, qd, params)[1]
+        t = _call_user(self.kinetic, "kinetic energy", params, q, qd)
+        return jnp.dot(p, qd) - (t - self._V(q, params))
+
+    # ------------------------------------------------------------------ derivatives
+    def _grad_T(self, q, qd, params):
+        """``(∂T/∂q, ∂T/∂q̇)`` in one reverse pass."""
+        return jax.grad(
+            lambda a, b: _call_user(self.kinetic, "kinetic energy", params, a, b),
+            argnums=(0, 1),
+        )(q, qd)
+
+    def _mass_columns(self, q, qd, params, extra_q_tangent=None):
+        """Forward-over-reverse: ``M = ∂p/∂q̇`` column by column, plus optionally
+        ``(∂p/∂q) v`` for a tangent ``v`` in ``q``; returns ``(∂T/∂q, p, M, (∂p/∂q) v)``.
+
+        All tangents go through one vmapped JVP of the gradient of ``T``.
+        """
+        n = q.shape[0]
+        eye = jnp.eye(n, dtype=q.dtype)
+        tq = jnp.zeros((n, n), q.dtype)
+        if extra_q_tangent is not None:
+            tq = jnp.concatenate([tq, extra_q_tangent[None]], axis=0)
+            eye = jnp.concatenate([eye, jnp.zeros((1, n), q.dtype)], axis=0)
+
+        def along(dq, dqd):
+            return jax.jvp(lambda a, b: self._grad_T(a, b, params), (q, qd), (dq, dqd))
+
+        (tq_grad, p), (_, dp) = jax.vmap(along)(tq, eye)
+        tq_grad, p = tq_grad[0], p[0]
+        mass = dp[:n].T
+        extra = dp[n] if extra_q_tangent is not None else None
+        return tq_grad, p, mass, extra
+
+    def mass_matrix(
+        self, q: Coordinates, params: Params, qd: Velocities | None = None
+    ) -> Matrix:
+        """Mass (inertia) matrix ``M(q) = ∂²T/∂q̇²``, shape ``(n, n)``.
+
+        Formed by ``n`` JVPs of ``∂T/∂q̇`` (forward-over-reverse). For a ``T`` quadratic in
+        ``q̇`` the result does not depend on ``qd`` (default: zero velocities).
+        """
+        q, qd = self._state(q, jnp.zeros_like(jnp.asarray(q)) if qd is None else qd)
+        return self._mass_columns(q, qd, params)[2]
+
+    def coriolis(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Coriolis and centrifugal forces ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``.
+
+        One JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, 0)``; no matrix is formed.
+        """
+        q, qd = self._state(q, qd)
+        return self._coriolis(q, qd, params)
+
+    def _coriolis(self, q, qd, params):
+        (t_q, _), (_, dp) = jax.jvp(
+            lambda a: self._grad_T(a, qd, params), (q,), (qd,)
+        )
+        return dp - t_q
+
+    def coriolis_matrix(self, q: Coordinates, qd: Velocities, params: Params) -> Matrix:
+        r"""Coriolis matrix ``C(q, q̇)`` in Christoffel form.
+
+        ``C_ij = Σ_k Γ_ijk q̇_k`` with ``Γ_ijk = ½(∂M_ij/∂q_k + ∂M_ik/∂q_j − ∂M_jk/∂q_i)``,
+        computed as ``C = ½(Ṁ + A − Aᵀ)`` with ``Ṁ = (∂M/∂q)·q̇`` (one JVP of ``M``) and
+        ``A = ∂(M(q) q̇)/∂q``. With this choice ``Ṁ − 2C = Aᵀ − A`` is skew-symmetric and,
+        for ``T = ½ q̇ᵀ M(q) q̇``, ``C q̇`` equals :meth:`coriolis`.
+        """
+        q, qd = self._state(q, qd)
+
+        def m_of(a):
+            return self._mass_columns(a, qd, params)[2]
+
+        m_dot = jax.jvp(m_of, (q,), (qd,))[1]
+        a_mat = jax.jacfwd(lambda a: m_of(a) @ qd)(q)
+        return 0.5 * (m_dot + a_mat - a_mat.T)
+
+    def gravity(self, q: Coordinates, params: Params) -> Vector:
+        """Potential forces ``G(q) = ∂V/∂q`` (gravity, springs), shape ``(n,)``."""
+        (q,) = self._state(q)
+        return self._gravity(q, params)
+
+    def _gravity(self, q, params):
+        if self.potential is None:
+            return jnp.zeros_like(q)
+        return jax.grad(lambda a: self._V(a, params))(q)
+
+    def damping(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Dissipative force magnitude ``∂D/∂q̇`` (the force acting is its negative)."""
+        q, qd = self._state(q, qd)
+        return self._damping(q, qd, params)
+
+    def _damping(self, q, qd, params):
+        if self.dissipation is None:
+            return jnp.zeros_like(q)
+        return jax.grad(
+            lambda b: _call_user(self.dissipation, "dissipation", params, q, b)
+        )(qd)
+
+    def _applied(self, t, q, qd, params, tau):
+        """Right-hand generalized force ``τ + F(t, q, q̇) − ∂D/∂q̇`` (without potential)."""
+        f = -self._damping(q, qd, params)
+        if tau is not None:
+            f = f + tau
+        if self.force is not None:
+            out = jnp.asarray(_call_user(self.force, "force", params, t, q, qd))
+            if out.shape != q.shape:
+                raise ShapeError(
+                    f"the force function returned shape {out.shape}, expected {q.shape}"
+                )
+            f = f + out
+        return f
+
+    # ------------------------------------------------------------------ dynamics
+    def _forward(self, t, q, qd, params, tau):
+        """Unchecked forward dynamics: ``(q̈, pivot_ratio)``; NaN where ``M`` is not PD."""
+        t_q, _, mass, dp_q = self._mass_columns(q, qd, params, extra_q_tangent=qd)
+        rhs = self._applied(t, q, qd, params, tau) + t_q - dp_q - self._gravity(q, params)
+        return cholesky_solve(mass, rhs)
+
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Accelerations ``q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)``.
+
+        ``M`` and ``(∂²T/∂q̇∂q) q̇`` come from one vmapped forward-over-reverse pass over
+        ``T``; the solve is a Cholesky factorization (unrolled for small ``n``), never an
+        inverse.
+
+        **Raises:** ``ShapeError`` for mismatched shapes; ``NonFiniteError`` for NaN/inf
+        inputs; ``MassMatrixError`` when ``M(q)`` is singular or not positive-definite.
+        Under ``jit`` the last two are raised at run time by ``equinox.error_if``.
+        """
+        q, qd, tau = self._state(q, qd, tau=tau)
+        q = self._finite(q, "q")
+        qd = self._finite(qd, "qd")
+        if tau is not None:
+            tau = self._finite(tau, "tau")
+        qdd, ratio = self._forward(t, q, qd, params, tau)
+        return self._check_pivots(qdd, ratio, q)
+
+    def _check_pivots(self, x, ratio, q):
+        bad = ~(ratio > _pivot_threshold(q.dtype))
+        if not _is_traced(ratio, x):
+            if bool(bad):
+                raise MassMatrixError(self._mass_message(q, None))
+            return x
+        return eqx.error_if(
+            x,
+            bad,
+            f"mass matrix M(q) = d2T/dqd2 of {self.name} is singular or not "
+            "positive-definite at this state: check that T is quadratic in qd with "
+            "positive masses and inertias, or change coordinates if q is a singular "
+            "configuration. Outside jit, system.check_state(q, qd, params) reports the "
+            "eigenvalues.",
+        )
+
+    def _mass_message(self, q, params_eigs) -> str:
+        return (
+            f"mass matrix M(q) = d2T/dqd2 of {self.name} is singular or not "
+            f"positive-definite at q={np.asarray(q)}"
+            + (f" (eigenvalues {params_eigs})" if params_eigs is not None else "")
+            + ": check that T is quadratic in qd with positive masses and inertias, or "
+            "change coordinates if q is a singular configuration of them"
+        )
+
+    def inverse_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        qdd: Velocities,
+        params: Params,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Input forces ``τ = M q̈ + C q̇ + G + ∂D/∂q̇ − F`` that produce ``q̈``.
+
+        Computed without forming ``M``: one JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, q̈)``
+        gives ``d/dt ∂T/∂q̇ = M q̈ + (∂²T/∂q̇∂q) q̇``. ``F`` is the system's own applied
+        force, so ``τ`` is what must be added to it.
+        """
+        q, qd, qdd = self._state(q, qd, qdd=qdd)
+        (t_q, _), (_, dp) = jax.jvp(
+            lambda a, b: self._grad_T(a, b, params), (q, qd), (qd, qdd)
+        )
+        applied = self._applied(t, q, qd, params, None)
+        return dp - t_q + self._gravity(q, params) - applied
+
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params) -> None:
+        """Validate a state eagerly (outside ``jit``) with the values in the messages.
+
+        Checks shapes, finiteness of ``q``, ``q̇``, ``params`` and the energies, that every
+        parameter the energies read is present, and that ``M(q)`` is symmetric
+        positive-definite (reporting its eigenvalues if not).
+
+        **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``,
+        ``MassMatrixError``.
+        """
+        q, qd = self._state(q, qd)
+        self._finite(q, "q")
+        self._finite(qd, "qd")
+        for path, leaf in jax.tree_util.tree_leaves_with_path(params):
+            if isinstance(leaf, (int, float, complex, np.ndarray, jax.Array)):
+                if not bool(np.all(np.isfinite(np.asarray(leaf)))):
+                    raise NonFiniteError(
+                        f"params{jax.tree_util.keystr(path)} is not finite: {leaf}"
+                    )
+        e = self.energy(q, qd, params)
+        if not bool(jnp.isfinite(e)):
+            raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
+        mass = np.asarray(self.mass_matrix(q, params, qd))
+        if not np.all(np.isfinite(mass)):
+            raise MassMatrixError(f"mass matrix is not finite at q={np.asarray(q)}: {mass}")
+        asym = np.max(np.abs(mass - mass.T))
+        if asym > 1e3 * np.finfo(mass.dtype).eps * max(np.max(np.abs(mass)), 1e-300):
+            raise MassMatrixError(f"mass matrix is not symmetric at q={np.asarray(q)}")
+        eigs = np.linalg.eigvalsh(mass)
+        if not eigs[0] > _pivot_threshold(mass.dtype) * max(np.max(np.abs(eigs)), 0.0):
+            raise MassMatrixError(self._mass_message(q, eigs))
