@@ -72,7 +72,7 @@ class _VectorField(eqx.Module):
                 )
             if tau_const is not None:
                 tau = tau + tau_const
-        qdd, _ = self.system._forward(t, q, qd, params, tau)
+        qdd = self.system._forward(t, q, qd, params, tau)
         return qd, qdd
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from jax import core as _jax_core
 
 from ._errors import MassMatrixError, NonFiniteError, ParameterError, ShapeError
-from ._linalg import cholesky_solve
+from ._linalg import PIVOT_RTOL, cholesky_solve, solve_spd_unrolled
 from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
 KineticFn = Callable[[Vector, Vector, Params], Scalar]
@@ -18,9 +18,8 @@ PotentialFn = Callable[[Vector, Params], Scalar]
 DissipationFn = Callable[[Vector, Vector, Params], Scalar]
 ForceFn = Callable[[Scalar, Vector, Vector, Params], Vector]
 
-# A mass matrix whose smallest Cholesky pivot is below this multiple of machine epsilon
-# (relative to its largest diagonal entry) is reported as singular.
-_SINGULAR_RTOL = 64.0
+# Up to this many coordinates, forward dynamics uses scalar forward-over-forward derivatives.
+_FOF_MAX = 6
 
 
 def _is_traced(*xs: Any) -> bool:
@@ -48,7 +47,8 @@ def _call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
 
 
 def _pivot_threshold(dtype: Any) -> float:
-    return _SINGULAR_RTOL * float(jnp.finfo(dtype).eps)
+    """Relative size below which a mass-matrix pivot/eigenvalue counts as singular."""
+    return PIVOT_RTOL * float(jnp.finfo(dtype).eps)
 
 
 class LagrangianSystem(eqx.Module):
@@ -299,11 +299,49 @@ class LagrangianSystem(eqx.Module):
         return f
 
     # ------------------------------------------------------------------ dynamics
+    def _eom_small(self, q, qd, params):
+        """``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` as lists of scalars, by scalar
+        forward-over-forward derivatives.
+
+        For small ``n`` this beats forward-over-reverse: every derivative is a straight
+        line of scalar arithmetic on the primal values, which XLA fuses into one loop with
+        each transcendental evaluated once. It costs ``n(n+1)/2 + n`` second-order and
+        ``n`` first-order directional derivatives of ``L``, so it is used for
+        ``n <= _FOF_MAX`` only.
+        """
+        n = q.shape[0]
+        basis = [jnp.asarray(np.eye(n)[i], q.dtype) for i in range(n)]
+        zero = jnp.zeros_like(q)
+
+        def lag(a, b):
+            t = _call_user(self.kinetic, "kinetic energy", params, a, b)
+            return t - self._V(a, params)
+
+        def p_i(i):  # q, q̇ -> ∂L/∂q̇_i
+            return lambda a, b: jax.jvp(lag, (a, b), (zero, basis[i]))[1]
+
+        rows = [[None] * n for _ in range(n)]
+        rhs = []
+        for i in range(n):
+            for j in range(i, n):
+                mij = jax.jvp(lambda b, i=i: p_i(i)(q, b), (qd,), (basis[j],))[1]
+                rows[i][j] = rows[j][i] = mij
+            l_q = jax.jvp(lag, (q, qd), (basis[i], zero))[1]
+            mixed = jax.jvp(lambda a, i=i: p_i(i)(a, qd), (q,), (qd,))[1]
+            rhs.append(l_q - mixed)
+        return rows, rhs
+
     def _forward(self, t, q, qd, params, tau):
-        """Unchecked forward dynamics: ``(q̈, pivot_ratio)``; NaN where ``M`` is not PD."""
+        """Forward dynamics without raising: ``q̈``, NaN where ``M`` is not PD."""
+        applied = self._applied(t, q, qd, params, tau)
+        if q.shape[0] <= _FOF_MAX:
+            rows, rhs = self._eom_small(q, qd, params)
+            if tau is not None or self.force is not None or self.dissipation is not None:
+                rhs = [r + applied[i] for i, r in enumerate(rhs)]
+            return solve_spd_unrolled(rows, rhs)
         t_q, _, mass, dp_q = self._mass_columns(q, qd, params, extra_q_tangent=qd)
-        rhs = self._applied(t, q, qd, params, tau) + t_q - dp_q - self._gravity(q, params)
-        return cholesky_solve(mass, rhs)
+        rhs = t_q - dp_q - self._gravity(q, params)
+        return cholesky_solve(mass, rhs + applied)
 
     def forward_dynamics(
         self,
@@ -324,27 +362,28 @@ class LagrangianSystem(eqx.Module):
         Under ``jit`` the last two are raised at run time by ``equinox.error_if``.
         """
         q, qd, tau = self._state(q, qd, tau=tau)
-        q = self._finite(q, "q")
-        qd = self._finite(qd, "qd")
-        if tau is not None:
-            tau = self._finite(tau, "tau")
-        qdd, ratio = self._forward(t, q, qd, params, tau)
-        return self._check_pivots(qdd, ratio, q)
-
-    def _check_pivots(self, x, ratio, q):
-        bad = ~(ratio > _pivot_threshold(q.dtype))
-        if not _is_traced(ratio, x):
-            if bool(bad):
+        if not _is_traced(q, qd, tau, params, t):
+            # eager: precise messages with the offending values
+            self._finite(q, "q")
+            self._finite(qd, "qd")
+            if tau is not None:
+                self._finite(tau, "tau")
+            qdd = self._forward(t, q, qd, params, tau)
+            if not bool(jnp.all(jnp.isfinite(qdd))):
+                self.check_state(q, qd, params)  # raises with the eigenvalues
                 raise MassMatrixError(self._mass_message(q, None))
-            return x
+            return qdd
+        # traced: one check on the output (NaN inputs and a non-PD mass matrix both make
+        # it non-finite); checking the output keeps XLA from splitting the fused kernel.
+        qdd = self._forward(t, q, qd, params, tau)
         return eqx.error_if(
-            x,
-            bad,
-            f"mass matrix M(q) = d2T/dqd2 of {self.name} is singular or not "
-            "positive-definite at this state: check that T is quadratic in qd with "
-            "positive masses and inertias, or change coordinates if q is a singular "
-            "configuration. Outside jit, system.check_state(q, qd, params) reports the "
-            "eigenvalues.",
+            qdd,
+            ~jnp.all(jnp.isfinite(qdd)),
+            f"forward_dynamics of {self.name} produced non-finite accelerations: q, qd, "
+            "tau or params contain NaN/inf, or the mass matrix M(q) = d2T/dqd2 is "
+            "singular or not positive-definite at this state (check that T is quadratic "
+            "in qd with positive masses and inertias, or change coordinates if q is a "
+            "singular configuration). Outside jit the message names which.",
         )
 
     def _mass_message(self, q, params_eigs) -> str:

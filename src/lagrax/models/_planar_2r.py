@@ -38,8 +38,8 @@ def kinetic(q, qd, p):
 
 def potential(q, p):
     """``V = g (m1 y_c1 + m2 y_c2)`` with gravity along −y."""
-    c1, c2 = _com_positions(q, p)
-    return p["g"] * (p["m1"] * c1[1] + p["m2"] * c2[1])
+    s1, s12 = jnp.sin(q[0]), jnp.sin(q[0] + q[1])
+    return p["g"] * (p["m1"] * p["r1"] * s1 + p["m2"] * (p["l1"] * s1 + p["r2"] * s12))
 
 
 def default_params(dtype=None) -> dict:
