@@ -15,8 +15,8 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import models as models  # noqa: E402
-from . import plot as plot  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
+from . import plot as plot  # noqa: E402
 from ._errors import LagraxError as LagraxError  # noqa: E402
 from ._errors import MassMatrixError as MassMatrixError  # noqa: E402
 from ._errors import NonFiniteError as NonFiniteError  # noqa: E402

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
-from ._errors import MassMatrixError, ShapeError, SimulationError
+from ._errors import ShapeError, SimulationError
 from ._system import LagrangianSystem, _is_traced, _pivot_threshold
 from ._typing import Coordinates, Params, Velocities
 
@@ -28,6 +28,8 @@ class Solution(eqx.Module):
     - ``result``: diffrax's result code (``diffrax.RESULTS``); ``ok`` tells success.
     - ``stats``: solver counters (``num_steps``, ``num_accepted_steps``,
       ``num_rejected_steps``, ``max_steps``).
+    - ``t_end``, ``q_end``, ``qd_end``: the last state the solver reached: ``t1`` on
+      success, the time it stopped at on failure (with a custom ``saveat``, the last save).
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
     (diffrax's fill value), never silently wrong numbers; check ``ok`` first.
@@ -39,6 +41,9 @@ class Solution(eqx.Module):
     energy: Float[Array, " T"]
     result: dfx.RESULTS
     stats: dict[str, Int[Array, ""]]
+    t_end: Float[Array, ""]
+    q_end: Float[Array, " n"]
+    qd_end: Float[Array, " n"]
 
     @property
     def ok(self) -> Array:
@@ -95,10 +100,12 @@ def _solve(
     saveat: dfx.SaveAt | None,
     stepsize_controller: dfx.AbstractStepSizeController | None,
 ):
-    if saveat is None:
+    own_saveat = saveat is None
+    if own_saveat:
         if ts is None:
             ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, n_save, dtype=t0.dtype)
-        saveat = dfx.SaveAt(ts=ts)
+        saveat = dfx.SaveAt(ts=ts, t1=True)  # the extra last entry: where the solve ended
+    requested_ts = ts
     if stepsize_controller is None:
         stepsize_controller = dfx.PIDController(rtol=rtol, atol=atol)
     sol = dfx.diffeqsolve(
@@ -115,8 +122,21 @@ def _solve(
         throw=False,
     )
     q, qd = sol.ys
+    ts = sol.ts
+    # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
+    # failure diffrax writes it into the first unreached slot, so unreached slots (whose
+    # time differs from the requested one) are reset to inf.
+    last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
+    t_end, q_end, qd_end = ts[last], q[last], qd[last]
+    if own_saveat:
+        ts, q, qd = ts[:-1], q[:-1], qd[:-1]
+        reached = ts == requested_ts
+        inf = jnp.asarray(jnp.inf, q.dtype)
+        ts = jnp.where(reached, ts, inf)
+        q = jnp.where(reached[:, None], q, inf)
+        qd = jnp.where(reached[:, None], qd, inf)
     energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
-    return Solution(sol.ts, q, qd, energy, sol.result, dict(sol.stats))
+    return Solution(ts, q, qd, energy, sol.result, dict(sol.stats), t_end, q_end, qd_end)
 
 
 def simulate(
@@ -224,39 +244,42 @@ def simulate(
             "lagrax.simulate failed (max steps, non-finite state or singular mass "
             "matrix); call it outside jit, or with throw=False, for a diagnosis",
         )
-    if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q))):
+    if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q) & jnp.isfinite(sol.qd))):
         raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
     return sol
 
 
 def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
-    """A readable account of why a solve failed, from what it saved."""
-    q = np.asarray(sol.q)
-    qd = np.asarray(sol.qd)
-    ts = np.asarray(sol.ts)
-    finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qd), axis=1)
-    last = int(np.nonzero(finite)[0][-1]) if finite.any() else None
+    """A readable account of why a solve failed, from the state where it stopped."""
+    t_end = float(sol.t_end)
+    q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
     steps = int(sol.stats["num_steps"])
-    where = (
-        f"the last saved finite state is t={ts[last]:.6g}, q={q[last]}, qd={qd[last]}"
-        if last is not None
-        else "no finite state was saved"
-    )
     reason = str(dfx.RESULTS[sol.result]) if not bool(sol.ok) else "non-finite values"
-    lines = [f"simulate failed for {system.name}: {reason}", f"  {where}"]
-    if last is not None:
-        try:
-            mass = np.asarray(system.mass_matrix(q[last], params, qd[last]))
-            eigs = np.linalg.eigvalsh(mass)
-            ratio = eigs[0] / max(abs(eigs[-1]), 1e-300)
-            if not ratio > 1e3 * _pivot_threshold(mass.dtype):
-                lines.append(
-                    f"  the mass matrix is (nearly) singular there: eigenvalues {eigs}. "
-                    "The coordinates are singular at this configuration (or a mass/inertia "
-                    "is zero); use coordinates without this singularity."
-                )
-        except (MassMatrixError, ValueError):  # pragma: no cover - diagnosis only
-            pass
+    lines = [
+        f"simulate failed for {system.name}: {reason}",
+        f"  the solver stopped at t={t_end:.6g} with q={q_end}, qd={qd_end}",
+    ]
+    finite_state = np.all(np.isfinite(q_end)) and np.all(np.isfinite(qd_end))
+    if not finite_state:
+        lines.append("  the state itself is non-finite there (it blew up)")
+    else:
+        qdd = np.asarray(system._forward(sol.t_end, sol.q_end, sol.qd_end, params, None))
+        eigs = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q_end, params, qd_end)))
+        q0, qd0 = np.asarray(sol.q[0]), np.asarray(sol.qd[0])
+        eigs0 = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q0, params, qd0)))
+        tiny = 1e3 * _pivot_threshold(eigs.dtype)
+        # singular relative to its own largest eigenvalue, or collapsed since the start
+        if not (eigs[0] > tiny * max(abs(eigs[-1]), 1e-300) and eigs[0] > 1e-6 * eigs0[0]):
+            lines.append(
+                f"  the mass matrix is (nearly) singular there (eigenvalues {eigs}): the "
+                "coordinates are singular at this configuration, or a mass/inertia is zero. "
+                "Use coordinates without this singularity."
+            )
+        elif not np.all(np.isfinite(qdd)):
+            lines.append(
+                "  the accelerations are non-finite there: check the force/tau functions "
+                "and the energies for divisions by zero or overflow"
+            )
     if sol.result == dfx.RESULTS.max_steps_reached:
         lines.append(
             f"  all {steps} steps of max_steps={max_steps} were used (rtol={rtol}, "

@@ -1,6 +1,6 @@
 """Ready-made scenes: each returns ``(system, params)`` with default parameter values."""
 
-from ._planar_2r import planar_2r as planar_2r
 from ._mass_spring_damper import mass_spring_damper as mass_spring_damper
+from ._planar_2r import planar_2r as planar_2r
 
 __all__ = ["planar_2r", "mass_spring_damper"]
