@@ -435,10 +435,10 @@ class LagrangianSystem(eqx.Module):
                     raise NonFiniteError(
                         f"params{jax.tree_util.keystr(path)} is not finite: {leaf}"
                     )
-        e = self.energy(q, qd, params)
+        e, mass = _energy_and_mass(self, q, qd, params)  # one compiled call
         if not bool(jnp.isfinite(e)):
             raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
-        mass = np.asarray(self.mass_matrix(q, params, qd))
+        mass = np.asarray(mass)
         if not np.all(np.isfinite(mass)):
             raise MassMatrixError(f"mass matrix is not finite at q={np.asarray(q)}: {mass}")
         asym = np.max(np.abs(mass - mass.T))
@@ -447,3 +447,8 @@ class LagrangianSystem(eqx.Module):
         eigs = np.linalg.eigvalsh(mass)
         if not eigs[0] > _pivot_threshold(mass.dtype) * max(np.max(np.abs(eigs)), 0.0):
             raise MassMatrixError(self._mass_message(q, eigs))
+
+
+@eqx.filter_jit
+def _energy_and_mass(system: LagrangianSystem, q, qd, params):
+    return system.energy(q, qd, params), system.mass_matrix(q, params, qd)
