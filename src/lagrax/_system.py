@@ -353,9 +353,10 @@ class LagrangianSystem(eqx.Module):
     ) -> Vector:
         """Accelerations ``q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)``.
 
-        ``M`` and ``(∂²T/∂q̇∂q) q̇`` come from one vmapped forward-over-reverse pass over
-        ``T``; the solve is a Cholesky factorization (unrolled for small ``n``), never an
-        inverse.
+        For ``n <= 6``, ``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` come from scalar
+        forward-over-forward directional derivatives of ``L`` (straight-line code that XLA
+        fuses into one kernel); above, from one vmapped forward-over-reverse pass. The
+        solve is a Cholesky factorization (unrolled for ``n <= 8``), never an inverse.
 
         **Raises:** ``ShapeError`` for mismatched shapes; ``NonFiniteError`` for NaN/inf
         inputs; ``MassMatrixError`` when ``M(q)`` is singular or not positive-definite.
