@@ -38,6 +38,8 @@ def test_partial_solution_keeps_finished_part_and_marks_the_rest():
     assert 0 < reached.sum() < 41
     assert not np.any(np.isnan(np.asarray(part.q)))  # unreached entries are inf, not NaN
     assert np.all(np.isinf(np.asarray(part.q)[~reached]))
+    assert not np.any(np.isnan(np.asarray(part.energy)))
+    assert np.all(np.isinf(np.asarray(part.energy)[~reached]))
     np.testing.assert_allclose(part.q[reached], full.q[reached], rtol=1e-6, atol=1e-8)
     assert 0.0 < float(part.t_end) < 2.0
     assert float(full.t_end) == 2.0

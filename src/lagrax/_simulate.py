@@ -1,7 +1,5 @@
 """One trajectory: ``simulate`` and its ``Solution``, on diffrax."""
 
-from collections.abc import Callable
-from typing import Any
 
 import diffrax as dfx
 import equinox as eqx
@@ -13,8 +11,7 @@ from jaxtyping import Array, Float, Int
 from ._errors import ShapeError, SimulationError
 from ._system import LagrangianSystem, _is_traced, _pivot_threshold
 from ._typing import Coordinates, Params, Velocities
-
-TauFn = Callable[[Any, Array, Array], Array]
+from ._vector_field import LagrangianVectorField, TauFn
 
 
 class Solution(eqx.Module):
@@ -61,26 +58,6 @@ def _default_solver():
     return dfx.Tsit5()
 
 
-class _VectorField(eqx.Module):
-    system: LagrangianSystem
-    tau_fn: TauFn | None
-
-    def __call__(self, t, y, args):
-        q, qd = y
-        params, tau_const = args
-        tau = tau_const
-        if self.tau_fn is not None:
-            tau = jnp.asarray(self.tau_fn(t, q, qd), q.dtype)
-            if tau.shape != q.shape:
-                raise ShapeError(
-                    f"tau(t, q, qd) returned shape {tau.shape}; expected {q.shape}"
-                )
-            if tau_const is not None:
-                tau = tau + tau_const
-        qdd = self.system._forward(t, q, qd, params, tau)
-        return qd, qdd
-
-
 @eqx.filter_jit
 def _solve(
     system: LagrangianSystem,
@@ -109,7 +86,7 @@ def _solve(
     if stepsize_controller is None:
         stepsize_controller = dfx.PIDController(rtol=rtol, atol=atol)
     sol = dfx.diffeqsolve(
-        dfx.ODETerm(_VectorField(system, tau_fn)),
+        dfx.ODETerm(LagrangianVectorField(system, tau_fn)),
         solver,
         t0,
         t1,
@@ -136,6 +113,7 @@ def _solve(
         q = jnp.where(reached[:, None], q, inf)
         qd = jnp.where(reached[:, None], qd, inf)
     energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
+    energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
     return Solution(ts, q, qd, energy, sol.result, dict(sol.stats), t_end, q_end, qd_end)
 
 
@@ -199,6 +177,10 @@ def simulate(
     sol.q[-1], sol.energy_error.max()
     ```
     """
+    # Python scalars in params would be static under filter_jit (a recompile per value)
+    params = jax.tree_util.tree_map(
+        lambda x: jnp.asarray(x) if isinstance(x, (bool, int, float, complex)) else x, params
+    )
     q0, qd0 = system._state(q0, qd0)
     dtype = jnp.result_type(q0, qd0)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)

@@ -1,6 +1,6 @@
 """Equations of motion from energies: ``LagrangianSystem``."""
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import equinox as eqx
@@ -34,12 +34,25 @@ def _describe_params(params: Params) -> str:
     return f"params is a {type(params).__name__}"
 
 
+def _is_params_lookup(err: Exception, params: Params) -> bool:
+    """Did ``err`` come from looking up a missing entry of ``params`` itself?"""
+    if isinstance(err, KeyError):
+        key = err.args[0] if err.args else None
+        try:
+            return isinstance(params, Mapping) and key not in params
+        except TypeError:  # unhashable key
+            return False
+    return getattr(err, "obj", None) is params  # AttributeError on a NamedTuple/Module
+
+
 def _call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
     """Call a user function and turn a missing-parameter lookup into a readable error."""
     try:
         return fn(*args, params)
     except (KeyError, AttributeError) as err:
-        missing = err.args[0] if err.args else "?"
+        if not _is_params_lookup(err, params):
+            raise
+        missing = err.args[0] if isinstance(err, KeyError) else getattr(err, "name", "?")
         raise ParameterError(
             f"the {role} function looked up {missing!r} in params, which is not there; "
             f"{_describe_params(params)}. Add the missing entry to params."
@@ -371,8 +384,14 @@ class LagrangianSystem(eqx.Module):
                 self._finite(tau, "tau")
             qdd = self._forward(t, q, qd, params, tau)
             if not bool(jnp.all(jnp.isfinite(qdd))):
-                self.check_state(q, qd, params)  # raises with the eigenvalues
-                raise MassMatrixError(self._mass_message(q, None))
+                self.check_state(q, qd, params)  # raises if M(q) or the energies are bad
+                applied = self._applied(t, q, qd, params, tau)
+                raise NonFiniteError(
+                    f"forward_dynamics of {self.name} is not finite at q={np.asarray(q)}, "
+                    f"qd={np.asarray(qd)} although the mass matrix and energies are: the "
+                    f"applied force tau + force - dD/dqd = {np.asarray(applied)}; check the "
+                    "force, dissipation and tau, and the derivatives of T and V there"
+                )
             return qdd
         # traced: one check on the output (NaN inputs and a non-PD mass matrix both make
         # it non-finite); checking the output keeps XLA from splitting the fused kernel.

@@ -1,0 +1,61 @@
+"""The first-order vector field ``(q, q̇) ↦ (q̇, q̈)`` that simulate hands to diffrax.
+
+It also carries the ``LagrangianSystem`` and the inputs, so that solvers which work with
+the Lagrangian itself (the variational integrators) can reach them through the term.
+"""
+
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array
+
+from ._errors import ShapeError
+from ._system import LagrangianSystem
+
+TauFn = Callable[[Any, Array, Array], Array]
+
+
+class LagrangianVectorField(eqx.Module):
+    """``f(t, (q, q̇), (params, tau_const)) = (q̇, q̈)`` for a ``LagrangianSystem``."""
+
+    system: LagrangianSystem
+    tau_fn: TauFn | None = None
+
+    def tau(self, t, q, qd, tau_const):
+        """The input generalized force at ``(t, q, q̇)`` (``None`` when there is none)."""
+        tau = tau_const
+        if self.tau_fn is not None:
+            tau = jnp.asarray(self.tau_fn(t, q, qd), q.dtype)
+            if tau.shape != q.shape:
+                raise ShapeError(f"tau(t, q, qd) returned shape {tau.shape}; expected {q.shape}")
+            if tau_const is not None:
+                tau = tau + tau_const
+        return tau
+
+    def applied(self, t, q, qd, args):
+        """Non-conservative generalized force ``τ + F(t, q, q̇) − ∂D/∂q̇``."""
+        params, tau_const = args
+        return self.system._applied(t, q, qd, params, self.tau(t, q, qd, tau_const))
+
+    def __call__(self, t, y, args):
+        q, qd = y
+        params, tau_const = args
+        qdd = self.system._forward(t, q, qd, params, self.tau(t, q, qd, tau_const))
+        return qd, qdd
+
+
+def lagrangian_field_of(terms) -> LagrangianVectorField:
+    """Find the ``LagrangianVectorField`` inside (possibly wrapped) diffrax terms."""
+    term = terms
+    while hasattr(term, "term"):  # diffrax.WrapTerm and friends
+        term = term.term
+    field = getattr(term, "vector_field", None)
+    if not isinstance(field, LagrangianVectorField):
+        raise TypeError(
+            "this solver integrates a LagrangianSystem and needs the term built by "
+            "lagrax.simulate (diffrax.ODETerm(LagrangianVectorField(system))); got "
+            f"{type(term).__name__} with vector field {type(field).__name__}"
+        )
+    return field

@@ -1,0 +1,54 @@
+"""Shared configuration and fixtures for the lagrax test suite.
+
+64-bit mode is switched on before anything else imports JAX (lagrax does it too, but the
+tests must not depend on that), and implicit rank promotion is an error so that a
+broadcasting slip in the library (or in a test) fails loudly.
+"""
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+jax.config.update("jax_numpy_rank_promotion", "raise")
+
+import os  # noqa: E402
+
+import pytest  # noqa: E402
+from hypothesis import HealthCheck, settings  # noqa: E402
+
+import lagrax  # noqa: E402
+
+settings.register_profile(
+    "lagrax",
+    max_examples=30,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "thorough",
+    max_examples=500,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "lagrax"))
+
+
+@pytest.fixture(scope="session")
+def arm():
+    """``(system, params)`` of the default planar 2R arm (shared, so compiled code is reused)."""
+    return lagrax.models.planar_2r()
+
+
+@pytest.fixture(scope="session")
+def arm_system(arm):
+    return arm[0]
+
+
+@pytest.fixture(scope="session")
+def arm_params(arm):
+    return arm[1]
+
+
+@pytest.fixture(scope="session")
+def msd():
+    """``(system, params)`` of the default mass–spring–damper."""
+    return lagrax.models.mass_spring_damper()
