@@ -34,6 +34,17 @@ def main(argv=None):
     qd = jax.random.uniform(k2, (args.batch, 2), minval=-3.0, maxval=3.0)
     tau = jax.random.uniform(k3, (args.batch, 2), minval=-5.0, maxval=5.0)
 
+    T = lx.models._planar_2r.kinetic
+    V = lx.models._planar_2r.potential
+
+    def naive(q, qd, tau):
+        """The textbook autodiff right-hand side: Hessians and a LAPACK solve."""
+        m = jax.hessian(T, argnums=1)(q, qd, params)
+        mixed = jax.jacfwd(jax.grad(T, argnums=1), argnums=0)(q, qd, params)
+        rhs = tau + jax.grad(T, argnums=0)(q, qd, params) - mixed @ qd
+        rhs = rhs - jax.grad(V)(q, params)
+        return jnp.linalg.solve(m, rhs)
+
     variants = {
         "closed form (hand-written JAX)": lambda a, b, u: forward_dynamics_2r(a, b, params, u),
         "lagrax forward_dynamics (checked)": lambda a, b, u: system.forward_dynamics(
@@ -42,6 +53,7 @@ def main(argv=None):
         "lagrax, unchecked (as inside simulate)": lambda a, b, u: system._forward(
             0.0, a, b, params, u
         ),
+        "naive autodiff (hessian + linalg.solve)": naive,
     }
     fns = {k: jax.jit(jax.vmap(f)) for k, f in variants.items()}
     compile_s, outs = {}, {}
