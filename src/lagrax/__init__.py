@@ -14,6 +14,8 @@ import jax as _jax
 
 _jax.config.update("jax_enable_x64", True)
 
+from . import bench as bench  # noqa: E402
+from . import integrators as integrators  # noqa: E402
 from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
 from . import plot as plot  # noqa: E402
@@ -23,6 +25,8 @@ from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
 from ._errors import ParameterError as ParameterError  # noqa: E402
 from ._errors import ShapeError as ShapeError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._methods import METHODS as METHODS  # noqa: E402
+from ._simulate import RESULTS as RESULTS  # noqa: E402
 from ._simulate import Solution as Solution  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
 from ._system import LagrangianSystem as LagrangianSystem  # noqa: E402
@@ -35,7 +39,11 @@ except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tre
 __all__ = [
     "LagrangianSystem",
     "simulate",
+    "METHODS",
+    "integrators",
+    "bench",
     "Solution",
+    "RESULTS",
     "models",
     "newton_euler",
     "plot",

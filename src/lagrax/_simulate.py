@@ -6,12 +6,23 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optimistix as optx
 from jaxtyping import Array, Float, Int
 
 from ._errors import ShapeError, SimulationError
+from ._methods import fixed_step_budget, resolve_solver
 from ._system import LagrangianSystem, _is_traced, _pivot_threshold
 from ._typing import Coordinates, Params, Velocities
 from ._vector_field import LagrangianVectorField, TauFn
+
+
+class RESULTS(dfx.RESULTS):
+    """diffrax's result codes, plus the failures lagrax detects itself."""
+
+    non_finite_state = (
+        "The state became non-finite (NaN or inf): the solve blew up, typically a fixed "
+        "step past the method's stability limit, or a force that diverges."
+    )
 
 
 class Solution(eqx.Module):
@@ -22,21 +33,24 @@ class Solution(eqx.Module):
     - ``ts``: saved times, shape ``(T,)``.
     - ``q``, ``qd``: coordinates and velocities at ``ts``, shape ``(T, n)``.
     - ``energy``: ``T + V`` at ``ts``, shape ``(T,)``.
-    - ``result``: diffrax's result code (``diffrax.RESULTS``); ``ok`` tells success.
+    - ``result``: result code (``lagrax.RESULTS``: diffrax's codes plus
+      ``non_finite_state``); ``ok`` tells success, ``RESULTS[sol.result]`` the message.
     - ``stats``: solver counters (``num_steps``, ``num_accepted_steps``,
       ``num_rejected_steps``, ``max_steps``).
     - ``t_end``, ``q_end``, ``qd_end``: the last state the solver reached: ``t1`` on
       success, the time it stopped at on failure (with a custom ``saveat``, the last save).
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
-    (diffrax's fill value), never silently wrong numbers; check ``ok`` first.
+    (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
+    is flagged ``RESULTS.non_finite_state`` (its values past the blow-up are NaN/inf).
+    Check ``ok`` first.
     """
 
     ts: Float[Array, " T"]
     q: Float[Array, "T n"]
     qd: Float[Array, "T n"]
     energy: Float[Array, " T"]
-    result: dfx.RESULTS
+    result: RESULTS
     stats: dict[str, Int[Array, ""]]
     t_end: Float[Array, ""]
     q_end: Float[Array, " n"]
@@ -45,17 +59,13 @@ class Solution(eqx.Module):
     @property
     def ok(self) -> Array:
         """``True`` where the solve succeeded (an array under ``vmap``)."""
-        return self.result == dfx.RESULTS.successful
+        return self.result == RESULTS.successful
 
     @property
     def energy_error(self) -> Float[Array, " T"]:
         """Relative energy change ``(E(t) − E(t0)) / max(|E(t0)|, tiny)`` along the path."""
         e0 = self.energy[..., :1]
         return (self.energy - e0) / jnp.maximum(jnp.abs(e0), jnp.finfo(e0.dtype).tiny)
-
-
-def _default_solver():
-    return dfx.Tsit5()
 
 
 @eqx.filter_jit
@@ -114,7 +124,12 @@ def _solve(
         qd = jnp.where(reached[:, None], qd, inf)
     energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
     energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
-    return Solution(ts, q, qd, energy, sol.result, dict(sol.stats), t_end, q_end, qd_end)
+    # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
+    finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
+    result = RESULTS.promote(sol.result)
+    result = RESULTS.where(finite | (result != RESULTS.successful), result,
+                           RESULTS.non_finite_state)  # fmt: skip
+    return Solution(ts, q, qd, energy, result, dict(sol.stats), t_end, q_end, qd_end)
 
 
 def simulate(
@@ -128,11 +143,12 @@ def simulate(
     ts: Float[Array, " T"] | None = None,
     n_save: int = 501,
     tau: Velocities | TauFn | None = None,
-    solver: dfx.AbstractSolver | None = None,
+    solver: str | dfx.AbstractSolver | None = None,
     rtol: float = 1e-8,
     atol: float = 1e-8,
+    dt: float | None = None,
     dt0: float | None = None,
-    max_steps: int = 100_000,
+    max_steps: int | None = None,
     saveat: dfx.SaveAt | None = None,
     stepsize_controller: dfx.AbstractStepSizeController | None = None,
     throw: bool = True,
@@ -151,12 +167,19 @@ def simulate(
       ``[t0, t1]``. ``saveat`` (a ``diffrax.SaveAt``) overrides both.
     - ``tau``: input generalized forces, a constant ``(n,)`` array or a function
       ``tau(t, q, qd) -> (n,)`` (a controller). Added to the system's own ``force``.
-    - ``solver``: a diffrax solver; default ``diffrax.Tsit5()`` (explicit, 5th order,
-      adaptive). Use ``diffrax.Kvaerno5()`` for stiff scenes.
-    - ``rtol``, ``atol``: error-control tolerances of the adaptive step (default 1e-8).
-      Changing them, ``params``, the initial state or ``t1`` does not recompile.
-    - ``dt0``: initial step (default: chosen by diffrax).
-    - ``max_steps``: step budget (accepted + rejected).
+    - ``solver``: a method name or a diffrax solver. Names (see ``lagrax.METHODS``):
+      ``"tsit5"`` (default; explicit 5(4), adaptive), ``"dopri5"``, ``"dopri8"`` (tight
+      tolerances), ``"kvaerno5"`` (implicit; stiff springs and dampers), ``"rk4"`` (fixed
+      step), ``"variational"`` / ``"variational4"`` (symplectic, fixed step; bounded
+      energy error over long horizons).
+    - ``rtol``, ``atol``: error-control tolerances of the adaptive step (default 1e-8);
+      for implicit methods at a fixed step, the tolerances of their Newton iterations.
+      Changing them, ``params``, the initial state, ``t1`` or ``dt`` does not recompile.
+    - ``dt``: run at this fixed step instead (``diffrax.ConstantStepSize``). Required by
+      the fixed-step methods; allowed with every method.
+    - ``dt0``: initial step of an adaptive solve (default: chosen by diffrax).
+    - ``max_steps``: step budget (accepted + rejected). Default: 100,000 for an adaptive
+      solve; at a fixed step, enough steps for ``[t0, t1]``.
     - ``stepsize_controller``: override the default ``diffrax.PIDController(rtol, atol)``.
     - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
       in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
@@ -199,9 +222,38 @@ def simulate(
         if ts.ndim != 1:
             raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
     tdt = jnp.asarray(0.0, dtype).dtype
+    named_implicit = isinstance(solver, str)  # configure only the solvers we built
+    solver, may_adapt = resolve_solver(solver)
+    if dt is not None:
+        if stepsize_controller is not None:
+            raise ValueError("pass either dt= (a fixed step) or stepsize_controller=, not both")
+        stepsize_controller = dfx.ConstantStepSize()
+        dt0 = dt
+        if max_steps is None and eager:
+            max_steps = fixed_step_budget(t0, t1, dt)
+    elif not may_adapt and not isinstance(stepsize_controller, dfx.ConstantStepSize):
+        raise ValueError(
+            f"{type(solver).__name__} has no error estimate and runs at a fixed step only "
+            "(for a variational integrator, an adaptive step would also destroy its "
+            "symplecticity): pass dt=..."
+        )
+    if max_steps is None:
+        max_steps = 100_000
+    if isinstance(solver, dfx.AbstractImplicitSolver) and named_implicit:
+        # Newton with a fresh Jacobian each iteration: for the small n of mechanisms it is
+        # cheap, and far more robust than a chord iteration on strongly nonlinear steps.
+        solver = eqx.tree_at(
+            lambda s: s.root_finder,
+            solver,
+            optx.Newton(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt)),
+        )
+        if stepsize_controller is None:  # diffrax's advice for implicit methods
+            stepsize_controller = dfx.PIDController(
+                rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt), pcoeff=0.3, icoeff=0.3
+            )
     sol = _solve(
         system,
-        _default_solver() if solver is None else solver,
+        solver,
         tau_fn,
         (q0, qd0),
         params,
@@ -236,14 +288,25 @@ def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
     t_end = float(sol.t_end)
     q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
     steps = int(sol.stats["num_steps"])
-    reason = str(dfx.RESULTS[sol.result]) if not bool(sol.ok) else "non-finite values"
+    reason = RESULTS[sol.result] if not bool(sol.ok) else "non-finite values"
     lines = [
         f"simulate failed for {system.name}: {reason}",
         f"  the solver stopped at t={t_end:.6g} with q={q_end}, qd={qd_end}",
     ]
     finite_state = np.all(np.isfinite(q_end)) and np.all(np.isfinite(qd_end))
     if not finite_state:
-        lines.append("  the state itself is non-finite there (it blew up)")
+        saved = np.all(np.isfinite(np.asarray(sol.q)), axis=1)
+        ts = np.asarray(sol.ts)
+        bad = np.nonzero(~saved & ~np.isinf(ts))[0]
+        if bad.size and bad[0] > 0:
+            lines.append(
+                f"  the state blew up (became non-finite) between the saves at "
+                f"t={ts[bad[0] - 1]:.6g} and t={ts[bad[0]]:.6g}; if the step is fixed, it is "
+                "likely past the method's stability limit: use a smaller dt, an adaptive "
+                "step, or an implicit method for stiff scenes"
+            )
+        else:
+            lines.append("  the state itself is non-finite there (it blew up)")
     else:
         qdd = np.asarray(system._forward(sol.t_end, sol.q_end, sol.qd_end, params, None))
         eigs = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q_end, params, qd_end)))
@@ -262,7 +325,7 @@ def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
                 "  the accelerations are non-finite there: check the force/tau functions "
                 "and the energies for divisions by zero or overflow"
             )
-    if sol.result == dfx.RESULTS.max_steps_reached:
+    if sol.result == RESULTS.max_steps_reached:
         lines.append(
             f"  all {steps} steps of max_steps={max_steps} were used (rtol={rtol}, "
             f"atol={atol}). Try: a larger max_steps; looser tolerances; or, if the scene "
@@ -270,6 +333,6 @@ def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
             "solver=diffrax.Kvaerno5()."
         )
     lines.append(
-        "  Pass throw=False to get the partial Solution (entries past the failure are inf)."
+        "  Pass throw=False to get the partial Solution (entries never reached are inf)."
     )
     return "\n".join(lines)

@@ -1,0 +1,73 @@
+"""Named integration methods for ``simulate``: what each is, and how it must be run."""
+
+import math
+from dataclasses import dataclass
+
+import diffrax as dfx
+
+from .integrators import RK4, Variational
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """A named method: a factory for its diffrax solver and how it may be stepped."""
+
+    make: type | object
+    adaptive: bool  # has an error estimate, may use an adaptive step
+    implicit: bool
+    summary: str
+
+    def solver(self) -> dfx.AbstractSolver:
+        return self.make() if callable(self.make) else self.make
+
+
+METHODS: dict[str, MethodInfo] = {
+    "tsit5": MethodInfo(
+        dfx.Tsit5, True, False,
+        "Tsitouras 5(4), explicit, adaptive: the default for smooth, non-stiff scenes",
+    ),
+    "dopri5": MethodInfo(dfx.Dopri5, True, False, "Dormand–Prince 5(4), explicit, adaptive"),
+    "dopri8": MethodInfo(
+        dfx.Dopri8, True, False,
+        "Dormand–Prince 8(7), explicit, adaptive: tight tolerances (≤ 1e-10)",
+    ),
+    "kvaerno5": MethodInfo(
+        dfx.Kvaerno5, True, True,
+        "Kværnø 5(4) ESDIRK, implicit, adaptive: stiff springs and dampers",
+    ),
+    "rk4": MethodInfo(RK4, False, False, "classic Runge–Kutta 4, explicit, fixed step only"),
+    "variational": MethodInfo(
+        lambda: Variational(order_=2), False, True,
+        "midpoint variational integrator, symplectic, order 2, fixed step only",
+    ),
+    "variational4": MethodInfo(
+        lambda: Variational(order_=4), False, True,
+        "triple-jump composition of the midpoint variational integrator, order 4, fixed step",
+    ),
+}  # fmt: skip
+
+
+def resolve_solver(solver) -> tuple[dfx.AbstractSolver, bool]:
+    """``(diffrax solver, may_be_adaptive)`` from a method name or a solver instance."""
+    if solver is None:
+        solver = "tsit5"
+    if isinstance(solver, str):
+        key = solver.lower()
+        if key not in METHODS:
+            raise ValueError(f"unknown method {solver!r}; choose one of {sorted(METHODS)}")
+        info = METHODS[key]
+        return info.solver(), info.adaptive
+    if not isinstance(solver, dfx.AbstractSolver):
+        raise TypeError(f"solver must be a method name or a diffrax solver, got {solver!r}")
+    adaptive = not isinstance(solver, (Variational, RK4, dfx.SemiImplicitEuler, dfx.Euler))
+    return solver, adaptive
+
+
+def fixed_step_budget(t0: float, t1: float, dt: float) -> int:
+    """Steps needed at a fixed ``dt``, rounded up to a power of two, at least 4096.
+
+    ``max_steps`` is a compile-time constant for diffrax; rounding keeps the number of
+    distinct budgets (and so of compilations) logarithmic in the step count.
+    """
+    needed = math.ceil((float(t1) - float(t0)) / float(dt) * (1 + 1e-12)) + 1
+    return max(4096, 1 << max(needed - 1, 1).bit_length())

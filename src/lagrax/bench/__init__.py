@@ -1,0 +1,22 @@
+"""Accuracy–cost studies: work–precision diagrams and the stability atlas.
+
+- :func:`work_precision` runs methods over ladders of tolerances/steps against a
+  reference solution; :func:`write_csv` and :func:`plot_work_precision` report it.
+- :mod:`stability <lagrax.bench._stability>` cases: :func:`long_horizon`, :func:`stiff`,
+  :func:`chaos`, :func:`singular`, collected by ``lagrax bench stability``.
+"""
+
+from ._stability import AtlasRow as AtlasRow
+from ._stability import chaos as chaos
+from ._stability import long_horizon as long_horizon
+from ._stability import singular as singular
+from ._stability import spherical_pendulum as spherical_pendulum
+from ._stability import stiff as stiff
+from ._stability import stiff_arm as stiff_arm
+from ._stability import write_table as write_table
+from ._work_precision import DEFAULT_LADDERS as DEFAULT_LADDERS
+from ._work_precision import WorkPrecisionPoint as WorkPrecisionPoint
+from ._work_precision import plot_work_precision as plot_work_precision
+from ._work_precision import reference_solution as reference_solution
+from ._work_precision import work_precision as work_precision
+from ._work_precision import write_csv as write_csv
