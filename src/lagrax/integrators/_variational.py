@@ -7,7 +7,7 @@ import diffrax as dfx
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import optimistix as optx
+from jax import lax
 
 from .._linalg import cholesky_solve
 from .._vector_field import lagrangian_field_of
@@ -19,6 +19,51 @@ _COMPOSITIONS: dict[int, tuple[float, ...]] = {
     2: (1.0,),
     4: (1.0 / (2.0 - _CBRT2), -_CBRT2 / (2.0 - _CBRT2), 1.0 / (2.0 - _CBRT2)),
 }
+
+
+def _solve_general_small(jac, rhs):
+    """Solve ``jac x = rhs`` (square, non-symmetric): closed forms for n ≤ 2, else LAPACK."""
+    n = rhs.shape[0]
+    if n == 1:
+        return rhs / jac[0, 0]
+    if n == 2:
+        det = jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]
+        return jnp.stack(
+            [
+                (jac[1, 1] * rhs[0] - jac[0, 1] * rhs[1]) / det,
+                (jac[0, 0] * rhs[1] - jac[1, 0] * rhs[0]) / det,
+            ]
+        )
+    return jnp.linalg.solve(jac, rhs)
+
+
+def _newton(residual, x0, rtol, atol, max_steps):
+    """Newton's method with the exact Jacobian (``n`` JVPs), in a ``lax.while_loop``.
+
+    Stops when the Newton update is below ``atol + rtol·|x|`` (quadratic convergence
+    makes the accepted iterate accurate to round-off). Returns ``(x, result)``; the result
+    is ``nonlinear_max_steps_reached`` if it did not converge, ``nonlinear_divergence`` if
+    the iterate became non-finite.
+    """
+
+    def body(carry):
+        x, _, k = carry
+        r = residual(x)
+        jac = jax.jacfwd(residual)(x)
+        dx = _solve_general_small(jac, r)
+        x_new = x - dx
+        small = jnp.all(jnp.abs(dx) <= atol + rtol * jnp.abs(x_new))
+        return x_new, small, k + 1
+
+    def cond(carry):
+        x, done, k = carry
+        return (~done) & (k < max_steps) & jnp.all(jnp.isfinite(x))
+
+    x, done, _ = lax.while_loop(cond, body, (x0, jnp.asarray(False), jnp.asarray(0)))
+    result = dfx.RESULTS.where(done, dfx.RESULTS.successful,
+                               dfx.RESULTS.nonlinear_max_steps_reached)  # fmt: skip
+    result = dfx.RESULTS.where(jnp.all(jnp.isfinite(x)), result, dfx.RESULTS.nonlinear_divergence)
+    return x, result
 
 
 class Variational(dfx.AbstractSolver):
@@ -108,15 +153,12 @@ class Variational(dfx.AbstractSolver):
             force = field.applied(t0 + 0.5 * h, qm, v, args)
             return l_q + force, l_v
 
-        def residual(q1, _):
+        def residual(q1):
             lq_f, l_v = midpoint(q1)
             return p0 + 0.5 * h * lq_f - l_v
 
-        solver = optx.Newton(rtol=self.rtol, atol=self.atol)
-        sol = optx.root_find(
-            residual, solver, q0 + h * qd0, max_steps=self.max_newton_steps, throw=False
-        )
-        q1 = sol.value
+        q1, result = _newton(residual, q0 + h * qd0, self.rtol, self.atol,
+                             self.max_newton_steps)  # fmt: skip
         lq_f, _ = midpoint(q1)
         p1 = p0 + h * lq_f
         # velocity from the momentum: M(q1) q̇1 = p1 − ∂T/∂q̇(q1, 0)
@@ -124,7 +166,7 @@ class Variational(dfx.AbstractSolver):
         p_offset = system.momentum(q1, zero, params)
         mass = system.mass_matrix(q1, params)
         qd1 = cholesky_solve(mass, p1 - p_offset)
-        return q1, qd1, p1, dfx.RESULTS.promote(sol.result)
+        return q1, qd1, p1, result
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         del made_jump
