@@ -49,3 +49,24 @@ def test_plot_functions_return_axes(tmp_path):
     # forward kinematics used for drawing: tip of a straight arm along +x
     pts = lx.plot.planar_chain_points(np.array([0.0, 0.0]), [1.0, 2.0])
     np.testing.assert_allclose(pts, [[0, 0], [1, 0], [3, 0]], atol=1e-15)
+
+
+def test_bench_work_precision_command(tmp_path, capsys):
+    code = cli.main(["bench", "work-precision", "--out", str(tmp_path), "--t1", "2",
+                     "--repeats", "1", "--methods", "tsit5"])  # fmt: skip
+    assert code == 0
+    rows = (tmp_path / "work_precision.csv").read_text().splitlines()
+    assert rows[0].startswith("method,setting,value,final_error")
+    assert len(rows) == 1 + len(lx.bench.DEFAULT_LADDERS["tsit5"][1])
+    assert (tmp_path / "work_precision.png").stat().st_size > 10_000
+
+
+def test_stability_plots(tmp_path):
+    system, params = lx.models.planar_2r()
+    sol = lx.simulate(system, [0.3, 0.2], [0.0, 0.0], params, t1=1.0, n_save=21)
+    lx.bench.plot_long_horizon({"tsit5": sol}).savefig(tmp_path / "a.png")
+    ts = np.linspace(0, 1, 11)
+    lx.bench.plot_chaos({1e-6: (ts, ts * 1e-3)}).savefig(tmp_path / "b.png")
+    rows = [lx.bench.AtlasRow("case", "m", "ok", "a | b", "", 0.1)]
+    lx.bench.write_table(rows, tmp_path / "s.md", tmp_path / "s.csv")
+    assert "a / b" in (tmp_path / "s.md").read_text()  # pipes escaped for Markdown

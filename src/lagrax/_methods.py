@@ -1,6 +1,7 @@
 """Named integration methods for ``simulate``: what each is, and how it must be run."""
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import diffrax as dfx
@@ -12,13 +13,13 @@ from .integrators import RK4, Variational
 class MethodInfo:
     """A named method: a factory for its diffrax solver and how it may be stepped."""
 
-    make: type | object
+    make: Callable[[], dfx.AbstractSolver]
     adaptive: bool  # has an error estimate, may use an adaptive step
     implicit: bool
     summary: str
 
     def solver(self) -> dfx.AbstractSolver:
-        return self.make() if callable(self.make) else self.make
+        return self.make()
 
 
 METHODS: dict[str, MethodInfo] = {

@@ -113,9 +113,6 @@ def _bench_stability(args) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
     from lagrax.bench import _stability as st
 
     out = Path(args.out)
@@ -123,29 +120,13 @@ def _bench_stability(args) -> int:
     periods = 300 if args.quick else 1e4
     print(f"stability atlas ({'quick' if args.quick else 'full'}):")
     rows, sols = st.long_horizon(periods)
-    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
-    for name, sol in sols.items():
-        ax.plot(np.asarray(sol.ts), np.abs(np.asarray(sol.energy_error)), label=name, lw=0.8)
-    ax.set_yscale("log")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("|E(t) − E(0)| / |E(0)|")
-    ax.set_title("long horizon: explicit RK drifts, the variational integrator does not")
-    ax.legend()
-    fig.savefig(out / "stability_long_horizon.png", dpi=110)
+    st.plot_long_horizon(sols).savefig(out / "stability_long_horizon.png", dpi=110)
     print("  long horizon done", flush=True)
     rows += st.stiff()
     print("  stiff done", flush=True)
     chaos_rows, curves = st.chaos(t1=20.0 if args.quick else 30.0)
     rows += chaos_rows
-    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
-    for tol, (ts, dq) in curves.items():
-        ax.semilogy(ts, np.maximum(dq, 1e-16), label=f"tsit5 tol {tol:.0e}", lw=0.8)
-    ax.axhline(0.1, color="0.5", ls=":")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("max |Δθ| vs Dopri8 1e-13 [rad]")
-    ax.set_title("chaos: the predictability horizon grows like log(1/tol)")
-    ax.legend()
-    fig.savefig(out / "stability_chaos.png", dpi=110)
+    st.plot_chaos(curves).savefig(out / "stability_chaos.png", dpi=110)
     print("  chaos done", flush=True)
     rows += st.singular()
     st.write_table(rows, out / "stability.md", out / "stability.csv")

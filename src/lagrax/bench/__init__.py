@@ -9,6 +9,8 @@
 from ._stability import AtlasRow as AtlasRow
 from ._stability import chaos as chaos
 from ._stability import long_horizon as long_horizon
+from ._stability import plot_chaos as plot_chaos
+from ._stability import plot_long_horizon as plot_long_horizon
 from ._stability import singular as singular
 from ._stability import spherical_pendulum as spherical_pendulum
 from ._stability import stiff as stiff

@@ -254,6 +254,42 @@ def singular(t1: float = 5.0):
     return rows
 
 
+def _figure(title, ylabel):
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    return fig, ax
+
+
+def plot_long_horizon(sols):
+    """Relative energy error against time for each long-horizon solution (log scale)."""
+    fig, ax = _figure(
+        "long horizon: explicit RK drifts, the variational integrator does not",
+        "|E(t) − E(0)| / |E(0)|",
+    )
+    for name, sol in sols.items():
+        ax.plot(np.asarray(sol.ts), np.abs(np.asarray(sol.energy_error)), label=name, lw=0.8)
+    ax.set_yscale("log")
+    ax.legend()
+    return fig
+
+
+def plot_chaos(curves, threshold: float = 0.1):
+    """Divergence from the reference against time, one line per tolerance."""
+    fig, ax = _figure(
+        "chaos: the predictability horizon grows like log(1/tol)",
+        "max |Δθ| vs Dopri8 1e-13 [rad]",
+    )
+    for tol, (ts, dq) in curves.items():
+        ax.semilogy(ts, np.maximum(dq, 1e-16), label=f"tsit5 tol {tol:.0e}", lw=0.8)
+    ax.axhline(threshold, color="0.5", ls=":")
+    ax.legend()
+    return fig
+
+
 def write_table(rows, path_md, path_csv):
     """Markdown and CSV tables of the atlas."""
     import csv
@@ -278,5 +314,6 @@ def write_table(rows, path_md, path_csv):
 
 __all__ = [
     "AtlasRow", "long_horizon", "stiff", "chaos", "singular", "write_table",
+    "plot_long_horizon", "plot_chaos",
     "SimulationError", "MassMatrixError",
 ]  # fmt: skip
