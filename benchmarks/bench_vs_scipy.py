@@ -8,7 +8,9 @@ state (q, q̇) against Dopri8 at rtol = atol = 1e-14. Everything is measured in 
 1. the same tolerance (rtol = atol = 1e-10) for SciPy DOP853 / RK45 / Radau and lagrax;
 2. matched accuracy: for each SciPy method, the cheapest lagrax run (Tsit5 or Dopri8
    over a tolerance ladder) whose final-state error is at least as small;
-3. MuJoCo's RK4 at a fixed step (optional; ``pip install mujoco``), on the same arm.
+3. MuJoCo's RK4 at a fixed step (optional; ``pip install mujoco``), on the same arm;
+4. a work–precision summary: at each error level 1e-4 … 1e-10, the fastest run of each
+   tool that reaches it, and lagrax's speed-up over it.
 
 Times are medians of repeated runs after compilation; lagrax's compile time is reported
 separately.
@@ -169,19 +171,50 @@ def main(argv=None):
               f"{best[0]} tol {best[1]:.0e}: error {best[2]:.1e} in {best[3] * 1e3:6.2f} ms"
               f"  -> {st / best[3]:.1f}x faster")
 
+    mujoco_runs = []
     try:
         model = mujoco_model(params)
     except ImportError:
+        model = None
         print("\n3. MuJoCo not installed (pip install mujoco): skipped")
-        return
-    print("\n3. MuJoCo RK4 at fixed steps (same arm; Python loop over mj_step)")
-    for dt in (2e-3, 1e-3, 5e-4, 2.5e-4):
-        y, t = timed(lambda dt=dt: mujoco_run(model, dt), 3)
-        better = [r for r in runs if r[2] <= err(y)]
-        best = min(better, key=lambda r: r[3]) if better else None
-        extra = (f"; lagrax {best[0]} tol {best[1]:.0e}: {best[3] * 1e3:.2f} ms -> "
-                 f"{t / best[3]:.1f}x faster") if best else ""  # fmt: skip
-        print(f"   mujoco RK4 dt {dt:.1e}: {t * 1e3:8.2f} ms  error {err(y):.1e}{extra}")
+    if model is not None:
+        print("\n3. MuJoCo RK4 at fixed steps (same arm; Python loop over mj_step)")
+        for dt in (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4):
+            y, t = timed(lambda dt=dt: mujoco_run(model, dt), 3)
+            mujoco_runs.append((dt, err(y), t))
+            better = [r for r in runs if r[2] <= err(y)]
+            best = min(better, key=lambda r: r[3]) if better else None
+            extra = (f"; lagrax {best[0]} tol {best[1]:.0e}: {best[3] * 1e3:.2f} ms -> "
+                     f"{t / best[3]:.1f}x faster") if best else ""  # fmt: skip
+            print(f"   mujoco RK4 dt {dt:.1e}: {t * 1e3:8.2f} ms  error {err(y):.1e}{extra}")
+
+    print("\n4. work-precision: fastest run reaching each error level (best of each tool)")
+    scipy_runs = []
+    for method, tols in (("DOP853", range(4, 13)), ("RK45", range(4, 11)), ("Radau", range(4, 9))):
+        for k in tols:
+            tol = 10.0**-k
+            reps = 1 if method == "Radau" else max(args.repeats // 2, 1)
+            sol, t = timed(lambda m=method, tol=tol: solve_ivp(rhs, (0, T1), y0, method=m,
+                                                               rtol=tol, atol=tol), reps)
+            scipy_runs.append((method, tol, err(sol.y[:, -1]), t))
+
+    def fastest(rows, level, err_i, time_i):
+        ok = [r for r in rows if r[err_i] <= level]
+        return min(ok, key=lambda r: r[time_i]) if ok else None
+
+    print(f"   {'error':>7s} {'lagrax':>22s} {'SciPy best':>24s} {'ratio':>7s} "
+          f"{'MuJoCo RK4':>20s} {'ratio':>7s}")
+    for k in range(4, 11):
+        level = 10.0**-k
+        lg = fastest(runs, level, 2, 3)
+        sp = fastest(scipy_runs, level, 2, 3)
+        mj = fastest(mujoco_runs, level, 1, 2)
+        lg_s = f"{lg[0]} {lg[3] * 1e3:6.2f} ms" if lg else "-"
+        sp_s = f"{sp[0]} {sp[3] * 1e3:7.2f} ms" if sp else "-"
+        mj_s = f"dt {mj[0]:.1e} {mj[2] * 1e3:6.1f} ms" if mj else "-"
+        r_sp = f"{sp[3] / lg[3]:6.1f}x" if lg and sp else "-"
+        r_mj = f"{mj[2] / lg[3]:6.1f}x" if lg and mj else "-"
+        print(f"   {level:7.0e} {lg_s:>22s} {sp_s:>24s} {r_sp:>7s} {mj_s:>20s} {r_mj:>7s}")
 
 
 if __name__ == "__main__":
