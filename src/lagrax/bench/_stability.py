@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import LagraxError, MassMatrixError, SimulationError
+from .._errors import LagraxError
 from .._simulate import simulate
 from .._system import LagrangianSystem
 from ..models import _planar_2r as arm
@@ -315,5 +315,4 @@ def write_table(rows, path_md, path_csv):
 __all__ = [
     "AtlasRow", "long_horizon", "stiff", "chaos", "singular", "write_table",
     "plot_long_horizon", "plot_chaos",
-    "SimulationError", "MassMatrixError",
 ]  # fmt: skip

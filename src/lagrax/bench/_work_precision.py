@@ -108,11 +108,11 @@ def work_precision(
     for method, (setting, values) in ladders.items():
         solver, _ = resolve_solver(method)
         for value in values:
-            kw = {"rtol": value, "atol": value} if setting == "rtol" else {"dt": value}
-            if setting == "dt":
-                kw.update(max_steps=1 << math.ceil(math.log2(t1 / value + 2)))
+            # at a fixed dt, simulate sizes the step budget itself (fixed_step_budget)
+            if setting == "rtol":
+                kw = {"rtol": value, "atol": value, "max_steps": 1_000_000}
             else:
-                kw.update(max_steps=1_000_000)
+                kw = {"dt": value}
 
             def run(kw=kw, method=method):
                 sol = simulate(system, q0, qd0, params, t1=t1, solver=method, n_save=n_save,
