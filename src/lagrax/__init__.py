@@ -15,6 +15,8 @@ import jax as _jax
 _jax.config.update("jax_enable_x64", True)
 
 from . import bench as bench  # noqa: E402
+from . import bodies as bodies  # noqa: E402
+from . import chains as chains  # noqa: E402
 from . import integrators as integrators  # noqa: E402
 from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
@@ -45,6 +47,8 @@ __all__ = [
     "Solution",
     "RESULTS",
     "models",
+    "bodies",
+    "chains",
     "newton_euler",
     "plot",
     "LagraxError",

@@ -13,3 +13,11 @@ Vector: TypeAlias = Float[Array, " n"]
 Matrix: TypeAlias = Float[Array, "n n"]
 Scalar: TypeAlias = Float[Array, ""]
 Time: TypeAlias = Float[ArrayLike, ""]
+
+# Bodies, inertia and chains (``lagrax.bodies``, ``lagrax.chains``).
+Point: TypeAlias = Float[Array, "*k d"]
+"""A point (or ``k`` points) in the plane (``d = 2``) or in space (``d = 3``)."""
+Rotation: TypeAlias = Float[Array, "*k 3 3"]
+"""Rotation matrix (or ``k`` of them) taking body-frame components to world components."""
+Inertia: TypeAlias = Float[ArrayLike, "*k 3 3"]
+"""3×3 inertia tensor(s)."""

@@ -1,16 +1,25 @@
 """Independent Newton–Euler derivations: an oracle for the autodiff Lagrangian.
 
-The planar 2R arm by the lecture's free-body method. Each link is cut free; Newton's law
-``m a_c = Σ f`` and Euler's equation ``I α = Σ M`` (about the centre of mass, or about a
-fixed point with the parallel-axis inertia) are applied to each, and the unknown joint
-reaction is eliminated. No Lagrangian appears anywhere in this module.
+- :func:`planar_2r`: the planar 2R arm by the lecture's free-body method. Each link is cut
+  free; Newton's law ``m a_c = Σ f`` and Euler's equation ``I α = Σ M`` (about the centre of
+  mass, or about a fixed point with the parallel-axis inertia) are applied to each, and the
+  unknown joint reaction is eliminated.
+- :func:`rnea`: the recursive Newton–Euler algorithm for any serial chain of
+  :mod:`lagrax.chains` (planar or spatial): velocities and accelerations outward from the
+  base, forces and moments inward from the tip.
+
+No Lagrangian appears anywhere in this module, and ``rnea`` reads only the chain's
+structure (joint types, axes, fixed rotations) and ``params``, with its own kinematics.
 """
 
 from typing import NamedTuple
 
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
+from ._chains import PlanarChain, SpatialChain
+from ._errors import ShapeError
 from ._typing import Params
 
 
@@ -90,3 +99,167 @@ def planar_2r(q, qd, qdd, params: Params) -> Float[Array, "2"]:
     :func:`planar_2r_free_body` for the steps and the reaction forces.
     """
     return planar_2r_free_body(q, qd, qdd, params).tau
+
+
+# ------------------------------------------------------------------ recursive Newton–Euler
+def rnea(
+    chain: PlanarChain | SpatialChain,
+    q: Float[Array, " n"],
+    qd: Float[Array, " n"],
+    qdd: Float[Array, " n"],
+    params: Params,
+) -> Float[Array, " n"]:
+    r"""Joint torques/forces of a serial chain by the recursive Newton–Euler algorithm.
+
+    **Outward recursion** (base to tip), link ``i`` from link ``i − 1``, all vectors in
+    link ``i``'s own frame, ``E = ⁱ⁻¹R_iᵀ``, joint axis ``a``, ``p`` the joint's offset:
+
+    - revolute: ``ω_i = E ω_{i−1} + q̇_i a``, ``ω̇_i = E ω̇_{i−1} + (E ω_{i−1}) × q̇_i a + q̈_i a``,
+      ``a_i = E (a_{i−1} + ω̇_{i−1} × p + ω_{i−1} × (ω_{i−1} × p))`` (acceleration of the
+      frame origin, which lies on the joint axis);
+    - prismatic (``s = q_i a``): ``ω_i = E ω_{i−1}``, ``ω̇_i = E ω̇_{i−1}``,
+      ``a_i = E (…as above…) + ω̇_i × s + ω_i × (ω_i × s) + 2 ω_i × q̇_i a + q̈_i a``;
+    - centre of mass: ``a_ci = a_i + ω̇_i × c_i + ω_i × (ω_i × c_i)``;
+    - Newton and Euler: ``F_i = m_i a_ci``, ``N_i = I_i ω̇_i + ω_i × I_i ω_i``.
+
+    Gravity enters as an upward acceleration ``g up`` of the base (``a_0 = −g⃗``).
+
+    **Inward recursion** (tip to base), with ``f_i``, ``n_i`` the force and moment (about
+    frame ``i``'s origin) exerted on link ``i`` by link ``i − 1``:
+
+    - ``f_i = ⁱR_{i+1} f_{i+1} + F_i``,
+    - ``n_i = N_i + ⁱR_{i+1} n_{i+1} + c_i × F_i + ⁱp_{i+1} × ⁱR_{i+1} f_{i+1}``,
+    - ``τ_i = n_i · a_i`` (revolute) or ``f_i · a_i`` (prismatic).
+
+    For a :class:`~lagrax.chains.PlanarChain` the same recursion runs in the plane with
+    scalar angular rates and moments (``z`` components) in the fixed frame: joint ``i + 1``'s
+    acceleration ``a_{i+1} = a_i + α_i ẑ × l_i u_i − ω_i² l_i u_i``, then
+    ``f_i = m_i a_ci + f_{i+1}`` and ``n_i = I_i α_i + r_i u_i × m_i a_ci + n_{i+1} +
+    l_i u_i × f_{i+1}`` about joint ``i``.
+
+    This is an independent derivation (no energies, no autodiff, its own kinematics): use
+    it to check a chain's :meth:`~lagrax.LagrangianSystem.inverse_dynamics`.
+
+    **Arguments:**
+
+    - ``chain``: a :class:`~lagrax.chains.PlanarChain` or :class:`~lagrax.chains.SpatialChain`.
+    - ``q``, ``qd``, ``qdd``: joint positions, rates and accelerations, shape ``(n,)``.
+    - ``params``: the chain's parameters (``chain.params(...)``).
+
+    **Returns:** ``τ``, shape ``(n,)``: joint torques (revolute) or forces (prismatic).
+
+    **Raises:** ``ShapeError`` for inputs of the wrong length; ``TypeError`` for another
+    kind of chain.
+    """
+    q, qd, qdd = (jnp.asarray(x) for x in (q, qd, qdd))
+    for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
+        if x.shape != (chain.n,):
+            raise ShapeError(f"rnea: {name} has shape {x.shape}, expected ({chain.n},)")
+    if isinstance(chain, PlanarChain):
+        return _rnea_planar(chain.n, q, qd, qdd, params)
+    if isinstance(chain, SpatialChain):
+        return _rnea_spatial(chain, q, qd, qdd, params)
+    raise TypeError(f"rnea needs a PlanarChain or SpatialChain, got {type(chain).__name__}")
+
+
+def _rnea_planar(n, q, qd, qdd, p):
+    m, length, r, inertia = (jnp.asarray(p[k]) for k in ("m", "l", "r", "I"))
+    g = jnp.asarray(p["g"])
+    # outward: absolute angle, rate and acceleration of each link; joint accelerations
+    phi = w = alpha = jnp.zeros((), q.dtype)
+    a_joint = jnp.stack([jnp.zeros_like(g), g])  # base accelerates up: gravity
+    links = []
+    for i in range(n):
+        phi, w, alpha = phi + q[i], w + qd[i], alpha + qdd[i]
+        u = jnp.stack([jnp.cos(phi), jnp.sin(phi)])
+        rc, rl = r[i] * u, length[i] * u
+        a_c = a_joint + _z_cross(alpha, rc) - w**2 * rc
+        links.append((alpha, rc, rl, a_c))
+        a_joint = a_joint + _z_cross(alpha, rl) - w**2 * rl
+    # inward: force and moment of link i-1 on link i at joint i
+    f_next = jnp.zeros(2, q.dtype)
+    n_next = jnp.zeros((), q.dtype)
+    tau = [None] * n
+    for i in reversed(range(n)):
+        alpha, rc, rl, a_c = links[i]
+        force = m[i] * a_c
+        n_i = inertia[i] * alpha + _cross_z(rc, force) + n_next + _cross_z(rl, f_next)
+        f_next, n_next = force + f_next, n_i
+        tau[i] = n_i
+    return jnp.stack(tau)
+
+
+def _skew(v):
+    z = jnp.zeros_like(v[0])
+    return jnp.stack(
+        [jnp.stack([z, -v[2], v[1]]), jnp.stack([v[2], z, -v[0]]), jnp.stack([-v[1], v[0], z])]
+    )
+
+
+def _rotation_about(axis, angle):
+    """``R = cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`` (unit ``a``)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    return c * jnp.eye(3, dtype=axis.dtype) + s * _skew(axis) + (1 - c) * jnp.outer(axis, axis)
+
+
+def _rnea_spatial(chain, q, qd, qdd, p):
+    dtype = q.dtype
+    m, com, inertia, offset = (jnp.asarray(p[k]) for k in ("m", "com", "inertia", "offset"))
+    g = jnp.asarray(p["g"])
+    n = chain.n
+    axes = [jnp.asarray(np.asarray(a), dtype) for a in chain.axes]
+    fixed = [jnp.asarray(np.asarray(s), dtype) for s in chain.rotations]
+    # ⁱ⁻¹R_i and ⁱ⁻¹p_i (position of origin i in frame i-1)
+    rel_rot, rel_pos = [], []
+    for i, kind in enumerate(chain.joint_types):
+        if kind == "R":
+            rel_rot.append(fixed[i] @ _rotation_about(axes[i], q[i]))
+            rel_pos.append(offset[i])
+        else:
+            rel_rot.append(fixed[i])
+            rel_pos.append(offset[i] + fixed[i] @ (axes[i] * q[i]))
+
+    # outward
+    w = jnp.zeros(3, dtype)
+    wd = jnp.zeros(3, dtype)
+    acc = g * jnp.asarray(np.asarray(chain.up), dtype)  # base accelerates up: gravity
+    forces, moments = [], []
+    for i, kind in enumerate(chain.joint_types):
+        e = rel_rot[i].T
+        a = axes[i]
+        pi = offset[i]
+        acc = e @ (acc + jnp.cross(wd, pi) + jnp.cross(w, jnp.cross(w, pi)))
+        if kind == "R":
+            w_prev = e @ w
+            w = w_prev + qd[i] * a
+            wd = e @ wd + jnp.cross(w_prev, qd[i] * a) + qdd[i] * a
+        else:
+            w, wd = e @ w, e @ wd
+            s = a * q[i]
+            acc = (
+                acc
+                + jnp.cross(wd, s)
+                + jnp.cross(w, jnp.cross(w, s))
+                + 2 * jnp.cross(w, qd[i] * a)
+                + qdd[i] * a
+            )
+        a_c = acc + jnp.cross(wd, com[i]) + jnp.cross(w, jnp.cross(w, com[i]))
+        forces.append(m[i] * a_c)
+        moments.append(inertia[i] @ wd + jnp.cross(w, inertia[i] @ w))
+
+    # inward
+    f = jnp.zeros(3, dtype)
+    mom = jnp.zeros(3, dtype)
+    tau = [None] * n
+    for i in reversed(range(n)):
+        if i + 1 < n:
+            f_child = rel_rot[i + 1] @ f
+            n_child = rel_rot[i + 1] @ mom
+            arm = rel_pos[i + 1]
+        else:
+            f_child = n_child = arm = jnp.zeros(3, dtype)
+        f_i = forces[i] + f_child
+        mom = moments[i] + n_child + jnp.cross(com[i], forces[i]) + jnp.cross(arm, f_child)
+        f = f_i
+        tau[i] = jnp.dot(mom if chain.joint_types[i] == "R" else f, axes[i])
+    return jnp.stack(tau)

@@ -1,0 +1,107 @@
+"""Bodies, springs and dampers as energy terms, and inertia tools.
+
+Describe *where* things are as functions of the generalized coordinates ``q``; lagrax
+differentiates them (``jax.jvp``) for the velocities, sums the energies and hands them to
+:class:`lagrax.LagrangianSystem`:
+
+```python
+import jax.numpy as jnp
+import lagrax as lx
+from lagrax.bodies import Param, PointMass, Scene
+
+def bob(q, p):                        # a pendulum bob hanging from the origin
+    return p["l"] * jnp.stack([jnp.sin(q[0]), -jnp.cos(q[0])])
+
+system = Scene([PointMass(Param("m"), bob)], gravity=Param("g"), n_dof=1).system()
+system.forward_dynamics(jnp.array([0.3]), jnp.array([0.0]), {"m": 1.0, "l": 2.0, "g": 9.81})
+```
+
+**Parameters.** Every mass, inertia, stiffness, coefficient and gravity field is a
+:data:`ParamLike`: a constant, or a callable ``params -> value`` evaluated with the
+``params`` the system is called with. :class:`Param` (``Param("m")`` reads ``params["m"]``)
+is the usual choice, so that sweeps can vary the value; a ``lambda p: p["m"] * p["l"] ** 2``
+derives one. Positions, angles and rotations are functions ``(q, params) -> ...``.
+
+**Bodies.**
+
+- :class:`PointMass` ``(mass, position)``: ``T = ½ m ‖ẋ‖²``, in 1, 2 or 3 dimensions.
+- :class:`PlanarBody` ``(mass, inertia, position, angle)``: ``T = ½ m ‖v_c‖² + ½ I_c θ̇²``.
+- :class:`SpatialBody` ``(mass, inertia, position, rotation)``:
+  ``T = ½ m ‖v_c‖² + ½ ω_Bᵀ I_c ω_B`` with ``ω̂_B = Rᵀ Ṙ`` from the JVP of ``R(q)``.
+
+Gravity (``Scene(gravity=...)``) is a magnitude acting along the negative last axis of each
+body's position (−y in the plane, −z in space) or a full vector. A body may stand for ``k``
+bodies at once (leading axis ``k`` on its fields and kinematics).
+
+**Planar or spatial?** Use the smallest description the motion needs. A mechanism that
+moves in a plane is exactly described by :class:`PlanarBody` (2 position components and one
+angle per body); the same mechanism built from :class:`SpatialBody` (3 components and a
+3×3 rotation matrix) gives identical equations, but its energy differentiates a rotation
+matrix product where the planar one differentiates one angle, so it is larger to compile
+and slower to run (``benchmarks/bench_planar_vs_spatial.py`` measures the ratio). Reach for
+:class:`SpatialBody` when bodies leave the plane or spin about in-plane axes;
+:class:`PointMass` when rotational inertia is negligible.
+
+**Springs and dampers.** :class:`LinearSpring` (between two points, with a rest length),
+:class:`TorsionalSpring` (on a coordinate or a scalar function of ``q``),
+:class:`LinearDamper` (relative velocity of two points, or axial dashpot),
+:class:`TorsionalDamper` (on a coordinate). A :class:`Scene` sums them with any
+hand-written ``kinetic``/``potential``/``dissipation``/``force`` and ``.system()`` builds the
+:class:`lagrax.LagrangianSystem`.
+
+**Inertia tools** (the lecture's conventions, ``I = ∫ −[r]² ρ dV``):
+:func:`rod_inertia`, :func:`box_inertia`, :func:`cylinder_inertia`, :func:`sphere_inertia`,
+:func:`parallel_axis` (``I_P = I_C + m(‖d‖² 1 − d dᵀ)``), :func:`rotate_inertia`
+(``ᴬI = ᴬR_B ᴮI ᴬR_Bᵀ``), :func:`principal_axes` (eigen-decomposition) and
+:func:`check_inertia` (symmetric, positive-definite, ``I1 + I2 ≥ I3``).
+"""
+
+from ._bodies import AbstractBody as AbstractBody
+from ._bodies import AbstractDamper as AbstractDamper
+from ._bodies import AbstractSpring as AbstractSpring
+from ._bodies import LinearDamper as LinearDamper
+from ._bodies import LinearSpring as LinearSpring
+from ._bodies import Param as Param
+from ._bodies import ParamLike as ParamLike
+from ._bodies import PlanarBody as PlanarBody
+from ._bodies import PointFn as PointFn
+from ._bodies import PointMass as PointMass
+from ._bodies import Scene as Scene
+from ._bodies import SpatialBody as SpatialBody
+from ._bodies import TorsionalDamper as TorsionalDamper
+from ._bodies import TorsionalSpring as TorsionalSpring
+from ._inertia import PrincipalAxes as PrincipalAxes
+from ._inertia import box_inertia as box_inertia
+from ._inertia import check_inertia as check_inertia
+from ._inertia import cylinder_inertia as cylinder_inertia
+from ._inertia import parallel_axis as parallel_axis
+from ._inertia import principal_axes as principal_axes
+from ._inertia import rod_inertia as rod_inertia
+from ._inertia import rotate_inertia as rotate_inertia
+from ._inertia import sphere_inertia as sphere_inertia
+
+__all__ = [
+    "Scene",
+    "PointMass",
+    "PlanarBody",
+    "SpatialBody",
+    "LinearSpring",
+    "TorsionalSpring",
+    "LinearDamper",
+    "TorsionalDamper",
+    "Param",
+    "ParamLike",
+    "PointFn",
+    "AbstractBody",
+    "AbstractSpring",
+    "AbstractDamper",
+    "rod_inertia",
+    "box_inertia",
+    "cylinder_inertia",
+    "sphere_inertia",
+    "parallel_axis",
+    "rotate_inertia",
+    "principal_axes",
+    "PrincipalAxes",
+    "check_inertia",
+]

@@ -1,0 +1,43 @@
+"""Serial chains: planar n-link arms and spatial revolute/prismatic chains.
+
+Each builder returns ``(system, params)`` with ``params`` a dict of arrays (leading axis
+``n``: one entry per link), so a sweep can vary masses, lengths, offsets and inertias
+with ``jax.vmap``. The chain object (:class:`PlanarChain`, :class:`SpatialChain`) holds the
+structure and is what :func:`lagrax.newton_euler.rnea` consumes:
+
+```python
+import lagrax as lx
+
+chain = lx.chains.PlanarChain(4)                  # relative angles, gravity along -y
+system, params = chain.system(), chain.params(m=[1.0, 1.0, 0.5, 0.5])
+tau = system.inverse_dynamics(q, qd, qdd, params)
+tau_ne = lx.newton_euler.rnea(chain, q, qd, qdd, params)   # independent oracle
+```
+
+The energies come from :mod:`lagrax.bodies`: a planar chain is one batched
+:class:`~lagrax.bodies.PlanarBody` (``bodies="spatial"`` builds the same links from
+:class:`~lagrax.bodies.SpatialBody`, for comparison), a spatial chain one batched
+:class:`~lagrax.bodies.SpatialBody`.
+
+**Which to use.** A chain whose joint axes are all parallel moves in a plane: use
+:class:`PlanarChain` — its forward kinematics is a cumulative sum of angles and its
+energy differentiates ``n`` angles, not ``n`` rotation matrices, so it compiles and runs
+faster for identical equations (``benchmarks/bench_planar_vs_spatial.py``). Use
+:class:`SpatialChain` for anything that leaves the plane.
+"""
+
+from ._chains import BodyKind as BodyKind
+from ._chains import PlanarChain as PlanarChain
+from ._chains import SpatialChain as SpatialChain
+from ._chains import axis_angle_rotation as axis_angle_rotation
+from ._chains import planar_chain as planar_chain
+from ._chains import spatial_chain as spatial_chain
+
+__all__ = [
+    "PlanarChain",
+    "SpatialChain",
+    "planar_chain",
+    "spatial_chain",
+    "axis_angle_rotation",
+    "BodyKind",
+]
