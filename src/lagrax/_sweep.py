@@ -5,8 +5,10 @@ import itertools
 import json
 import math
 import os
+import re
 import sys
 import tempfile
+import types
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -273,17 +275,32 @@ def _states(x: Any, name: str, n_members: int, n: int | None) -> np.ndarray:
     )
 
 
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
+
+
+def _stable_repr(obj: Any) -> str:
+    """``repr`` without memory addresses (they change from one process to the next)."""
+    return _ADDRESS.sub("", repr(obj))
+
+
 def _code_fingerprint(obj: Any, h: "hashlib._Hash") -> None:
-    """Feed what identifies a function (name and bytecode) into ``h``."""
-    code = getattr(obj, "__code__", None)
+    """Feed what identifies a function (name, bytecode, constants) into ``h``."""
     h.update(repr(getattr(obj, "__qualname__", type(obj).__name__)).encode())
-    if code is not None:
-        h.update(code.co_code)
-        h.update(repr(code.co_consts).encode())
-        h.update(repr(code.co_names).encode())
+    code = obj if isinstance(obj, types.CodeType) else getattr(obj, "__code__", None)
+    if code is None:
+        h.update(_stable_repr(obj).encode())
+        return
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            _code_fingerprint(const, h)
+        else:
+            h.update(_stable_repr(const).encode())
 
 
 def _fingerprint(setup: _Setup, arrays: Sequence[Any], settings: Mapping[str, Any]) -> str:
+    """A hash of everything that defines a sweep's results, stable across processes."""
     h = hashlib.sha256()
     h.update(str(_FORMAT_VERSION).encode())
     for leaf in jtu.tree_leaves(setup, is_leaf=callable):
@@ -301,13 +318,13 @@ def _fingerprint(setup: _Setup, arrays: Sequence[Any], settings: Mapping[str, An
         elif eqx.is_array_like(leaf):
             h.update(np.asarray(leaf).tobytes())
         else:
-            h.update(repr(leaf).encode())
-    h.update(eqx.tree_pformat(setup, short_arrays=False).encode())
+            h.update(_stable_repr(leaf).encode())
+    h.update(_stable_repr(eqx.tree_pformat(setup, short_arrays=False)).encode())
     for a in jtu.tree_leaves(arrays):
         a = np.ascontiguousarray(np.asarray(a))
         h.update(str((a.shape, a.dtype)).encode())
         h.update(a.tobytes())
-    h.update(json.dumps(settings, sort_keys=True, default=repr).encode())
+    h.update(json.dumps(settings, sort_keys=True, default=_stable_repr).encode())
     return h.hexdigest()
 
 
@@ -422,8 +439,8 @@ def sweep(
       ``stepsize_controller``: as for :func:`lagrax.simulate` (shared by all members).
     - ``chunk_size``: members per compiled call (default: up to 8,192, fewer when the kept
       output is large: about 64 MiB of it per chunk).
-    - ``n_lanes``: members integrated at once inside a chunk (default ``min(256, chunk)``
-      per device).
+    - ``n_lanes``: members integrated at once inside a chunk, per device (default: an
+      eighth of the chunk's members per device, at most 1,024).
     - ``schedule``: ``"queue"`` (default) or ``"lockstep"``, see above.
     - ``devices``: devices to shard the batch over: ``None`` (all of ``jax.devices()``),
       a count, or a list. On a multi-host run (after ``jax.distributed.initialize()``)
@@ -526,7 +543,8 @@ def sweep(
         chunk_size = manifest_chunk or int(min(8192, max(64, (64 << 20) // per_member)))
     chunk_size = int(min(chunk_size, n_members))
     chunk_size = -(-chunk_size // n_dev) * n_dev  # a whole number of members per device
-    lanes = int(n_lanes) if n_lanes is not None else min(256, chunk_size // n_dev)
+    # about eight members per lane: enough to refill lanes, few enough to keep the tail short
+    lanes = int(n_lanes) if n_lanes is not None else max(1, min(1024, chunk_size // n_dev // 8))
     setup = _Setup(system, solver_, controller, tau_fn, reduce, lanes, max_steps_, schedule)
     n_chunks = -(-n_members // chunk_size)
 
