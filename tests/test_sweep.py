@@ -318,3 +318,28 @@ def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
     other = lx.grid(params, m2=np.linspace(0.5, 2.5, 6), l1=np.linspace(0.5, 1.5, 4))
     with pytest.raises(ValueError, match="different sweep definition"):
         lx.sweep(system, other, [0.3, 0.8], [0.0, 0.0], checkpoint=ckpt, **kw)
+
+
+def test_multihost_example_matches_single_process(arm, tmp_path):
+    """examples/multihost_sweep.py with two CPU processes == one process."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        port = s.getsockname()[1]
+    script = os.path.join(os.path.dirname(__file__), "..", "examples", "multihost_sweep.py")
+    out = tmp_path / "multi.npz"
+    common = [sys.executable, script, "--coordinator", f"localhost:{port}",
+              "--num-processes", "2", "--out", str(out)]  # fmt: skip
+    procs = [subprocess.Popen(common + ["--process-id", str(i)], stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True) for i in (0, 1)]  # fmt: skip
+    logs = [p.communicate(timeout=600)[0] for p in procs]
+    assert all(p.returncode == 0 for p in procs), logs[0][-2000:] + logs[1][-2000:]
+    assert all("process" in log and "2 devices" in log for log in logs)
+    multi = lx.load_sweep(out)
+    system, params = arm
+    batch = lx.grid(params, m2=np.linspace(0.5, 2.0, 16), l1=np.linspace(0.5, 1.5, 16))
+    single = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=5.0)
+    np.testing.assert_array_equal(multi.num_steps.values, single.num_steps.values)
+    # same steps; values agree up to round-off (amplified by the chaotic arm over 5 s)
+    np.testing.assert_allclose(multi.q.values, single.q.values, rtol=1e-8, atol=1e-9)
