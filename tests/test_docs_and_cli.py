@@ -14,17 +14,24 @@ from lagrax import cli  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_readme_python_example_runs(capsys):
+def test_readme_python_example_runs(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the sweep example writes a file
     text = (ROOT / "README.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
     assert blocks, "README has no python example"
+    spaces = []
     for block in blocks:
         namespace: dict = {}
         exec(compile(block, "README.md", "exec"), namespace)
+        spaces.append(namespace)
     # the cart-pole example: its energy drift at rtol=atol=1e-10 must be small
-    sol = namespace["sol"]
+    sol = next(ns["sol"] for ns in spaces if "sol" in ns)
     assert bool(sol.ok)
     assert float(np.max(np.abs(sol.energy_error))) < 1e-7
+    # the sweep example: every member finished, labelled by the grid, saved
+    ds = next(ns["ds"] for ns in spaces if "ds" in ns)
+    assert ds.attrs["n_failed"] == 0 and ds.q.dims == ("m2", "l1", "dof")
+    assert (tmp_path / "sweep.npz").exists()
 
 
 def test_demo_command(tmp_path, capsys):
