@@ -196,7 +196,8 @@ def main(argv=None):
     idle_lock = ds_lock.attrs["lane_idle_fraction"]
     assert int(ds.attrs["n_failed"]) == 0
     flat = {k: np.asarray(v) for k, v in batch.params().items()}
-    _, c_closed, t_closed = timed(closed_form_sweep(batch.params(), 256), args.repeats)
+    lanes = max(1, min(1024, n // 8))  # the sweep default for one chunk on one device
+    _, c_closed, t_closed = timed(closed_form_sweep(batch.params(), lanes), args.repeats)
 
     # accuracy on a subset, against Dopri8 at 1e-12
     pick = np.linspace(0, n - 1, 64).astype(int)
