@@ -99,13 +99,17 @@ class AbstractBody(eqx.Module):
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         """Kinetic energy ``T(q, q̇)`` of the body (summed over ``k`` if batched)."""
 
+    def com_position(self, q: Vector, params: Params) -> Point:
+        """Centre of mass ``x_c(q)`` (``(d,)``, or ``(k, d)`` if batched)."""
+        return _point(self.position, q, params)
+
     def potential_energy(self, q: Vector, params: Params, gravity: Any) -> Scalar:
         """Gravity potential ``V = −m g⃗·x_c``.
 
         ``gravity`` is a scalar magnitude ``g`` acting along the negative last axis (−y for a
         planar position, −z for a spatial one) or a full vector ``g⃗``.
         """
-        x = _point(self.position, q, params)
+        x = self.com_position(q, params)
         return _gravity_energy(_value(self.mass, params), x, gravity, type(self).__name__)
 
 
@@ -155,7 +159,8 @@ class PlanarBody(AbstractBody):
       mass (:data:`ParamLike`).
     - ``position``: ``x_c(q, params) -> (2,)``, the centre of mass in the fixed frame.
     - ``angle``: ``θ(q, params) -> ()``, the body's orientation from the fixed x axis
-      (counter-clockwise).
+      (counter-clockwise). ``None``: ``position`` returns the pair ``(x_c, θ)`` (one
+      function for both, when they share work).
 
     With ``(k,)`` masses and inertias, ``position`` may return ``(k, 2)`` and ``angle``
     ``(k,)``: ``k`` bodies sharing one kinematics function.
@@ -164,11 +169,23 @@ class PlanarBody(AbstractBody):
     mass: ParamLike
     inertia: ParamLike
     position: PointFn
-    angle: Callable[[Vector, Params], Any]
+    angle: Callable[[Vector, Params], Any] | None
+
+    def _pose(self, q, params):
+        if self.angle is None:
+            x, th = self.position(q, params)
+        else:
+            x, th = self.position(q, params), self.angle(q, params)
+        return jnp.asarray(x), jnp.asarray(th)
+
+    def com_position(self, q: Vector, params: Params) -> Point:
+        if self.angle is None:
+            return jnp.asarray(self.position(q, params)[0])
+        return jnp.asarray(self.position(q, params))
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         def pose(a):
-            return jnp.asarray(self.position(a, params)), jnp.asarray(self.angle(a, params))
+            return self._pose(a, params)
 
         (x, th), (v, w) = jax.jvp(pose, (q,), (qd,))
         if x.shape[-1:] != (2,):
@@ -212,6 +229,8 @@ class SpatialBody(AbstractBody):
       (:data:`ParamLike`; see :func:`check_inertia`).
     - ``position``: ``x_c(q, params) -> (3,)``.
     - ``rotation``: ``R(q, params) -> (3, 3)``, a rotation matrix (body → world).
+      ``None``: ``position`` returns the pair ``(x_c, R)`` (one function for both, e.g. a
+      chain's forward kinematics, traced once instead of twice).
 
     Batched: ``(k,)`` masses, ``(k, 3, 3)`` inertias, positions ``(k, 3)``, rotations
     ``(k, 3, 3)``.
@@ -220,11 +239,23 @@ class SpatialBody(AbstractBody):
     mass: ParamLike
     inertia: ParamLike
     position: PointFn
-    rotation: Callable[[Vector, Params], Rotation]
+    rotation: Callable[[Vector, Params], Rotation] | None
+
+    def _pose(self, q, params):
+        if self.rotation is None:
+            x, rot = self.position(q, params)
+        else:
+            x, rot = self.position(q, params), self.rotation(q, params)
+        return jnp.asarray(x), jnp.asarray(rot)
+
+    def com_position(self, q: Vector, params: Params) -> Point:
+        if self.rotation is None:
+            return jnp.asarray(self.position(q, params)[0])
+        return jnp.asarray(self.position(q, params))
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         def pose(a):
-            return jnp.asarray(self.position(a, params)), jnp.asarray(self.rotation(a, params))
+            return self._pose(a, params)
 
         (x, rot), (v, rot_dot) = jax.jvp(pose, (q,), (qd,))
         if x.shape[-1:] != (3,):

@@ -10,6 +10,7 @@ of :mod:`lagrax.bodies` (one batched body for all links) and its structure is wh
 from typing import Any, Literal
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -19,6 +20,12 @@ from ._system import LagrangianSystem
 from ._typing import Params, Vector
 
 BodyKind = Literal["planar", "spatial"]
+
+# Chains up to this length have their forward kinematics unrolled (XLA fuses short chains
+# best, in particular under the scalar forward-over-forward derivatives that
+# LagrangianSystem.forward_dynamics uses for n <= 6); longer ones loop (lax.scan), which
+# compiles in time independent of n and ran as fast in measurements at n = 8 and 10.
+_UNROLL_MAX = 6
 
 
 def _broadcast(name: str, value: Any, shape: tuple[int, ...], dtype: Any) -> jnp.ndarray:
@@ -120,24 +127,27 @@ class PlanarChain(eqx.Module):
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
         """Centres of mass ``x_ci = joint_i + r_i u_i``, shape ``(n, 2)``."""
         self._check_q(q)
-        _, u = self._directions(q)
+        return self._pose(q, params)[0]
+
+    def _pose(self, q, params):
+        """``(x_c (n, 2), φ (n,))``: every link's pose from one pass of cumulative sums."""
+        self._check_q(q)
+        phi, u = self._directions(q)
         ends = jnp.cumsum(params["l"][:, None] * u, axis=0)
         starts = jnp.concatenate([jnp.zeros((1, 2), ends.dtype), ends[:-1]], axis=0)
-        return starts + params["r"][:, None] * u
+        return starts + params["r"][:, None] * u, phi
 
     # spatial embedding of the same links (z = 0, rotation about z), for comparison
-    def _com_3d(self, q, params):
-        c = self.com_positions(q, params)
-        return jnp.concatenate([c, jnp.zeros((self.n, 1), c.dtype)], axis=-1)
-
-    def _rotation_3d(self, q, params):
-        phi = jnp.cumsum(q)
+    def _pose_3d(self, q, params):
+        com, phi = self._pose(q, params)
+        com = jnp.concatenate([com, jnp.zeros((self.n, 1), com.dtype)], axis=-1)
         c, s = jnp.cos(phi), jnp.sin(phi)
         z, o = jnp.zeros_like(c), jnp.ones_like(c)
-        return jnp.stack(
+        rot = jnp.stack(
             [jnp.stack([c, -s, z], -1), jnp.stack([s, c, z], -1), jnp.stack([z, z, o], -1)],
             axis=-2,
         )
+        return com, rot
 
     def _inertia_3d(self, params):
         i = jnp.asarray(params["I"])
@@ -161,10 +171,10 @@ class PlanarChain(eqx.Module):
           more work; kept to measure what the planar description saves.
         """
         if bodies == "planar":
-            body = PlanarBody(Param("m"), Param("I"), self.com_positions, self.link_angles)
+            body = PlanarBody(Param("m"), Param("I"), self._pose, None)
             gravity = Param("g")
         elif bodies == "spatial":
-            body = SpatialBody(Param("m"), self._inertia_3d, self._com_3d, self._rotation_3d)
+            body = SpatialBody(Param("m"), self._inertia_3d, self._pose_3d, None)
             gravity = self._gravity_3d
         else:
             raise ValueError(f"bodies must be 'planar' or 'spatial', got {bodies!r}")
@@ -338,37 +348,63 @@ class SpatialChain(eqx.Module):
             "g": jnp.asarray(g, dtype=dtype),
         }
 
+    def _joint_constants(self) -> tuple[np.ndarray, ...]:
+        """Per-joint constants ``(A, B, C, s)``, stacked: ``ⁱ⁻¹R_i = A + sin q B +
+        (1 − cos q) C`` and the origin slides by ``q s`` in frame ``i − 1``.
+
+        Revolute (Rodrigues): ``A = S``, ``B = S [a]×``, ``C = S [a]×²``, ``s = 0``;
+        prismatic: ``A = S``, ``B = C = 0``, ``s = S a``.
+        """
+        consts = []
+        for kind, axis, fixed in zip(self.joint_types, self.axes, self.rotations, strict=True):
+            a, rot = np.asarray(axis), np.asarray(fixed)
+            k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+            zero = np.zeros((3, 3))
+            if kind == "R":
+                consts.append((rot, rot @ k, rot @ k @ k, np.zeros(3)))
+            else:
+                consts.append((rot, zero, zero, rot @ a))
+        return tuple(np.stack(c) for c in zip(*consts, strict=True))
+
     def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         """Forward kinematics: origins ``(n, 3)`` and rotations ``(n, 3, 3)`` of the link
-        frames in the world frame (``R_i`` takes frame-``i`` components to world ones)."""
+        frames in the world frame (``R_i`` takes frame-``i`` components to world ones).
+
+        ``R_i = R_{i−1} ⁱ⁻¹R_i``, ``o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)``: one
+        ``lax.scan`` over the joints (fully unrolled for short chains, where XLA fuses
+        best; a loop for long ones, which compiles in constant time).
+        """
         if q.shape != (self.n,):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this chain")
-        dtype = q.dtype
-        offset = params["offset"]
-        rot = jnp.eye(3, dtype=dtype)
-        origin = jnp.zeros(3, dtype)
-        origins, rots = [], []
-        for i, kind in enumerate(self.joint_types):
-            axis = jnp.asarray(self.axes[i], dtype)
-            fixed = rot @ jnp.asarray(self.rotations[i], dtype)
-            origin = origin + rot @ offset[i]
-            if kind == "R":
-                rot = fixed @ axis_angle_rotation(axis, q[i])
-            else:
-                rot = fixed
-                origin = origin + fixed @ (axis * q[i])
-            origins.append(origin)
-            rots.append(rot)
-        return jnp.stack(origins), jnp.stack(rots)
+        offset = jnp.asarray(params["offset"])
+        dtype = jnp.result_type(q, offset)
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
+
+        def joint(carry, x):
+            rot, origin = carry
+            qi, ai, bi, ci, si, off = x
+            origin = origin + rot @ (off + qi * si)
+            rot = rot @ (ai + jnp.sin(qi) * bi + (1 - jnp.cos(qi)) * ci)
+            return (rot, origin), (origin, rot)
+
+        init = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
+        xs = (q.astype(dtype), a, b, c, slide, offset.astype(dtype))
+        unroll = self.n if self.n <= _UNROLL_MAX else 1
+        _, (origins, rots) = jax.lax.scan(joint, init, xs, unroll=unroll)
+        return origins, rots
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
         """Centres of mass in the world frame, ``x_ci = o_i + R_i com_i``, shape ``(n, 3)``."""
-        origins, rots = self.frames(q, params)
-        return origins + jnp.einsum("nij,nj->ni", rots, params["com"])
+        return self._pose(q, params)[0]
 
     def link_rotations(self, q: Vector, params: Params) -> jnp.ndarray:
         """Link rotation matrices ``R_i``, shape ``(n, 3, 3)``."""
         return self.frames(q, params)[1]
+
+    def _pose(self, q, params):
+        origins, rots = self.frames(q, params)
+        com = jnp.asarray(params["com"]).astype(rots.dtype)
+        return origins + jnp.einsum("nij,nj->ni", rots, com), rots
 
     def _gravity(self, params):
         g = jnp.asarray(params["g"])
@@ -378,7 +414,7 @@ class SpatialChain(eqx.Module):
         """The chain as a :class:`lagrax.bodies.Scene`: one batched
         :class:`~lagrax.bodies.SpatialBody` for all links, gravity ``−g up``."""
         types = self.joint_types
-        body = SpatialBody(Param("m"), Param("inertia"), self.com_positions, self.link_rotations)
+        body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         return Scene([body], gravity=self._gravity, n_dof=self.n, name=f"{types} chain")
 
     def system(self) -> LagrangianSystem:

@@ -196,7 +196,7 @@ def principal_axes(inertia: Inertia) -> PrincipalAxes:
         raise ShapeError(f"principal_axes: expected a (3, 3) inertia, got {inertia.shape}")
     moments, axes = jnp.linalg.eigh(0.5 * (inertia + inertia.T))
     sign = jnp.sign(jnp.linalg.det(axes))
-    axes = axes * jnp.stack([jnp.ones_like(sign), jnp.ones_like(sign), sign])
+    axes = axes.at[:, 2].multiply(sign)
     return PrincipalAxes(moments, axes)
 
 
@@ -264,7 +264,7 @@ def check_inertia(
             which = int(np.argmax(bad))
             where = f"[{which}]" if values.ndim else ""
             raise ParameterError(
-                f"{name}{where} = {flat[which]!r} is not a positive moment of inertia: "
+                f"{name}{where} = {float(flat[which]):.6g} is not a positive moment of inertia: "
                 "a planar inertia about the centre of mass must be > 0"
             )
         return arr

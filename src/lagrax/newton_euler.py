@@ -151,15 +151,15 @@ def rnea(
     **Raises:** ``ShapeError`` for inputs of the wrong length; ``TypeError`` for another
     kind of chain.
     """
+    if not isinstance(chain, (PlanarChain, SpatialChain)):
+        raise TypeError(f"rnea needs a PlanarChain or SpatialChain, got {type(chain).__name__}")
     q, qd, qdd = (jnp.asarray(x) for x in (q, qd, qdd))
     for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
         if x.shape != (chain.n,):
             raise ShapeError(f"rnea: {name} has shape {x.shape}, expected ({chain.n},)")
     if isinstance(chain, PlanarChain):
         return _rnea_planar(chain.n, q, qd, qdd, params)
-    if isinstance(chain, SpatialChain):
-        return _rnea_spatial(chain, q, qd, qdd, params)
-    raise TypeError(f"rnea needs a PlanarChain or SpatialChain, got {type(chain).__name__}")
+    return _rnea_spatial(chain, q, qd, qdd, params)
 
 
 def _rnea_planar(n, q, qd, qdd, p):
