@@ -21,6 +21,8 @@ from . import integrators as integrators  # noqa: E402
 from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
 from . import plot as plot  # noqa: E402
+from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
+from ._errors import ConstraintError as ConstraintError  # noqa: E402
 from ._errors import LagraxError as LagraxError  # noqa: E402
 from ._errors import MassMatrixError as MassMatrixError  # noqa: E402
 from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
@@ -40,6 +42,8 @@ except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tre
 
 __all__ = [
     "LagrangianSystem",
+    "ConstrainedSystem",
+    "ConstraintError",
     "simulate",
     "METHODS",
     "integrators",

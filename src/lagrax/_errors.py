@@ -26,3 +26,9 @@ class MassMatrixError(LagraxError, ValueError):
 
 class SimulationError(LagraxError, RuntimeError):
     """A solve failed (step budget exhausted, non-finite state, singular mass matrix)."""
+
+
+class ConstraintError(LagraxError, ValueError):
+    """Holonomic constraints cannot be enforced: their Jacobian ``J = ∂φ/∂q`` is
+    rank-deficient (redundant constraints or a singular configuration, so the KKT matrix
+    ``[[M, Jᵀ], [J, 0]]`` is singular), or a state cannot be projected onto ``φ(q) = 0``."""

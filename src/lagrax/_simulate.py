@@ -9,11 +9,13 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float, Int
 
-from ._errors import ShapeError, SimulationError
+from ._constraints import ConstrainedSystem
+from ._errors import ConstraintError, ShapeError, SimulationError
 from ._methods import fixed_step_budget, resolve_solver
 from ._system import LagrangianSystem, _is_traced, _pivot_threshold
 from ._typing import Coordinates, Params, Velocities
 from ._vector_field import LagrangianVectorField, TauFn
+from .integrators import Variational
 
 
 class RESULTS(dfx.RESULTS):
@@ -22,6 +24,11 @@ class RESULTS(dfx.RESULTS):
     non_finite_state = (
         "The state became non-finite (NaN or inf): the solve blew up, typically a fixed "
         "step past the method's stability limit, or a force that diverges."
+    )
+    constraint_projection_failed = (
+        "The initial state could not be projected onto the constraint manifold phi(q) = 0 "
+        "(no admissible configuration nearby, or a rank-deficient constraint Jacobian); the "
+        "solve ran from the unprojected state."
     )
 
 
@@ -39,6 +46,11 @@ class Solution(eqx.Module):
       ``num_rejected_steps``, ``max_steps``).
     - ``t_end``, ``q_end``, ``qd_end``: the last state the solver reached: ``t1`` on
       success, the time it stopped at on failure (with a custom ``saveat``, the last save).
+    - ``constraint_violation``: for a ``ConstrainedSystem``, ``φ(q)`` at ``ts``, shape
+      ``(T, m)``; ``None`` otherwise.
+    - ``multipliers``: for a ``ConstrainedSystem``, the Lagrange multipliers ``λ`` at
+      ``ts``, shape ``(T, m)`` (``J(q)ᵀλ`` is the generalized constraint force); ``None``
+      otherwise.
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -55,6 +67,8 @@ class Solution(eqx.Module):
     t_end: Float[Array, ""]
     q_end: Float[Array, " n"]
     qd_end: Float[Array, " n"]
+    constraint_violation: Float[Array, "T m"] | None = None
+    multipliers: Float[Array, "T m"] | None = None
 
     @property
     def ok(self) -> Array:
@@ -95,8 +109,20 @@ def _solve(
     requested_ts = ts
     if stepsize_controller is None:
         stepsize_controller = dfx.PIDController(rtol=rtol, atol=atol)
+    constrained = isinstance(system, ConstrainedSystem)
+    if constrained and isinstance(solver, Variational):
+        raise ValueError(
+            "the variational integrators work on the Lagrangian of an unconstrained system "
+            f"and would ignore the constraints of {system.name}: use an ODE method such "
+            "as 'tsit5' (or 'rk4' at a fixed step)"
+        )
+    projected = True
+    if constrained and system.project_initial:
+        q0, qd0, projected = system._project(*y0, params)
+        y0 = (q0, qd0)
+    field = LagrangianVectorField(system, tau_fn)
     sol = dfx.diffeqsolve(
-        dfx.ODETerm(LagrangianVectorField(system, tau_fn)),
+        dfx.ODETerm(field),
         solver,
         t0,
         t1,
@@ -129,11 +155,22 @@ def _solve(
     result = RESULTS.promote(sol.result)
     result = RESULTS.where(finite | (result != RESULTS.successful), result,
                            RESULTS.non_finite_state)  # fmt: skip
-    return Solution(ts, q, qd, energy, result, dict(sol.stats), t_end, q_end, qd_end)
+    violation = multipliers = None
+    if constrained:
+        result = RESULTS.where(projected, result, RESULTS.constraint_projection_failed)
+        reached = jnp.isfinite(ts)[:, None]
+        violation = jax.vmap(lambda a: system._phi(a, params))(q)
+        multipliers = jax.vmap(
+            lambda t, a, b: system._kkt(t, a, b, params, field.tau(t, a, b, tau_const))[1]
+        )(ts, q, qd)
+        violation = jnp.where(reached, violation, jnp.inf)
+        multipliers = jnp.where(reached, multipliers, jnp.inf)
+    return Solution(ts, q, qd, energy, result, dict(sol.stats), t_end, q_end, qd_end,
+                    violation, multipliers)  # fmt: skip
 
 
 def simulate(
-    system: LagrangianSystem,
+    system: LagrangianSystem | ConstrainedSystem,
     q0: Coordinates,
     qd0: Velocities,
     params: Params,
@@ -158,6 +195,13 @@ def simulate(
     The state ``(q, q̇)`` is integrated as a first-order system with diffrax; the
     accelerations come from :meth:`LagrangianSystem.forward_dynamics` (unchecked inside the
     solver loop; failures are diagnosed after it, see *Raises*).
+
+    A :class:`ConstrainedSystem` is integrated the same way with its constrained
+    accelerations (KKT system with Baumgarte stabilization); its initial state is first
+    projected onto ``φ(q) = 0``, ``J q̇ = 0`` (unless ``project_initial=False``), so
+    ``Solution.q[0]`` may differ from ``q0``; ``Solution.constraint_violation`` and
+    ``Solution.multipliers`` report ``φ`` and ``λ`` along the path. The variational
+    integrators do not apply to constrained systems.
 
     **Arguments:**
 
@@ -188,7 +232,9 @@ def simulate(
     **Returns:** a :class:`Solution`.
 
     **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
-    for bad input (checked at the initial state), and ``SimulationError`` when the solve
+    for bad input (checked at the initial state), ``ConstraintError`` for a constrained
+    system whose initial state cannot be projected onto its constraints or whose
+    constraint Jacobian is rank-deficient there, and ``SimulationError`` when the solve
     fails: the message names the cause (step budget, non-finite state, singular mass
     matrix), the time reached and what to try.
 
@@ -278,6 +324,8 @@ def simulate(
             "lagrax.simulate failed (max steps, non-finite state or singular mass "
             "matrix); call it outside jit, or with throw=False, for a diagnosis",
         )
+    if sol.result == RESULTS.constraint_projection_failed:  # checked already; in case
+        raise ConstraintError(system._projection_message(q0, params))
     if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q) & jnp.isfinite(sol.qd))):
         raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
     return sol
@@ -321,9 +369,16 @@ def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
                 "Use coordinates without this singularity."
             )
         elif not np.all(np.isfinite(qdd)):
+            rank = (
+                system._rank_message(sol.q_end, params)
+                if isinstance(system, ConstrainedSystem)
+                else None
+            )
             lines.append(
-                "  the accelerations are non-finite there: check the force/tau functions "
-                "and the energies for divisions by zero or overflow"
+                f"  {rank}"
+                if rank is not None
+                else "  the accelerations are non-finite there: check the force/tau "
+                "functions and the energies for divisions by zero or overflow"
             )
     if sol.result == RESULTS.max_steps_reached:
         lines.append(

@@ -21,3 +21,7 @@ Rotation: TypeAlias = Float[Array, "*k 3 3"]
 """Rotation matrix (or ``k`` of them) taking body-frame components to world components."""
 Inertia: TypeAlias = Float[ArrayLike, "*k 3 3"]
 """3×3 inertia tensor(s)."""
+
+ConstraintValues: TypeAlias = Float[Array, " m"]
+"""Values ``φ(q)`` of ``m`` holonomic constraints, or their multipliers ``λ``."""
+ConstraintJacobian: TypeAlias = Float[Array, "m n"]

@@ -1,6 +1,8 @@
 """Ready-made scenes: each returns ``(system, params)`` with default parameter values."""
 
+from ._cartesian_pendulum import cartesian_pendulum as cartesian_pendulum
+from ._four_bar import four_bar as four_bar
 from ._mass_spring_damper import mass_spring_damper as mass_spring_damper
 from ._planar_2r import planar_2r as planar_2r
 
-__all__ = ["planar_2r", "mass_spring_damper"]
+__all__ = ["planar_2r", "mass_spring_damper", "cartesian_pendulum", "four_bar"]
