@@ -21,6 +21,7 @@ from . import integrators as integrators  # noqa: E402
 from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
 from . import plot as plot  # noqa: E402
+from . import rigid_body as rigid_body  # noqa: E402
 from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
 from ._errors import ConstraintError as ConstraintError  # noqa: E402
 from ._errors import LagraxError as LagraxError  # noqa: E402
@@ -43,6 +44,7 @@ except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tre
 __all__ = [
     "LagrangianSystem",
     "ConstrainedSystem",
+    "rigid_body",
     "ConstraintError",
     "simulate",
     "METHODS",

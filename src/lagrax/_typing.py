@@ -25,3 +25,7 @@ Inertia: TypeAlias = Float[ArrayLike, "*k 3 3"]
 ConstraintValues: TypeAlias = Float[Array, " m"]
 """Values ``φ(q)`` of ``m`` holonomic constraints, or their multipliers ``λ``."""
 ConstraintJacobian: TypeAlias = Float[Array, "m n"]
+Vector3: TypeAlias = Float[Array, "3"]
+Matrix3: TypeAlias = Float[Array, "3 3"]
+Quaternion: TypeAlias = Float[Array, "4"]
+"""A unit quaternion ``(w, x, y, z)``, scalar first (Hamilton convention)."""

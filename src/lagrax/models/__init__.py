@@ -2,7 +2,14 @@
 
 from ._cartesian_pendulum import cartesian_pendulum as cartesian_pendulum
 from ._four_bar import four_bar as four_bar
+from ._free_rigid_body import free_rigid_body_euler_angles as free_rigid_body_euler_angles
 from ._mass_spring_damper import mass_spring_damper as mass_spring_damper
 from ._planar_2r import planar_2r as planar_2r
 
-__all__ = ["planar_2r", "mass_spring_damper", "cartesian_pendulum", "four_bar"]
+__all__ = [
+    "planar_2r",
+    "mass_spring_damper",
+    "cartesian_pendulum",
+    "four_bar",
+    "free_rigid_body_euler_angles",
+]
