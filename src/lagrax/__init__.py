@@ -34,6 +34,12 @@ from ._methods import METHODS as METHODS  # noqa: E402
 from ._simulate import RESULTS as RESULTS  # noqa: E402
 from ._simulate import Solution as Solution  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
+from ._sweep import Grid as Grid  # noqa: E402
+from ._sweep import grid as grid  # noqa: E402
+from ._sweep import load_sweep as load_sweep  # noqa: E402
+from ._sweep import samples as samples  # noqa: E402
+from ._sweep import save_sweep as save_sweep  # noqa: E402
+from ._sweep import sweep as sweep  # noqa: E402
 from ._system import LagrangianSystem as LagrangianSystem  # noqa: E402
 
 try:
@@ -47,6 +53,12 @@ __all__ = [
     "rigid_body",
     "ConstraintError",
     "simulate",
+    "sweep",
+    "grid",
+    "samples",
+    "Grid",
+    "save_sweep",
+    "load_sweep",
     "METHODS",
     "integrators",
     "bench",

@@ -30,6 +30,10 @@ class RESULTS(dfx.RESULTS):
         "(no admissible configuration nearby, or a rank-deficient constraint Jacobian); the "
         "solve ran from the unprojected state."
     )
+    invalid_input = (
+        "This member was not solved: its parameters or initial state are non-finite, or "
+        "its mass matrix is not positive-definite at the initial state."
+    )
 
 
 class Solution(eqx.Module):
@@ -268,35 +272,9 @@ def simulate(
         if ts.ndim != 1:
             raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
     tdt = jnp.asarray(0.0, dtype).dtype
-    named_implicit = isinstance(solver, str)  # configure only the solvers we built
-    solver, may_adapt = resolve_solver(solver)
-    if dt is not None:
-        if stepsize_controller is not None:
-            raise ValueError("pass either dt= (a fixed step) or stepsize_controller=, not both")
-        stepsize_controller = dfx.ConstantStepSize()
-        dt0 = dt
-        if max_steps is None and eager:
-            max_steps = fixed_step_budget(t0, t1, dt)
-    elif not may_adapt and not isinstance(stepsize_controller, dfx.ConstantStepSize):
-        raise ValueError(
-            f"{type(solver).__name__} has no error estimate and runs at a fixed step only "
-            "(for a variational integrator, an adaptive step would also destroy its "
-            "symplecticity): pass dt=..."
-        )
-    if max_steps is None:
-        max_steps = 100_000
-    if isinstance(solver, dfx.AbstractImplicitSolver) and named_implicit:
-        # Newton with a fresh Jacobian each iteration: for the small n of mechanisms it is
-        # cheap, and far more robust than a chord iteration on strongly nonlinear steps.
-        solver = eqx.tree_at(
-            lambda s: s.root_finder,
-            solver,
-            optx.Newton(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt)),
-        )
-        if stepsize_controller is None:  # diffrax's advice for implicit methods
-            stepsize_controller = dfx.PIDController(
-                rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt), pcoeff=0.3, icoeff=0.3
-            )
+    solver, stepsize_controller, dt0, max_steps = _configure(
+        solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
+    )
     sol = _solve(
         system,
         solver,
@@ -329,6 +307,45 @@ def simulate(
     if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q) & jnp.isfinite(sol.qd))):
         raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
     return sol
+
+
+def _configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):
+    """``(solver, stepsize_controller, dt0, max_steps)`` for a solve, with lagrax's defaults.
+
+    Shared by ``simulate`` and ``sweep``. ``stepsize_controller`` stays ``None`` for the
+    default ``PIDController(rtol, atol)``; the step budget is sized for a fixed ``dt``
+    when ``t0``, ``t1`` are concrete (``eager``).
+    """
+    named_implicit = isinstance(solver, str)  # configure only the solvers we built
+    solver, may_adapt = resolve_solver(solver)
+    if dt is not None:
+        if stepsize_controller is not None:
+            raise ValueError("pass either dt= (a fixed step) or stepsize_controller=, not both")
+        stepsize_controller = dfx.ConstantStepSize()
+        dt0 = dt
+        if max_steps is None and eager:
+            max_steps = fixed_step_budget(t0, t1, dt)
+    elif not may_adapt and not isinstance(stepsize_controller, dfx.ConstantStepSize):
+        raise ValueError(
+            f"{type(solver).__name__} has no error estimate and runs at a fixed step only "
+            "(for a variational integrator, an adaptive step would also destroy its "
+            "symplecticity): pass dt=..."
+        )
+    if max_steps is None:
+        max_steps = 100_000
+    if isinstance(solver, dfx.AbstractImplicitSolver) and named_implicit:
+        # Newton with a fresh Jacobian each iteration: for the small n of mechanisms it is
+        # cheap, and far more robust than a chord iteration on strongly nonlinear steps.
+        solver = eqx.tree_at(
+            lambda s: s.root_finder,
+            solver,
+            optx.Newton(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt)),
+        )
+        if stepsize_controller is None:  # diffrax's advice for implicit methods
+            stepsize_controller = dfx.PIDController(
+                rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt), pcoeff=0.3, icoeff=0.3
+            )
+    return solver, stepsize_controller, dt0, int(max_steps)
 
 
 def _diagnose(system, sol: Solution, params, max_steps, rtol, atol) -> str:
