@@ -29,6 +29,7 @@ from ._vector_field import LagrangianVectorField
 _FORMAT_VERSION = 1
 _OK = int(RESULTS.successful._value)
 _INVALID = int(RESULTS.invalid_input._value)
+_NOT_PROJECTED = int(RESULTS.constraint_projection_failed._value)
 
 
 # --------------------------------------------------------------------------- the batch
@@ -214,6 +215,10 @@ def _run_chunk(setup: _Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     e0 = jax.vmap(system.energy)(q0, qd0, members)
     q_end, qd_end = out.y_end
     e_end = jax.vmap(system.energy)(q_end, qd_end, members)
+    if hasattr(system, "_phi"):  # a ConstrainedSystem: how far the end state is from φ = 0
+        violation = jax.vmap(lambda a, p: jnp.max(jnp.abs(system._phi(a, p))))(q_end, members)
+    else:
+        violation = None
     reduced = None
     if setup.reduce is not None:
 
@@ -228,13 +233,19 @@ def _run_chunk(setup: _Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
         reduced = jax.vmap(reduce_one)(q, qd, e, out.result, out.t_end, q_end, qd_end,
                                        out.num_steps, out.num_accepted_steps,
                                        out.num_rejected_steps)  # fmt: skip
-    return out, e, e0, e_end, reduced
+    return out, e, e0, e_end, reduced, violation
 
 
 def _result_item(code):
     from equinox._enum import EnumerationItem  # the item type of diffrax/lagrax RESULTS
 
     return EnumerationItem(code, RESULTS)
+
+
+@eqx.filter_jit
+def _project_all(system, q0s, qd0s, members):
+    """Per member: the initial state projected onto the constraints, and whether it could be."""
+    return jax.vmap(system._project)(q0s, qd0s, members)
 
 
 @eqx.filter_jit
@@ -424,7 +435,10 @@ def sweep(
 
     **Arguments:**
 
-    - ``system``: a :class:`LagrangianSystem`.
+    - ``system``: a :class:`LagrangianSystem`, or a :class:`ConstrainedSystem` (each
+      member's initial state is first projected onto its constraints, as in
+      ``simulate``; the result then also has ``constraint_violation``, ``max |φ(q)|`` at
+      the end).
     - ``params``: a :class:`Grid` from :func:`grid` / :func:`samples`, or a pytree whose
       every leaf has a leading batch axis (one entry per member).
     - ``q0``, ``qd0``: initial state, ``(n,)`` for all members, or one per member
@@ -604,6 +618,11 @@ def _solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0
     """Run one chunk (padded to ``size`` members so every chunk reuses one compilation)."""
     m = q0s.shape[0]
     members = jtu.tree_map(lambda x: np.asarray(x), members)
+    projected = np.ones(m, bool)
+    if getattr(system, "project_initial", False):  # a ConstrainedSystem: start on φ = 0
+        q0s, qd0s, projected = _to_host(_project_all(system, jnp.asarray(q0s),
+                                                     jnp.asarray(qd0s),
+                                                     jtu.tree_map(jnp.asarray, members)))
     # per member: finite inputs and a positive-definite mass matrix at the initial state
     fin = np.isfinite(q0s).all(1) & np.isfinite(qd0s).all(1)
     for leaf in jtu.tree_leaves(members):
@@ -625,15 +644,16 @@ def _solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0
     pick = lambda x: np.asarray(x)[src]  # noqa: E731
     members_d = jtu.tree_map(lambda x: _to_device(pick(x), mesh), members)
     y0s = (_to_device(pick(q0s), mesh), _to_device(pick(qd0s), mesh))
-    out, e, e0, e_end, reduced = _run_chunk(setup, mesh, members_d, y0s, tau_const,
+    out, e, e0, e_end, reduced, violation = _run_chunk(setup, mesh, members_d, y0s, tau_const,
                                             jnp.asarray(t0, tdt), jnp.asarray(t1, tdt),
                                             None if dt0 is None else jnp.asarray(dt0, tdt),
                                             ts)  # fmt: skip
-    out, e, e0, e_end, reduced = _to_host((out, e, e0, e_end, reduced))
+    out, e, e0, e_end, reduced, violation = _to_host((out, e, e0, e_end, reduced, violation))
     cut = lambda x: x[:m]  # noqa: E731
     q, qd = out.ys
     q_end, qd_end = out.y_end
     res = cut(out.result).copy()
+    res[~projected & (res == _OK)] = _NOT_PROJECTED
     res[~valid] = _INVALID
     bad = ~valid
 
@@ -651,6 +671,8 @@ def _solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0
         busy_lane_steps=np.asarray([out.busy_lane_steps.sum()]),
         lane_steps=np.asarray([out.lane_steps.sum()]),
     )  # fmt: skip
+    if violation is not None:
+        chunk["constraint_violation"] = blank(violation)
     if reduced is not None:
         leaves, _ = jtu.tree_flatten_with_path(reduced)
         for path, leaf in leaves:
@@ -703,6 +725,8 @@ def _dataset(xr, chunks, batch, raw_params, ts, keep, n, n_members, settings, so
     messages = RESULTS._index_to_message
     status = np.asarray(["ok" if r == _OK else _short(messages[r]) for r in cat["result"]])
     data["status"] = (sweep_dims, shaped(status))
+    if "constraint_violation" in cat:
+        data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
     for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
         data[k] = (sweep_dims, shaped(cat[k]))
     coords = {"dof": np.arange(n)}
