@@ -363,6 +363,20 @@ def _progress_default() -> bool:
         return False
 
 
+def _progress_bar(enabled: bool):
+    """tqdm's notebook widget where it can be shown, its text bar elsewhere."""
+    from tqdm import std
+
+    if not enabled or "ipykernel" not in sys.modules:
+        return std.tqdm
+    try:
+        import ipywidgets  # noqa: F401  (tqdm's notebook bar needs it)
+        from tqdm.notebook import tqdm as notebook_tqdm
+    except ImportError:
+        return std.tqdm
+    return notebook_tqdm
+
+
 def _mesh(devices) -> jax.sharding.Mesh | None:
     if devices is None:
         devices = jax.devices()
@@ -588,9 +602,8 @@ def sweep(
 
     if progress is None:
         progress = _progress_default()
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=n_members, unit="member", disable=not progress, desc="sweep")
+    bar = _progress_bar(progress)(total=n_members, unit="member", disable=not progress,
+                                  desc="sweep")  # fmt: skip
     results = []
     try:
         for c in range(n_chunks):
