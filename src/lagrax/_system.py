@@ -95,6 +95,11 @@ class LagrangianSystem(eqx.Module):
     - ``n_dof``: number of generalized coordinates, if known; inputs of another length are
       refused with a ``ShapeError`` (without it, ``q`` of any length is passed to ``T``).
     - ``name``: a label used in messages and plots.
+    - ``scalar_derivatives``: how :meth:`forward_dynamics` differentiates ``L``: ``True``
+      by scalar forward-over-forward directional derivatives (fastest to run for small,
+      cheap energies), ``False`` by one vmapped forward-over-reverse pass (much faster to
+      compile when ``L`` is large, e.g. spatial rigid bodies). Default ``None``: scalar for
+      ``n <= 6``.
 
     **Example:**
 
@@ -120,6 +125,7 @@ class LagrangianSystem(eqx.Module):
     force: ForceFn | None = None
     n_dof: int | None = eqx.field(default=None, static=True)
     name: str = eqx.field(default="system", static=True)
+    scalar_derivatives: bool | None = eqx.field(default=None, static=True)
 
     # ------------------------------------------------------------------ input checks
     def _coords(self, q: Coordinates, name: str = "q") -> Vector:
@@ -347,7 +353,8 @@ class LagrangianSystem(eqx.Module):
     def _forward(self, t, q, qd, params, tau):
         """Forward dynamics without raising: ``q̈``, NaN where ``M`` is not PD."""
         applied = self._applied(t, q, qd, params, tau)
-        if q.shape[0] <= _FOF_MAX:
+        scalar = self.scalar_derivatives
+        if q.shape[0] <= _FOF_MAX if scalar is None else scalar:
             rows, rhs = self._eom_small(q, qd, params)
             if tau is not None or self.force is not None or self.dissipation is not None:
                 rhs = [r + applied[i] for i, r in enumerate(rhs)]
@@ -366,9 +373,10 @@ class LagrangianSystem(eqx.Module):
     ) -> Vector:
         """Accelerations ``q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)``.
 
-        For ``n <= 6``, ``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` come from scalar
-        forward-over-forward directional derivatives of ``L`` (straight-line code that XLA
-        fuses into one kernel); above, from one vmapped forward-over-reverse pass. The
+        For ``n <= 6`` (or as ``scalar_derivatives`` says), ``M`` and
+        ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` come from scalar forward-over-forward directional
+        derivatives of ``L`` (straight-line code that XLA fuses into one kernel); above, from
+        one vmapped forward-over-reverse pass. The
         solve is a Cholesky factorization (unrolled for ``n <= 8``), never an inverse.
 
         **Raises:** ``ShapeError`` for mismatched shapes; ``NonFiniteError`` for NaN/inf
