@@ -12,6 +12,7 @@ from typing import Any
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._errors import ShapeError
 from ._system import DissipationFn, ForceFn, KineticFn, LagrangianSystem, PotentialFn
@@ -43,8 +44,39 @@ def _coordinate(x: int | Callable, q: Vector, params: Params) -> Scalar:
     return q[x]
 
 
+# Reductions over axes this short are written out as scalar additions. Under ``vmap`` and
+# the nested forward-mode derivatives of ``LagrangianSystem``, XLA fuses straight-line
+# scalar arithmetic into one loop but not reductions over tiny axes (a (B, 2) ``sum`` is its
+# own kernel): writing them out made the vmapped forward dynamics of the 2R arm ~10x faster.
+_UNROLL = 32
+
+
 def _sum(x) -> Scalar:
-    return jnp.sum(jnp.asarray(x))
+    """Sum of all elements (written out when there are few)."""
+    x = jnp.asarray(x)
+    if x.ndim == 0:
+        return x
+    if x.size > _UNROLL:
+        return jnp.sum(x)
+    flat = [x[idx] for idx in np.ndindex(*x.shape)]
+    total = flat[0]
+    for term in flat[1:]:
+        total = total + term
+    return total
+
+
+def _dot(a, b):
+    """``Σ_i a[..., i] b[..., i]`` over the (short) last axis, written out."""
+    terms = [a[..., i] * b[..., i] for i in range(a.shape[-1])]
+    total = terms[0]
+    for term in terms[1:]:
+        total = total + term
+    return total
+
+
+def _sq(a):
+    """``‖a‖²`` over the last axis."""
+    return _dot(a, a)
 
 
 class Param(eqx.Module):
@@ -69,27 +101,77 @@ class Param(eqx.Module):
         return getattr(params, self.key)
 
 
-def _gravity_energy(mass, x: Point, gravity, who: str) -> Scalar:
+def _items(x, base_ndim: int):
+    """The per-body values of a kinematic output: a list for a list/tuple of ``k`` bodies
+    (or a single body), or the array itself when it holds the bodies along axis 0."""
+    if isinstance(x, (list, tuple)):
+        return [jnp.asarray(e) for e in x]
+    x = jnp.asarray(x)
+    if x.ndim == base_ndim:
+        return [x]
+    return x
+
+
+def _pick(value, base_ndim: int, i: int):
+    """Body ``i``'s parameter: shared if it has the base rank, else indexed along axis 0."""
+    return value if jnp.ndim(value) == base_ndim else value[i]
+
+
+def _over_bodies(fn, params: list, kinematics: list) -> Scalar:
+    """``Σ_bodies fn(params_i..., kinematics_i...)``.
+
+    ``params``: ``(value, base_ndim)`` pairs (shared, or one per body along axis 0);
+    ``kinematics``: ``(output, base_ndim)`` pairs of the pose (lists, or arrays with the
+    bodies along axis 0). Lists are summed body by body in scalar code (fast under ``vmap``
+    and nested derivatives); many bodies in one array are summed vectorized.
+    """
+    parts = [_items(x, nd) for x, nd in kinematics]
+    if all(isinstance(x, jax.Array) for x in parts):  # vectorized over many bodies
+        return _sum(fn(*(v for v, _ in params), *parts))
+    parts = [x if isinstance(x, list) else [x[i] for i in range(x.shape[0])] for x in parts]
+    count = len(parts[0])
+    if any(len(x) != count for x in parts):
+        raise ShapeError(f"the pose gives different numbers of bodies: {[len(x) for x in parts]}")
+    total = None
+    for i in range(count):
+        term = fn(*(_pick(v, nd, i) for v, nd in params), *(x[i] for x in parts))
+        total = term if total is None else total + term
+    return total
+
+
+def _check_shape(items, shape: tuple, who: str, what: str) -> None:
+    """Each body's value (a list item, or an array row) must have ``shape``."""
+    got = items[0].shape if isinstance(items, list) else items.shape[1:]
+    if got != shape:
+        raise ShapeError(f"{who}: {what} must give shape {shape} per body, got {got}")
+
+
+def _gravity_energy(mass, x, gravity, who: str) -> Scalar:
     """``V = −Σ m g⃗·x``; a scalar ``g`` means ``g⃗ = −g e_last`` (−y in 2-D, −z in 3-D)."""
     g = jnp.asarray(gravity) if not isinstance(gravity, (int, float)) else gravity
     if jnp.ndim(g) == 0:
-        return _sum(mass * g * x[..., -1])
-    if g.shape != (x.shape[-1],):
+        return _over_bodies(lambda m, x: m * g * x[..., -1], [(mass, 0)], [(x, 1)])
+    items = _items(x, 1)
+    dim = (items[0] if isinstance(items, list) else items).shape[-1]
+    if g.shape != (dim,):
         raise ShapeError(
             f"gravity vector has shape {g.shape} but the positions of {who} are "
-            f"{x.shape[-1]}-dimensional; give a ({x.shape[-1]},) vector or a scalar magnitude"
+            f"{dim}-dimensional; give a ({dim},) vector or a scalar magnitude"
         )
-    return -_sum(mass * (x @ g))
+    return -_over_bodies(lambda m, x: m * _dot(x, g), [(mass, 0)], [(x, 1)])
 
 
 # ---------------------------------------------------------------------------------- bodies
 class AbstractBody(eqx.Module):
     """A massive body: a kinetic energy and a gravity potential of its centre of mass.
 
-    A body may stand for ``k`` bodies at once: fields with a leading axis of length ``k``
-    and kinematics returning ``k`` positions (and angles / rotations). Their energies are
-    summed. This is how the chains in :mod:`lagrax.chains` describe all their links with
-    one (vectorized) forward-kinematics function.
+    A body may stand for ``k`` bodies at once: parameters with a leading axis of length
+    ``k`` (or shared), and kinematics returning ``k`` positions (and angles / rotations),
+    either as a list of ``k`` values or as one array with the bodies along axis 0. Their
+    energies are summed. A list is faster for a few bodies (the energy is then straight-line
+    scalar code, which XLA fuses under ``vmap``; stacking and re-slicing tiny arrays is
+    not); an array suits many bodies. The chains in :mod:`lagrax.chains` describe all
+    their links with one forward-kinematics function returning lists.
     """
 
     mass: eqx.AbstractVar[ParamLike]
@@ -99,8 +181,8 @@ class AbstractBody(eqx.Module):
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         """Kinetic energy ``T(q, q̇)`` of the body (summed over ``k`` if batched)."""
 
-    def com_position(self, q: Vector, params: Params) -> Point:
-        """Centre of mass ``x_c(q)`` (``(d,)``, or ``(k, d)`` if batched)."""
+    def com_position(self, q: Vector, params: Params) -> Any:
+        """Centre of mass ``x_c(q)``: ``(d,)``, or ``k`` of them (a list or ``(k, d)``)."""
         return _point(self.position, q, params)
 
     def potential_energy(self, q: Vector, params: Params, gravity: Any) -> Scalar:
@@ -113,10 +195,6 @@ class AbstractBody(eqx.Module):
         return _gravity_energy(_value(self.mass, params), x, gravity, type(self).__name__)
 
 
-def _shape_error(who: str, what: str, shape) -> ShapeError:
-    return ShapeError(f"{who}: {what}, got shape {shape}")
-
-
 class PointMass(AbstractBody):
     r"""A point mass at ``x(q)``: ``T = ½ m ‖ẋ‖²`` with ``ẋ = (∂x/∂q) q̇`` by ``jax.jvp``.
 
@@ -125,8 +203,8 @@ class PointMass(AbstractBody):
     **Arguments:**
 
     - ``mass``: ``m``, a constant or a callable of ``params`` (:data:`ParamLike`).
-    - ``position``: ``x(q, params) -> (d,)`` (or ``(k, d)`` for ``k`` masses with a ``(k,)``
-      mass).
+    - ``position``: ``x(q, params) -> (d,)``; for ``k`` masses, a list of ``k`` such points
+      or a ``(k, d)`` array, with ``mass`` shared or of shape ``(k,)``.
 
     **Example:** a simple pendulum of length ``l`` hanging from the origin:
 
@@ -139,10 +217,15 @@ class PointMass(AbstractBody):
     mass: ParamLike
     position: PointFn
 
+    def com_position(self, q: Vector, params: Params) -> Any:
+        if callable(self.position):
+            return self.position(q, params)
+        return _point(self.position, q, params)
+
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        _, v = jax.jvp(lambda a: jnp.asarray(self.position(a, params)), (q,), (qd,))
+        _, v = jax.jvp(lambda a: self.position(a, params), (q,), (qd,))
         m = _value(self.mass, params)
-        return 0.5 * _sum(m * jnp.sum(v**2, axis=-1))
+        return 0.5 * _over_bodies(lambda m, v: m * _sq(v), [(m, 0)], [(v, 1)])
 
 
 class PlanarBody(AbstractBody):
@@ -162,8 +245,9 @@ class PlanarBody(AbstractBody):
       (counter-clockwise). ``None``: ``position`` returns the pair ``(x_c, θ)`` (one
       function for both, when they share work).
 
-    With ``(k,)`` masses and inertias, ``position`` may return ``(k, 2)`` and ``angle``
-    ``(k,)``: ``k`` bodies sharing one kinematics function.
+    ``k`` bodies at once: ``(k,)`` masses and inertias (or shared ones), ``position``
+    returning a list of ``k`` points or a ``(k, 2)`` array, ``angle`` a list of ``k`` angles
+    or a ``(k,)`` array.
     """
 
     mass: ParamLike
@@ -173,40 +257,49 @@ class PlanarBody(AbstractBody):
 
     def _pose(self, q, params):
         if self.angle is None:
-            x, th = self.position(q, params)
-        else:
-            x, th = self.position(q, params), self.angle(q, params)
-        return jnp.asarray(x), jnp.asarray(th)
+            return self.position(q, params)
+        return self.position(q, params), self.angle(q, params)
 
-    def com_position(self, q: Vector, params: Params) -> Point:
-        if self.angle is None:
-            return jnp.asarray(self.position(q, params)[0])
-        return jnp.asarray(self.position(q, params))
+    def com_position(self, q: Vector, params: Params) -> Any:
+        return self._pose(q, params)[0]
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        def pose(a):
-            return self._pose(a, params)
-
-        (x, th), (v, w) = jax.jvp(pose, (q,), (qd,))
-        if x.shape[-1:] != (2,):
-            raise _shape_error("PlanarBody", "position must return (2,) or (k, 2)", x.shape)
-        if th.shape != x.shape[:-1]:
-            raise _shape_error(
-                "PlanarBody",
-                f"angle must return shape {x.shape[:-1]} to match position",
-                th.shape,
-            )
+        _, (v, w) = jax.jvp(lambda a: self._pose(a, params), (q,), (qd,))
+        _check_shape(_items(v, 1), (2,), "PlanarBody", "position")
+        _check_shape(_items(w, 0), (), "PlanarBody", "angle")
         m, inertia = _value(self.mass, params), _value(self.inertia, params)
-        return 0.5 * (_sum(m * jnp.sum(v**2, axis=-1)) + _sum(inertia * w**2))
+        return 0.5 * _over_bodies(
+            lambda m, i, v, w: m * _sq(v) + i * w**2,
+            [(m, 0), (inertia, 0)],
+            [(v, 1), (w, 0)],
+        )
 
 
-def _vee_skew(omega_hat):
-    """``ω`` from ``ω̂`` (using its skew part: ``½ (ω̂ − ω̂ᵀ)``)."""
-    o = omega_hat
-    return 0.5 * jnp.stack(
-        [o[..., 2, 1] - o[..., 1, 2], o[..., 0, 2] - o[..., 2, 0], o[..., 1, 0] - o[..., 0, 1]],
-        axis=-1,
-    )
+def _body_rates(rot, rot_dot):
+    """Body-frame angular velocity from ``ω̂ = Rᵀ Ṙ`` (its skew part ``½ (ω̂ − ω̂ᵀ)``).
+
+    Returns the three components (each of shape ``rot.shape[:-2]``) as a list;
+    ``ω̂_ij = Σ_k R_ki Ṙ_kj`` is written out (see ``_UNROLL``).
+    """
+
+    def hat(i, j):
+        return _dot(rot[..., :, i], rot_dot[..., :, j])
+
+    return [
+        0.5 * (hat(2, 1) - hat(1, 2)),
+        0.5 * (hat(0, 2) - hat(2, 0)),
+        0.5 * (hat(1, 0) - hat(0, 1)),
+    ]
+
+
+def _spatial_energy(m, inertia, v, rot, rot_dot):
+    """``m ‖v‖² + ω_Bᵀ I ω_B`` (twice the kinetic energy), written out."""
+    omega = _body_rates(rot, rot_dot)
+    total = m * _sq(v)
+    for i in range(3):
+        for j in range(i, 3):
+            total = total + inertia[..., i, j] * omega[i] * omega[j] * (1.0 if i == j else 2.0)
+    return total
 
 
 class SpatialBody(AbstractBody):
@@ -232,8 +325,8 @@ class SpatialBody(AbstractBody):
       ``None``: ``position`` returns the pair ``(x_c, R)`` (one function for both, e.g. a
       chain's forward kinematics, traced once instead of twice).
 
-    Batched: ``(k,)`` masses, ``(k, 3, 3)`` inertias, positions ``(k, 3)``, rotations
-    ``(k, 3, 3)``.
+    ``k`` bodies at once: ``(k,)`` masses and ``(k, 3, 3)`` inertias (or shared ones),
+    positions and rotations as lists of ``k`` or arrays ``(k, 3)``, ``(k, 3, 3)``.
     """
 
     mass: ParamLike
@@ -243,36 +336,22 @@ class SpatialBody(AbstractBody):
 
     def _pose(self, q, params):
         if self.rotation is None:
-            x, rot = self.position(q, params)
-        else:
-            x, rot = self.position(q, params), self.rotation(q, params)
-        return jnp.asarray(x), jnp.asarray(rot)
+            return self.position(q, params)
+        return self.position(q, params), self.rotation(q, params)
 
-    def com_position(self, q: Vector, params: Params) -> Point:
-        if self.rotation is None:
-            return jnp.asarray(self.position(q, params)[0])
-        return jnp.asarray(self.position(q, params))
+    def com_position(self, q: Vector, params: Params) -> Any:
+        return self._pose(q, params)[0]
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        def pose(a):
-            return self._pose(a, params)
-
-        (x, rot), (v, rot_dot) = jax.jvp(pose, (q,), (qd,))
-        if x.shape[-1:] != (3,):
-            raise _shape_error("SpatialBody", "position must return (3,) or (k, 3)", x.shape)
-        if rot.shape != x.shape[:-1] + (3, 3):
-            raise _shape_error(
-                "SpatialBody",
-                f"rotation must return shape {x.shape[:-1] + (3, 3)} to match position",
-                rot.shape,
-            )
-        omega = _vee_skew(jnp.swapaxes(rot, -1, -2) @ rot_dot)  # body frame
+        (_, rot), (v, rot_dot) = jax.jvp(lambda a: self._pose(a, params), (q,), (qd,))
+        _check_shape(_items(v, 1), (3,), "SpatialBody", "position")
+        _check_shape(_items(rot_dot, 2), (3, 3), "SpatialBody", "rotation")
         m, inertia = _value(self.mass, params), jnp.asarray(_value(self.inertia, params))
-        if inertia.ndim == 2:
-            i_omega = omega @ inertia.T
-        else:
-            i_omega = jnp.einsum("...ij,...j->...i", inertia, omega)
-        return 0.5 * (_sum(m * jnp.sum(v**2, axis=-1)) + _sum(jnp.sum(omega * i_omega, -1)))
+        return 0.5 * _over_bodies(
+            _spatial_energy,
+            [(m, 0), (inertia, 2)],
+            [(v, 1), (rot, 2), (rot_dot, 2)],
+        )
 
 
 # ------------------------------------------------------------------- springs and dampers
@@ -313,7 +392,7 @@ class LinearSpring(AbstractSpring):
         d = _point(self.a, q, params)
         if self.b is not None:
             d = d - _point(self.b, q, params)
-        d2 = jnp.sum(d**2, axis=-1)
+        d2 = _sq(d)
         k = _value(self.stiffness, params)
         if isinstance(self.rest_length, (int, float)) and self.rest_length == 0:
             return 0.5 * _sum(k * d2)
@@ -382,10 +461,10 @@ class LinearDamper(AbstractDamper):
         d, w = jax.jvp(sep, (q,), (qd,))
         c = _value(self.coefficient, params)
         if not self.axial:
-            return 0.5 * _sum(c * jnp.sum(w**2, axis=-1))
-        d2 = jnp.sum(d**2, axis=-1)
+            return 0.5 * _sum(c * _sq(w))
+        d2 = _sq(d)
         length = _safe_norm(d2)
-        rate = jnp.sum(d * w, axis=-1) / jnp.where(d2 > 0, length, 1.0)
+        rate = _dot(d, w) / jnp.where(d2 > 0, length, 1.0)
         return 0.5 * _sum(c * rate**2)
 
 
@@ -446,6 +525,11 @@ class Scene(eqx.Module):
     - ``force``: applied generalized force ``F(t, q, qd, params)``, passed on to the system.
     - ``n_dof``: number of generalized coordinates (recommended: shapes are then checked).
     - ``name``: a label for messages and plots.
+    - ``scalar_derivatives``: passed to :class:`lagrax.LagrangianSystem`. Default ``None``:
+      ``False`` when the scene has a :class:`SpatialBody` (the energy of rotation matrices
+      is large; forward-over-reverse derivatives compiled 2–10× faster and ran about as
+      fast or faster in ``benchmarks/bench_planar_vs_spatial.py``), else the system's
+      default.
 
     **Example:** a damped pendulum on a torsional spring:
 
@@ -474,6 +558,7 @@ class Scene(eqx.Module):
     force: ForceFn | None = None
     n_dof: int | None = eqx.field(default=None, static=True)
     name: str = eqx.field(default="scene", static=True)
+    scalar_derivatives: bool | None = eqx.field(default=None, static=True)
 
     def __check_init__(self):
         _check_members(self.bodies, AbstractBody, "bodies")
@@ -520,6 +605,9 @@ class Scene(eqx.Module):
         has_v = bool(self.springs) or self.potential is not None
         has_v = has_v or (self.gravity is not None and bool(self.bodies))
         has_d = bool(self.dampers) or self.dissipation is not None
+        scalar = self.scalar_derivatives
+        if scalar is None and any(isinstance(b, SpatialBody) for b in self.bodies):
+            scalar = False
         return LagrangianSystem(
             self.kinetic_energy,
             self.potential_energy if has_v else None,
@@ -527,6 +615,7 @@ class Scene(eqx.Module):
             force=self.force,
             n_dof=self.n_dof,
             name=self.name,
+            scalar_derivatives=scalar,
         )
 
 

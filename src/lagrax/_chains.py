@@ -21,11 +21,17 @@ from ._typing import Params, Vector
 
 BodyKind = Literal["planar", "spatial"]
 
-# Chains up to this length have their forward kinematics unrolled (XLA fuses short chains
-# best, in particular under the scalar forward-over-forward derivatives that
-# LagrangianSystem.forward_dynamics uses for n <= 6); longer ones loop (lax.scan), which
-# compiles in time independent of n and ran as fast in measurements at n = 8 and 10.
+# Forward kinematics of chains up to this length is unrolled joint by joint and hands the
+# bodies one small array per link (a list, not stacked across links): under ``vmap`` and
+# nested forward-mode derivatives XLA fuses that into straight-line code, where stacking
+# and re-slicing tiny arrays made the 2R arm's forward dynamics ~15x slower (measured,
+# batch of 4096 on CPU). Planar links are written out in scalars up to 32 links; spatial
+# chains keep 3×3 matrix products (written out entry by entry in scalars, the program of
+# the nested derivatives of a 5-joint chain grew ~10x and compiled ~20x slower) and loop
+# (``lax.scan``, arrays) beyond 6 joints, which compiles in time independent of n and ran
+# about as fast as unrolled code at n = 10.
 _UNROLL_MAX = 6
+_UNROLL_MAX_PLANAR = 32
 
 
 def _broadcast(name: str, value: Any, shape: tuple[int, ...], dtype: Any) -> jnp.ndarray:
@@ -126,28 +132,46 @@ class PlanarChain(eqx.Module):
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
         """Centres of mass ``x_ci = joint_i + r_i u_i``, shape ``(n, 2)``."""
-        self._check_q(q)
-        return self._pose(q, params)[0]
+        return jnp.stack(list(self._pose(q, params)[0]))
 
     def _pose(self, q, params):
-        """``(x_c (n, 2), φ (n,))``: every link's pose from one pass of cumulative sums."""
+        """Every link's centre of mass and angle in one pass along the chain: lists of
+        ``n`` ``(2,)`` points and ``n`` angles, written out link by link in scalars (see
+        ``_UNROLL_MAX``); arrays ``(n, 2)``, ``(n,)`` by cumulative sums for very long
+        chains."""
         self._check_q(q)
-        phi, u = self._directions(q)
-        ends = jnp.cumsum(params["l"][:, None] * u, axis=0)
-        starts = jnp.concatenate([jnp.zeros((1, 2), ends.dtype), ends[:-1]], axis=0)
-        return starts + params["r"][:, None] * u, phi
+        length, r = jnp.asarray(params["l"]), jnp.asarray(params["r"])
+        if self.n > _UNROLL_MAX_PLANAR:
+            phi, u = self._directions(q)
+            ends = jnp.cumsum(length[:, None] * u, axis=0)
+            starts = jnp.concatenate([jnp.zeros((1, 2), ends.dtype), ends[:-1]], axis=0)
+            return starts + r[:, None] * u, phi
+        coms, angles = [], []
+        phi = joint_x = joint_y = None
+        for i in range(self.n):
+            phi = q[i] if phi is None else phi + q[i]
+            c, s = jnp.cos(phi), jnp.sin(phi)
+            cx, cy = r[i] * c, r[i] * s
+            if joint_x is not None:
+                cx, cy = joint_x + cx, joint_y + cy
+            coms.append(jnp.stack([cx, cy]))
+            angles.append(phi)
+            jx, jy = length[i] * c, length[i] * s
+            joint_x, joint_y = (jx, jy) if joint_x is None else (joint_x + jx, joint_y + jy)
+        return coms, angles
 
     # spatial embedding of the same links (z = 0, rotation about z), for comparison
     def _pose_3d(self, q, params):
-        com, phi = self._pose(q, params)
-        com = jnp.concatenate([com, jnp.zeros((self.n, 1), com.dtype)], axis=-1)
-        c, s = jnp.cos(phi), jnp.sin(phi)
-        z, o = jnp.zeros_like(c), jnp.ones_like(c)
-        rot = jnp.stack(
-            [jnp.stack([c, -s, z], -1), jnp.stack([s, c, z], -1), jnp.stack([z, z, o], -1)],
-            axis=-2,
-        )
-        return com, rot
+        coms, angles = self._pose(q, params)
+        coms3, rots = [], []
+        for com, phi in zip(coms, angles, strict=True):
+            c, s = jnp.cos(phi), jnp.sin(phi)
+            z, o = jnp.zeros_like(c), jnp.ones_like(c)
+            coms3.append(jnp.stack([com[0], com[1], z]))
+            rots.append(
+                jnp.stack([jnp.stack([c, -s, z]), jnp.stack([s, c, z]), jnp.stack([z, z, o])])
+            )
+        return coms3, rots
 
     def _inertia_3d(self, params):
         i = jnp.asarray(params["I"])
@@ -183,6 +207,35 @@ class PlanarChain(eqx.Module):
     def system(self, *, bodies: BodyKind = "planar") -> LagrangianSystem:
         """The chain's :class:`lagrax.LagrangianSystem` (see :meth:`scene`)."""
         return self.scene(bodies=bodies).system()
+
+    def to_spatial(self, params: Params) -> tuple["SpatialChain", dict]:
+        """The same chain as a :class:`SpatialChain` and its parameters.
+
+        All joints revolute about z, joint ``i + 1`` at ``(l_i, 0, 0)`` in link ``i``'s
+        frame, centres of mass at ``(r_i, 0, 0)``, inertia ``diag(I_i, I_i, I_i)`` (only the
+        z entry acts in plane motion) and ``up = (0, 1, 0)`` so that gravity is along −y.
+        Its equations equal this chain's; it costs more to compile and run (see
+        ``benchmarks/bench_planar_vs_spatial.py``).
+
+        **Arguments:** ``params``: this chain's parameters.
+
+        **Returns:** ``(SpatialChain, params)``.
+        """
+        n = self.n
+        chain = SpatialChain("R" * n, up=(0.0, 1.0, 0.0))
+        length, r = jnp.asarray(params["l"]), jnp.asarray(params["r"])
+        zeros = jnp.zeros_like(length)
+        joints = jnp.concatenate([zeros[:1], length[:-1]])
+        inertia = jnp.asarray(params["I"])[:, None, None] * jnp.eye(3, dtype=length.dtype)[None]
+        spatial = chain.params(
+            m=params["m"],
+            offset=jnp.stack([joints, zeros, zeros], axis=-1),
+            com=jnp.stack([r, zeros, zeros], axis=-1),
+            inertia=inertia,
+            g=params["g"],
+            dtype=length.dtype,
+        )
+        return chain, spatial
 
 
 def planar_chain(
@@ -370,14 +423,55 @@ class SpatialChain(eqx.Module):
         """Forward kinematics: origins ``(n, 3)`` and rotations ``(n, 3, 3)`` of the link
         frames in the world frame (``R_i`` takes frame-``i`` components to world ones).
 
-        ``R_i = R_{i−1} ⁱ⁻¹R_i``, ``o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)``: one
-        ``lax.scan`` over the joints (fully unrolled for short chains, where XLA fuses
-        best; a loop for long ones, which compiles in constant time).
+        ``R_i = R_{i−1} ⁱ⁻¹R_i``, ``o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)``, written out
+        joint by joint for short chains and as a ``lax.scan`` over the joints for long ones
+        (see ``_UNROLL_MAX``).
         """
+        origins, rots, _ = self._kinematics(q, params, with_com=False)
+        return origins, rots
+
+    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
+        """Centres of mass in the world frame, ``x_ci = o_i + R_i com_i``, shape ``(n, 3)``."""
+        return self._kinematics(q, params, with_com=True)[2]
+
+    def link_rotations(self, q: Vector, params: Params) -> jnp.ndarray:
+        """Link rotation matrices ``R_i``, shape ``(n, 3, 3)``."""
+        return self.frames(q, params)[1]
+
+    def _pose(self, q, params):
+        _, rots, coms = self._kinematics(q, params, with_com=True, lists=True)
+        return coms, rots
+
+    def _kinematics(self, q, params, *, with_com: bool, lists: bool = False):
         if q.shape != (self.n,):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this chain")
         offset = jnp.asarray(params["offset"])
         dtype = jnp.result_type(q, offset)
+        q, offset = q.astype(dtype), offset.astype(dtype)
+        com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
+        if self.n > _UNROLL_MAX:
+            return self._kinematics_scan(q, offset, com, dtype)
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
+        rot = jnp.eye(3, dtype=dtype)
+        origin = jnp.zeros(3, dtype)
+        origins, rots, coms = [], [], []
+        for i, kind in enumerate(self.joint_types):
+            step = offset[i] if kind == "R" else offset[i] + q[i] * slide[i]
+            origin = origin + rot @ step
+            if kind == "R":
+                rot = rot @ (a[i] + jnp.sin(q[i]) * b[i] + (1 - jnp.cos(q[i])) * c[i])
+            else:
+                rot = rot @ a[i]
+            origins.append(origin)
+            rots.append(rot)
+            if com is not None:
+                coms.append(origin + rot @ com[i])
+        if lists:  # per-link arrays, not stacked across links (see _UNROLL_MAX)
+            return origins, rots, coms if com is not None else None
+        out_com = jnp.stack(coms) if com is not None else None
+        return jnp.stack(origins), jnp.stack(rots), out_com
+
+    def _kinematics_scan(self, q, offset, com, dtype):
         a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
 
         def joint(carry, x):
@@ -388,23 +482,9 @@ class SpatialChain(eqx.Module):
             return (rot, origin), (origin, rot)
 
         init = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
-        xs = (q.astype(dtype), a, b, c, slide, offset.astype(dtype))
-        unroll = self.n if self.n <= _UNROLL_MAX else 1
-        _, (origins, rots) = jax.lax.scan(joint, init, xs, unroll=unroll)
-        return origins, rots
-
-    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, ``x_ci = o_i + R_i com_i``, shape ``(n, 3)``."""
-        return self._pose(q, params)[0]
-
-    def link_rotations(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Link rotation matrices ``R_i``, shape ``(n, 3, 3)``."""
-        return self.frames(q, params)[1]
-
-    def _pose(self, q, params):
-        origins, rots = self.frames(q, params)
-        com = jnp.asarray(params["com"]).astype(rots.dtype)
-        return origins + jnp.einsum("nij,nj->ni", rots, com), rots
+        _, (origins, rots) = jax.lax.scan(joint, init, (q, a, b, c, slide, offset))
+        coms = None if com is None else origins + jnp.einsum("nij,nj->ni", rots, com)
+        return origins, rots, coms
 
     def _gravity(self, params):
         g = jnp.asarray(params["g"])
