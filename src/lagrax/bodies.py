@@ -31,16 +31,21 @@ derives one. Positions, angles and rotations are functions ``(q, params) -> ...`
 
 Gravity (``Scene(gravity=...)``) is a magnitude acting along the negative last axis of each
 body's position (−y in the plane, −z in space) or a full vector. A body may stand for ``k``
-bodies at once (leading axis ``k`` on its fields and kinematics).
+bodies at once: parameters of shape ``(k,)`` (or shared) and kinematics returning a *list*
+of ``k`` poses (fastest for a few bodies: the energy stays straight-line scalar code that
+XLA fuses) or arrays with the bodies along axis 0 (for many bodies).
 
 **Planar or spatial?** Use the smallest description the motion needs. A mechanism that
 moves in a plane is exactly described by :class:`PlanarBody` (2 position components and one
 angle per body); the same mechanism built from :class:`SpatialBody` (3 components and a
-3×3 rotation matrix) gives identical equations, but its energy differentiates a rotation
-matrix product where the planar one differentiates one angle, so it is larger to compile
-and slower to run (``benchmarks/bench_planar_vs_spatial.py`` measures the ratio). Reach for
-:class:`SpatialBody` when bodies leave the plane or spin about in-plane axes;
-:class:`PointMass` when rotational inertia is negligible.
+3×3 rotation matrix) gives identical equations, but its energy differentiates rotation
+matrices where the planar one differentiates one angle. Measured on the 2R arm
+(``benchmarks/bench_planar_vs_spatial.py``, one run on a shared 2-core CPU): vmapped
+forward dynamics ~11× slower, compile ~3× longer, a short ``simulate`` ~3× slower; at 5
+links ~10× and ~4× slower to run. Reach for :class:`SpatialBody` when bodies leave the
+plane or spin about in-plane axes; :class:`PointMass` when rotational inertia is
+negligible. Scenes with spatial bodies default to forward-over-reverse derivatives
+(``Scene(scalar_derivatives=...)``), which compile much faster for them.
 
 **Springs and dampers.** :class:`LinearSpring` (between two points, with a rest length),
 :class:`TorsionalSpring` (on a coordinate or a scalar function of ``q``),
