@@ -122,6 +122,7 @@ def test_check_inertia_errors():
     B.check_inertia(jnp.stack([jnp.eye(3), 2 * jnp.eye(3)]))
     B.check_inertia(jnp.array([0.1, 0.2]))
     B.check_inertia(B.rod_inertia(1.0, 1.0), semidefinite=True)
+    B.check_inertia(jnp.zeros((3, 3)), semidefinite=True)  # a point mass
     with pytest.raises(lx.ParameterError, match=r"triangle inequality.*1 \+ 1 = 2 < I3 = 3"):
         B.check_inertia(jnp.diag(jnp.array([1.0, 1.0, 3.0])))
     with pytest.raises(lx.ParameterError, match="not symmetric.*0.5"):

@@ -337,6 +337,10 @@ def test_errors():
         PlanarChain(0)
     with pytest.raises(lx.ShapeError, match="'m'"):
         PlanarChain(3).params(m=[1.0, 2.0])
+    with pytest.raises(lx.ParameterError, match=r"I\[1\] = -0.5"):
+        PlanarChain(2).params(I=[0.1, -0.5])
+    with pytest.raises(lx.ParameterError, match=r"inertia\[0\] violates the triangle"):
+        SpatialChain("R").params(inertia=np.diag([1.0, 1.0, 3.0]))
     chain = PlanarChain(2)
     with pytest.raises(lx.ShapeError):
         chain.system().mass_matrix(jnp.zeros(3), chain.params())

@@ -16,6 +16,7 @@ import numpy as np
 
 from ._bodies import Param, PlanarBody, Scene, SpatialBody
 from ._errors import ShapeError
+from ._inertia import check_inertia
 from ._system import LagrangianSystem
 from ._typing import Params, Vector
 
@@ -101,13 +102,15 @@ class PlanarChain(eqx.Module):
 
         **Returns:** ``{"m", "l", "r", "I": (n,), "g": ()}``.
 
-        **Raises:** ``ShapeError`` if a value does not broadcast to ``(n,)``.
+        **Raises:** ``ShapeError`` if a value does not broadcast to ``(n,)``;
+        ``ParameterError`` for a negative inertia.
         """
         dtype = _float_dtype(dtype)
         shape = (self.n,)
         m_, l_ = _broadcast("m", m, shape, dtype), _broadcast("l", l, shape, dtype)
         r_ = 0.5 * l_ if r is None else _broadcast("r", r, shape, dtype)
         i_ = m_ * l_**2 / 12 if I is None else _broadcast("I", I, shape, dtype)
+        check_inertia(i_, name="I", semidefinite=True)
         return {"m": m_, "l": l_, "r": r_, "I": i_, "g": jnp.asarray(g, dtype=dtype)}
 
     def _check_q(self, q: Vector) -> None:
@@ -381,7 +384,9 @@ class SpatialChain(eqx.Module):
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
         "g": ()}``.
 
-        **Raises:** ``ShapeError`` if a value does not broadcast.
+        **Raises:** ``ShapeError`` if a value does not broadcast; ``ParameterError`` if an
+        inertia is not symmetric positive-semidefinite or violates ``I1 + I2 ≥ I3``
+        (:func:`lagrax.bodies.check_inertia`, naming the link).
         """
         n, dtype = self.n, _float_dtype(dtype)
         m_ = _broadcast("m", m, (n,), dtype)
@@ -393,11 +398,13 @@ class SpatialChain(eqx.Module):
         if inertia is None:
             one = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1.0) / 12, (3 * 0.05**2 + 1.0) / 12])
             inertia = m_[:, None, None] * jnp.asarray(one, dtype)[None]
+        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
+        check_inertia(inertia, name="inertia", semidefinite=True)
         return {
             "m": m_,
             "offset": _broadcast("offset", offset, (n, 3), dtype),
             "com": _broadcast("com", com, (n, 3), dtype),
-            "inertia": _broadcast("inertia", inertia, (n, 3, 3), dtype),
+            "inertia": inertia,
             "g": jnp.asarray(g, dtype=dtype),
         }
 

@@ -218,7 +218,7 @@ def check_inertia(
     - symmetric (``|I − Iᵀ| ≤ rtol · max|I|``),
     - positive-definite (all principal moments ``> rtol · max moment``; with
       ``semidefinite=True``, ``≥ −rtol · max moment``, which admits slender rods and point
-      masses),
+      masses (all moments zero)),
     - and satisfy the triangle inequality of its principal moments, ``I1 + I2 ≥ I3``
       (``I_xx + I_yy = ∫ (x² + y² + 2 z²) ρ dV ≥ ∫ (x² + y²) ρ dV = I_zz`` in principal axes).
 
@@ -286,7 +286,7 @@ def _check_one(mat: np.ndarray, label: str, semidefinite: bool, tol: float) -> N
     top = max(float(moments[-1]), 0.0)
     floor = -tol * top if semidefinite else tol * top
     definite = moments[0] >= floor if semidefinite else moments[0] > floor
-    if not definite or top == 0.0:
+    if not definite or (top == 0.0 and not semidefinite):
         kind = "positive-semidefinite" if semidefinite else "positive-definite"
         raise ParameterError(
             f"{label} is not {kind}: principal moments {moments} (smallest "
@@ -318,7 +318,7 @@ def _check_traced(arr, planar: bool, semidefinite: bool, tol: float, name: str):
     bad = (
         ~jnp.all(jnp.isfinite(mats))
         | jnp.any(asym > tol * scale)
-        | jnp.any(not_pd | (top <= 0))
+        | jnp.any(not_pd | ((top <= 0) & (not semidefinite)))
         | jnp.any(moments[:, 0] + moments[:, 1] < moments[:, 2] - tol * top)
     )
     return eqx.error_if(
