@@ -274,7 +274,7 @@ def _batch_size(params: Any) -> int:
     return next(iter(sizes.values()))
 
 
-def _states(x: Any, name: str, n_members: int, n: int | None) -> np.ndarray:
+def _states(x: Any, name: str, n_members: int) -> np.ndarray:
     a = np.asarray(x, dtype=float if np.asarray(x).dtype.kind in "biu" else None)
     if a.ndim == 1:
         return np.broadcast_to(a, (n_members,) + a.shape)
@@ -511,9 +511,8 @@ def sweep(
         def get_params(a, b):
             return jtu.tree_map(lambda x: x[a:b], params)
 
-    probe = get_params(0, 1)
-    q0s = _states(q0, "q0", n_members, None)
-    qd0s = _states(qd0, "qd0", n_members, None)
+    q0s = _states(q0, "q0", n_members)
+    qd0s = _states(qd0, "qd0", n_members)
     if q0s.shape != qd0s.shape:
         raise ShapeError(f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
                          f"and {qd0s.shape[1:]}")  # fmt: skip
@@ -521,7 +520,7 @@ def sweep(
     q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
     n = q0s.shape[1]
     # one member through the eager checks of a single trajectory: shapes, params, tau
-    q_probe, qd_probe = system._state(q0s[0], qd0s[0])
+    q_probe, _ = system._state(q0s[0], qd0s[0])
     tdt = jnp.asarray(0.0, dtype).dtype
     tau_fn = tau if callable(tau) else None
     tau_const = None
@@ -622,7 +621,6 @@ def sweep(
             bar.update(b - a)
     finally:
         bar.close()
-    del probe
     return _dataset(xr, results, batch, params if batch is None else None, ts,
                     keep, n, n_members, settings, solver_, rtol, atol, schedule, n_dev)  # fmt: skip
 
