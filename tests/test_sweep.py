@@ -341,8 +341,10 @@ def test_multihost_example_matches_single_process(arm, tmp_path):
     batch = lx.grid(params, m2=np.linspace(0.5, 2.0, 16), l1=np.linspace(0.5, 1.5, 16))
     single = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=5.0)
     np.testing.assert_array_equal(multi.num_steps.values, single.num_steps.values)
-    # same steps; values agree up to round-off (amplified by the chaotic arm over 5 s)
-    np.testing.assert_allclose(multi.q.values, single.q.values, rtol=1e-8, atol=1e-9)
+    # same steps; values agree up to round-off (the per-device loops are compiled for
+    # different lane counts), amplified by the chaotic arm over 5 s: median ~1e-12
+    np.testing.assert_allclose(multi.q.values, single.q.values, rtol=1e-7, atol=1e-8)
+    assert np.median(np.abs(multi.q.values - single.q.values)) < 1e-10
 
 
 def test_constrained_system_sweep_matches_simulate():

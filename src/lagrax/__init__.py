@@ -5,12 +5,19 @@ Write a kinetic energy ``T(q, qd, params)`` and a potential ``V(q, params)``; la
 diffrax.
 
 lagrax enables JAX's 64-bit mode on import (``jax_enable_x64``): float64 is the default
-for accuracy. Arrays you pass in float32 stay float32.
+for accuracy. Arrays you pass in float32 stay float32. It also lets XLA:CPU compile small
+solver loops into single kernels (an ``XLA_FLAGS`` entry, added only if JAX has not
+started yet and you have not set ``xla_backend_extra_options``; ``LAGRAX_XLA_FLAGS=0``
+opts out): see ``lagrax/_xla_flags.py``.
 """
 
 import importlib.metadata
 
-import jax as _jax
+from . import _xla_flags
+
+_xla_flags.configure()  # before JAX starts its backend: see lagrax/_xla_flags.py
+
+import jax as _jax  # noqa: E402
 
 _jax.config.update("jax_enable_x64", True)
 

@@ -12,9 +12,10 @@ compiled ``lax.while_loop``. Lanes sit idle only at the end of the queue, and wh
 waiting for a batch of refills (refilling costs about one step, so it is done when a
 sixteenth of the lanes are free).
 
-The stepping is diffrax's own: ``solver.step``, ``stepsize_controller.adapt_step_size``,
-the same clipping to ``t1`` and the same dense output at the save times, so each member
-takes the steps ``diffeqsolve`` would take for it (up to round-off in the controller).
+The stepping is diffrax's own, through ``_integrate.step`` (shared with ``simulate``'s
+single-trajectory loop): ``solver.step``, ``stepsize_controller.adapt_step_size``, the
+same clipping to ``t1`` and the same dense output at the save times, so each member takes
+the steps ``diffeqsolve`` would take for it (up to round-off in the controller).
 """
 
 from typing import Any
@@ -25,7 +26,8 @@ import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 
-from ._simulate import RESULTS
+from . import _integrate
+from ._results import RESULTS
 
 _OK = int(RESULTS.successful._value)
 _MAX_STEPS = int(RESULTS.max_steps_reached._value)
@@ -46,17 +48,7 @@ class LaneOutput(eqx.Module):
     lane_steps: jax.Array  # () lane-steps in all (busy + idle)
 
 
-def _where(pred, a, b):
-    """``where`` over matching pytrees, broadcasting a per-lane ``pred`` (L,)."""
-
-    def pick(x, y):
-        if not (eqx.is_array(x) or eqx.is_array(y)):
-            return x  # static (Python) leaves, e.g. a solver's flags
-        x, y = jnp.asarray(x), jnp.asarray(y)
-        p = pred.reshape(pred.shape + (1,) * (x.ndim - pred.ndim))
-        return jnp.where(p, x, y)
-
-    return jtu.tree_map(pick, a, b)
+_where = _integrate.tree_where
 
 
 def _take(tree, idx):
@@ -100,44 +92,20 @@ def run_lanes(
     n_members = jtu.tree_leaves(y0s)[0].shape[0]
     n_lanes = max(1, min(n_lanes, n_members))
     n_save = ts.shape[0]
-    error_order = solver.error_order(term)
     tdt = t0.dtype
-    # diffrax: a tnext within ~100 ulps of t1 is snapped to t1
-    t1_floor = t1 - 100 * jnp.finfo(tdt).eps * jnp.maximum(jnp.abs(t1), 1.0)
     refill_at = max(1, n_lanes // 16)
-    if dt0 is None:
-        # What diffeqsolve ends up doing: it wraps the terms (diffrax.WrapTerm), and its
-        # PID controller's initial-step heuristic then falls back to 0.01. Matching it
-        # keeps each member's step sequence that of ``simulate``.
-        dt0 = jnp.asarray(0.01, tdt)
 
     def args_of(member):
         return (member, extra_args)
 
     def init_lane(member, y0):
-        args = args_of(member)
-        tnext, cstate = controller.init(term, t0, t1, y0, dt0, args, solver.func, error_order)
-        tnext = jnp.minimum(tnext, t1)
-        sstate = solver.init(term, t0, tnext, y0, args)
-        return tnext, sstate, cstate
+        return _integrate.init(term, solver, controller, t0, t1, y0, dt0, args_of(member))
 
     def step_lane(t, tnext, y, member, sstate, cstate):
-        args = args_of(member)
-        y1, y_err, dense, sstate1, sres = solver.step(term, t, tnext, y, args, sstate, False)
-        if y_err is not None:
-            y_err = jtu.tree_map(lambda e: jnp.where(jnp.isnan(e), jnp.inf, e), y_err)
-        keep, tprev, tnew, _, cstate1, cres = controller.adapt_step_size(
-            t, tnext, y, y1, args, y_err, error_order, cstate
+        keep, tprev, tnew, y_next, sstate, cstate, res, dense = _integrate.step(
+            term, solver, controller, t, tnext, y, args_of(member), sstate, cstate, t1
         )
-        keep = jnp.asarray(keep)
-        tprev = jnp.minimum(tprev, t1)
-        clip = jnp.where(keep, t1, tprev + 0.5 * (t1 - tprev))
-        tnew = jnp.where(tnew > t1_floor, clip, tnew)
-        sres = RESULTS.where(keep, RESULTS.promote(sres), RESULTS.successful)
-        res = RESULTS.where(sres == RESULTS.successful, RESULTS.promote(cres), sres)
-        y_next = _where(keep, y1, y)
-        sstate_next = _where(keep, sstate1, sstate)
-        return keep, tprev, tnew, y_next, sstate_next, cstate1, res._value, dense
+        return keep, tprev, tnew, y_next, sstate, cstate, res._value, dense
 
     # A template lane (member 0) fixes the shapes of the per-lane state.
     member0 = _take(members, 0)

@@ -90,3 +90,45 @@ def cholesky_solve(m: Float[Array, "n n"], b: Float[Array, " n"]) -> Float[Array
     pivots = jnp.diagonal(factor) ** 2
     bound = _tol(m) * jnp.max(jnp.abs(jnp.diagonal(m)))
     return jnp.where(jnp.min(pivots) > bound, x, jnp.nan)
+
+
+def lu_factor_small(a: Float[Array, "n n"]):
+    """LU factorization with partial pivoting of a small general matrix: ``P a = L U``.
+
+    Unrolled over the columns for ``n <= _UNROLL_MAX`` (no LAPACK call, so it fuses into
+    the surrounding solver loop); ``jax.scipy.linalg.lu_factor`` above. Returns an opaque
+    factorization for :func:`lu_solve_small`. A singular ``a`` gives non-finite solutions.
+    """
+    n = a.shape[-1]
+    if n > _UNROLL_MAX:
+        return jsl.lu_factor(a)
+    pivots = []
+    for k in range(n):
+        p = k + jnp.argmax(jnp.abs(a[k:, k]))
+        pivots.append(p)
+        row_k, row_p = a[k], a[p]
+        a = a.at[p].set(row_k).at[k].set(row_p)
+        if k + 1 < n:
+            low = a[k + 1 :, k] / a[k, k]
+            a = a.at[k + 1 :, k].set(low)
+            a = a.at[k + 1 :, k + 1 :].add(-low[:, None] * a[k, k + 1 :][None, :])
+    return a, pivots
+
+
+def lu_solve_small(factors, b: Float[Array, " n"]) -> Float[Array, " n"]:
+    """Solve ``a x = b`` from :func:`lu_factor_small`'s factorization of ``a``."""
+    lu, pivots = factors
+    n = b.shape[0]
+    if n > _UNROLL_MAX:
+        return jsl.lu_solve((lu, pivots), b)
+    for k, p in enumerate(pivots):  # the row swaps, in order
+        b_k, b_p = b[k], b[p]
+        b = b.at[p].set(b_k).at[k].set(b_p)
+    y = []  # L y = P b, unit lower triangular
+    for i in range(n):
+        y.append(b[i] - sum((lu[i, j] * y[j] for j in range(i)), start=0.0))
+    x = [None] * n  # U x = y
+    for i in reversed(range(n)):
+        s = y[i] - sum((lu[i, j] * x[j] for j in range(i + 1, n)), start=0.0)
+        x[i] = s / lu[i, i]
+    return jnp.stack(x)

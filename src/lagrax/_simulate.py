@@ -9,31 +9,15 @@ import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Float, Int
 
+from . import _integrate
 from ._constraints import ConstrainedSystem
 from ._errors import ConstraintError, ShapeError, SimulationError
 from ._methods import fixed_step_budget, resolve_solver
+from ._results import RESULTS
 from ._system import LagrangianSystem, _is_traced, _pivot_threshold
 from ._typing import Coordinates, Params, Velocities
 from ._vector_field import LagrangianVectorField, TauFn
 from .integrators import Variational
-
-
-class RESULTS(dfx.RESULTS):
-    """diffrax's result codes, plus the failures lagrax detects itself."""
-
-    non_finite_state = (
-        "The state became non-finite (NaN or inf): the solve blew up, typically a fixed "
-        "step past the method's stability limit, or a force that diverges."
-    )
-    constraint_projection_failed = (
-        "The initial state could not be projected onto the constraint manifold phi(q) = 0 "
-        "(no admissible configuration nearby, or a rank-deficient constraint Jacobian); the "
-        "solve ran from the unprojected state."
-    )
-    invalid_input = (
-        "This member was not solved: its parameters or initial state are non-finite, or "
-        "its mass matrix is not positive-definite at the initial state."
-    )
 
 
 class Solution(eqx.Module):
@@ -86,8 +70,7 @@ class Solution(eqx.Module):
         return (self.energy - e0) / jnp.maximum(jnp.abs(e0), jnp.finfo(e0.dtype).tiny)
 
 
-@eqx.filter_jit
-def _solve(
+def _solve_core(
     system: LagrangianSystem,
     solver: dfx.AbstractSolver,
     tau_fn: TauFn | None,
@@ -104,6 +87,7 @@ def _solve(
     max_steps: int,
     saveat: dfx.SaveAt | None,
     stepsize_controller: dfx.AbstractStepSizeController | None,
+    adjoint: dfx.AbstractAdjoint | None = None,
 ):
     own_saveat = saveat is None
     if own_saveat:
@@ -125,38 +109,52 @@ def _solve(
         q0, qd0, projected = system._project(*y0, params)
         y0 = (q0, qd0)
     field = LagrangianVectorField(system, tau_fn)
-    sol = dfx.diffeqsolve(
-        dfx.ODETerm(field),
-        solver,
-        t0,
-        t1,
-        dt0,
-        y0,
-        args=(params, tau_const),
-        saveat=saveat,
-        stepsize_controller=stepsize_controller,
-        max_steps=max_steps,
-        throw=False,
-    )
-    q, qd = sol.ys
-    ts = sol.ts
-    # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
-    # failure diffrax writes it into the first unreached slot, so unreached slots (whose
-    # time differs from the requested one) are reset to inf.
-    last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
-    t_end, q_end, qd_end = ts[last], q[last], qd[last]
-    if own_saveat:
-        ts, q, qd = ts[:-1], q[:-1], qd[:-1]
-        reached = ts == requested_ts
-        inf = jnp.asarray(jnp.inf, q.dtype)
-        ts = jnp.where(reached, ts, inf)
-        q = jnp.where(reached[:, None], q, inf)
-        qd = jnp.where(reached[:, None], qd, inf)
+    term = dfx.ODETerm(field)
+    args = (params, tau_const)
+    if adjoint is None and own_saveat and _integrate.is_lean(stepsize_controller):
+        # the lean loop: the same steps as diffeqsolve, without its per-step machinery
+        out = _integrate.integrate(
+            term, solver, stepsize_controller, y0, args, t0, t1, dt0, ts, max_steps
+        )
+        (q, qd), t_end, (q_end, qd_end), result, steps, accepted, n_saved = out
+        ts = jnp.where(jnp.arange(ts.shape[0]) < n_saved, ts, jnp.inf)
+        stats = dict(num_steps=steps, num_accepted_steps=accepted,
+                     num_rejected_steps=steps - accepted, max_steps=max_steps)  # fmt: skip
+    else:
+        sol = dfx.diffeqsolve(
+            term,
+            solver,
+            t0,
+            t1,
+            dt0,
+            y0,
+            args=args,
+            saveat=saveat,
+            stepsize_controller=stepsize_controller,
+            max_steps=max_steps,
+            throw=False,
+            **({} if adjoint is None else {"adjoint": adjoint}),
+        )
+        q, qd = sol.ys
+        ts = sol.ts
+        # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
+        # failure diffrax writes it into the first unreached slot, so unreached slots
+        # (whose time differs from the requested one) are reset to inf.
+        last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
+        t_end, q_end, qd_end = ts[last], q[last], qd[last]
+        if own_saveat:
+            ts, q, qd = ts[:-1], q[:-1], qd[:-1]
+            reached = ts == requested_ts
+            inf = jnp.asarray(jnp.inf, q.dtype)
+            ts = jnp.where(reached, ts, inf)
+            q = jnp.where(reached[:, None], q, inf)
+            qd = jnp.where(reached[:, None], qd, inf)
+        result = RESULTS.promote(sol.result)
+        stats = dict(sol.stats)
     energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
     energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
     # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
     finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
-    result = RESULTS.promote(sol.result)
     result = RESULTS.where(finite | (result != RESULTS.successful), result,
                            RESULTS.non_finite_state)  # fmt: skip
     violation = multipliers = None
@@ -169,8 +167,35 @@ def _solve(
         )(ts, q, qd)
         violation = jnp.where(reached, violation, jnp.inf)
         multipliers = jnp.where(reached, multipliers, jnp.inf)
-    return Solution(ts, q, qd, energy, result, dict(sol.stats), t_end, q_end, qd_end,
+    return Solution(ts, q, qd, energy, result, stats, t_end, q_end, qd_end,
                     violation, multipliers)  # fmt: skip
+
+
+_solve = eqx.filter_jit(_solve_core)
+
+
+def _inputs_ok(system, q0, qd0, params, tau_fn, tau_const, t0):
+    """In-graph validity of a solve's inputs: finite parameters and state, finite energy,
+    and finite accelerations at the start (which also requires a positive-definite mass
+    matrix). A ``False`` here sends ``simulate`` to the eager, precise ``check_state``."""
+    leaves = [jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(params)
+              if eqx.is_inexact_array(x)]  # fmt: skip
+    field = LagrangianVectorField(system, tau_fn)
+    _, qdd = field(t0, (q0, qd0), (params, tau_const))
+    energy = system.energy(q0, qd0, params)
+    checks = [*leaves, jnp.all(jnp.isfinite(q0)), jnp.all(jnp.isfinite(qd0)),
+              jnp.isfinite(energy), jnp.all(jnp.isfinite(qdd))]  # fmt: skip
+    return jnp.all(jnp.stack(checks))
+
+
+@eqx.filter_jit
+def _simulate_checked(system, solver, tau_fn, y0, params, tau_const, t0, *rest):
+    """``_solve`` plus the two flags ``simulate`` needs on the host, fetched at once:
+    whether the inputs were valid, and whether the solve succeeded with finite saves."""
+    sol = _solve_core(system, solver, tau_fn, y0, params, tau_const, t0, *rest)
+    inputs_ok = _inputs_ok(system, *y0, params, tau_fn, tau_const, t0)
+    solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
+    return sol, jnp.stack([inputs_ok, solved_ok])
 
 
 def simulate(
@@ -192,6 +217,7 @@ def simulate(
     max_steps: int | None = None,
     saveat: dfx.SaveAt | None = None,
     stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    adjoint: dfx.AbstractAdjoint | None = None,
     throw: bool = True,
 ) -> Solution:
     """Integrate ``M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇`` from ``(q0, q̇0)`` over ``[t0, t1]``.
@@ -229,6 +255,15 @@ def simulate(
     - ``max_steps``: step budget (accepted + rejected). Default: 100,000 for an adaptive
       solve; at a fixed step, enough steps for ``[t0, t1]``.
     - ``stepsize_controller``: override the default ``diffrax.PIDController(rtol, atol)``.
+    - ``adjoint``: how to differentiate the solve. Default ``None``: lagrax's own lean
+      stepping loop (diffrax's steps without ``diffeqsolve``'s per-step machinery; about
+      2–3× faster for small mechanisms), differentiable by reverse mode (``jax.grad``,
+      recursive checkpointing, as diffrax's default). Pass a diffrax adjoint to run
+      ``diffrax.diffeqsolve`` with it instead, e.g. ``diffrax.ForwardMode()`` for
+      ``jax.jacfwd`` / ``jax.jvp`` (few parameters, many outputs) or
+      ``diffrax.RecursiveCheckpointAdjoint()`` for diffrax's default. A custom ``saveat``
+      or a step-size controller other than ``PIDController`` / ``ConstantStepSize``
+      also runs ``diffeqsolve``.
     - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
       in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
       need: one bad member does not kill the batch.
@@ -250,63 +285,106 @@ def simulate(
     sol.q[-1], sol.energy_error.max()
     ```
     """
-    # Python scalars in params would be static under filter_jit (a recompile per value)
-    params = jax.tree_util.tree_map(
-        lambda x: jnp.asarray(x) if isinstance(x, (bool, int, float, complex)) else x, params
-    )
-    q0, qd0 = system._state(q0, qd0)
-    dtype = jnp.result_type(q0, qd0)
+    eager = not _is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
+    if eager:
+        # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
+        # of its own, and a simulate call should cost one dispatch, not a dozen.
+        q0, qd0 = _host_state(system, q0, qd0)
+        dtype = np.result_type(q0, qd0)
+    else:
+        q0, qd0 = system._state(q0, qd0)
+        dtype = jnp.result_type(q0, qd0)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
-    eager = not _is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau)
+    tdt = np.dtype(dtype)
+    # Python scalars in params would be static under filter_jit (a recompile per value);
+    # as arrays of the state's dtype they behave as JAX's weakly typed scalars would.
+    params = jax.tree_util.tree_map(
+        lambda x: np.asarray(x, tdt if isinstance(x, float) else None)
+        if isinstance(x, (bool, int, float, complex)) else x, params
+    )  # fmt: skip
     tau_fn = tau if callable(tau) else None
     tau_const = None
     if tau is not None and not callable(tau):
         (tau_const,) = system._state(q0, tau=tau)[1:]
         tau_const = system._finite(tau_const.astype(dtype), "tau")
+    constrained = isinstance(system, ConstrainedSystem)
     if eager:
-        system.check_state(q0, qd0, params)
+        if constrained:  # projection and constraint-rank checks: before the solve
+            system.check_state(q0, qd0, params)
         if not float(t1) > float(t0):
             raise ValueError(f"t1 must be greater than t0, got t0={t0}, t1={t1}")
     if saveat is None and ts is not None:
         ts = jnp.asarray(ts, dtype)
         if ts.ndim != 1:
             raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
-    tdt = jnp.asarray(0.0, dtype).dtype
     solver, stepsize_controller, dt0, max_steps = _configure(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
-    sol = _solve(
+    asarray = np.asarray if eager else jnp.asarray
+    call = (
         system,
         solver,
         tau_fn,
         (q0, qd0),
         params,
         tau_const,
-        jnp.asarray(t0, tdt),
-        jnp.asarray(t1, tdt),
+        asarray(t0, tdt),
+        asarray(t1, tdt),
         ts,
         int(n_save),
-        jnp.asarray(rtol, tdt),
-        jnp.asarray(atol, tdt),
-        None if dt0 is None else jnp.asarray(dt0, tdt),
+        asarray(rtol, tdt),
+        asarray(atol, tdt),
+        None if dt0 is None else asarray(dt0, tdt),
         int(max_steps),
         saveat,
         stepsize_controller,
+        adjoint,
     )
-    if not throw:
-        return sol
-    if not eager:  # inside a user's jit: fail at run time with diffrax's message
+    if not eager:
+        sol = _solve(*call)
+        if not throw:
+            return sol
+        # inside a user's jit: fail at run time
         return eqx.error_if(
             sol,
             ~sol.ok,
             "lagrax.simulate failed (max steps, non-finite state or singular mass "
             "matrix); call it outside jit, or with throw=False, for a diagnosis",
         )
+    sol, flags = _simulate_checked(*call)
+    inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
+    if not inputs_ok:
+        system.check_state(q0, qd0, params)  # raises with the values in the message
+    if not throw or solved_ok:
+        return sol
     if sol.result == RESULTS.constraint_projection_failed:  # checked already; in case
         raise ConstraintError(system._projection_message(q0, params))
-    if not bool(sol.ok) or not bool(jnp.all(jnp.isfinite(sol.q) & jnp.isfinite(sol.qd))):
-        raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
-    return sol
+    raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
+
+
+def _host_state(system, q0, qd0):
+    """``(q0, q̇0)`` as NumPy arrays, with ``LagrangianSystem._state``'s checks."""
+    out = []
+    for name, v in (("q", q0), ("qd", qd0)):
+        v = np.asarray(v)
+        if not np.issubdtype(v.dtype, np.floating):
+            v = v.astype(jnp.result_type(float))
+        if v.ndim != 1:
+            raise ShapeError(
+                f"{name} must be a 1-D array of generalized coordinates, got shape {v.shape}"
+                " (use jax.vmap for batches)"
+            )
+        if system.n_dof is not None and v.shape[0] != system.n_dof:
+            raise ShapeError(
+                f"{name} has length {v.shape[0]} but {system.name} has {system.n_dof} "
+                "degrees of freedom"
+            )
+        out.append(v)
+    if out[1].shape != out[0].shape:
+        raise ShapeError(
+            f"qd has shape {out[1].shape} but q has shape {out[0].shape}; they must match"
+        )
+    return out
 
 
 def _configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):
