@@ -23,6 +23,7 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
+import numpy as np
 
 from ._results import RESULTS
 
@@ -81,11 +82,30 @@ def step(term, solver, controller, t, tnext, y, args, sstate, cstate, t1):
     tprev = jnp.minimum(tprev, t1)
     clip = jnp.where(keep, t1, tprev + 0.5 * (t1 - tprev))
     tnew = jnp.where(tnew > t1_floor(t1), clip, tnew)
-    sres = RESULTS.where(keep, RESULTS.promote(sres), RESULTS.successful)
-    res = RESULTS.where(sres == RESULTS.successful, RESULTS.promote(cres), sres)
+    # explicit methods report a constant success: skip the eager ops on constants (each
+    # would compile a tiny kernel during tracing, ~0.1 s in all on the first call)
+    sres, cres = _promote(sres), _promote(cres)
+    if _known_success(sres):
+        res = cres
+    else:
+        sres = RESULTS.where(keep, sres, RESULTS.successful)
+        res = RESULTS.where(sres == RESULTS.successful, cres, sres)
     y_next = tree_where(keep, y1, y)
     sstate_next = tree_where(keep, sstate1, sstate)
     return keep, tprev, tnew, y_next, sstate_next, cstate1, res, dense
+
+
+def _known_success(result) -> bool:
+    """Whether ``result`` is the constant ``RESULTS.successful`` (known at trace time)."""
+    value = result._value
+    if isinstance(value, jax.core.Tracer):
+        return False
+    return bool(np.all(np.asarray(value) == np.asarray(RESULTS.successful._value)))
+
+
+def _promote(result):
+    """``RESULTS.promote``, without eager ops when ``result`` is a constant success."""
+    return RESULTS.successful if _known_success(result) else RESULTS.promote(result)
 
 
 def all_finite(y) -> jax.Array:

@@ -40,10 +40,18 @@ class LagrangianVectorField(eqx.Module):
         return self.system._applied(t, q, qd, params, self.tau(t, q, qd, tau_const))
 
     def __call__(self, t, y, args):
-        q, qd = y
-        params, tau_const = args
-        qdd = self.system._forward(t, q, qd, params, self.tau(t, q, qd, tau_const))
-        return qd, qdd
+        # A solver evaluates the field in several places (its first stage, the stages of
+        # a step, lagrax's input check): through a nested jit it is traced once, and the
+        # others reuse the cached trace (XLA inlines the call, so it costs nothing to run).
+        return _evaluate(self, t, y, args)
+
+
+@eqx.filter_jit
+def _evaluate(field: LagrangianVectorField, t, y, args):
+    q, qd = y
+    params, tau_const = args
+    qdd = field.system._forward(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    return qd, qdd
 
 
 def lagrangian_field_of(terms) -> LagrangianVectorField:
