@@ -51,6 +51,24 @@ def test_lean_loop_takes_diffeqsolves_steps(arm, kw):
     assert float(lean.t_end) == float(ref.t_end) == 3.0
 
 
+def test_simulate_runs_the_lean_loop_unless_given_an_adjoint(monkeypatch):
+    import lagrax._integrate as integrate_module
+
+    calls = []
+    original = integrate_module.integrate
+    monkeypatch.setattr(integrate_module, "integrate",
+                        lambda *a, **k: calls.append(1) or original(*a, **k))  # fmt: skip
+    # a system of its own, so nothing is reused from the compilation cache
+    pendulum = lx.LagrangianSystem(
+        kinetic=lambda q, qd, p: 0.5 * qd[0] ** 2, potential=lambda q, p: -jnp.cos(q[0])
+    )
+    lx.simulate(pendulum, [0.5], [0.0], {}, t1=1.0, n_save=3)
+    assert len(calls) == 1
+    lx.simulate(pendulum, [0.5], [0.0], {}, t1=1.0, n_save=3, adjoint=DIFFRAX)
+    lx.simulate(pendulum, [0.5], [0.0], {}, t1=1.0, n_save=3, saveat=dfx.SaveAt(t1=True))
+    assert len(calls) == 1
+
+
 def test_lean_loop_failure_matches_diffeqsolve(arm):
     system, params = arm
     kw = dict(t1=5.0, n_save=11, max_steps=200, throw=False)
