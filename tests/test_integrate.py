@@ -145,3 +145,17 @@ def test_import_sets_the_small_loop_flag_unless_told_not_to():
     assert _run(SHOW, {"XLA_FLAGS": own}).stdout.strip() == own  # the user's flags win
     late = _run("import jax.numpy as jnp; jnp.ones(1); import lagrax", {})
     assert "imported after JAX had started" in late.stderr
+
+
+@pytest.mark.parametrize("ts", [[0.0, 0.5, 0.2], [0.0, 0.5, 2.0], [-0.1, 0.5]])
+def test_save_times_must_be_sorted_and_inside_the_interval(arm, ts):
+    system, params = arm
+    with pytest.raises(ValueError, match="ts must be non-decreasing and inside"):
+        lx.simulate(system, Q0, QD0, params, t1=1.0, ts=ts)
+
+    @jax.jit
+    def traced(ts):
+        return lx.simulate(system, Q0, QD0, params, t1=1.0, ts=ts, throw=False).q
+
+    with pytest.raises(Exception, match="ts must be non-decreasing and inside"):
+        jax.block_until_ready(traced(jnp.asarray(ts)))

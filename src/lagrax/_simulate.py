@@ -93,6 +93,12 @@ def _solve_core(
     if own_saveat:
         if ts is None:
             ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, n_save, dtype=t0.dtype)
+        elif ts.shape[0]:  # traced ts (eager calls are checked in simulate)
+            ts = eqx.error_if(
+                ts,
+                jnp.any(ts[1:] < ts[:-1]) | (ts[0] < t0) | (ts[-1] > t1),
+                "ts must be non-decreasing and inside [t0, t1]",
+            )
         saveat = dfx.SaveAt(ts=ts, t1=True)  # the extra last entry: where the solve ended
     requested_ts = ts
     if stepsize_controller is None:
@@ -314,9 +320,15 @@ def simulate(
         if not float(t1) > float(t0):
             raise ValueError(f"t1 must be greater than t0, got t0={t0}, t1={t1}")
     if saveat is None and ts is not None:
-        ts = jnp.asarray(ts, dtype)
+        ts = (np.asarray if eager else jnp.asarray)(ts, dtype)
         if ts.ndim != 1:
             raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
+        if eager and ts.size and (
+            np.any(np.diff(ts) < 0) or ts[0] < float(t0) or ts[-1] > float(t1)
+        ):
+            raise ValueError(
+                f"ts must be non-decreasing and inside [t0, t1] = [{t0}, {t1}]; got {ts}"
+            )
     solver, stepsize_controller, dt0, max_steps = _configure(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
