@@ -176,6 +176,20 @@ def main(argv=None):
         (y, sol), t = timed(lagrax_run(method, 1e-10), args.repeats)
         print(f"   lagrax {method:6s} {t * 1e3:9.2f} ms  error {err(y):.1e}  "
               f"steps {int(sol.stats['num_steps'])}   DOP853 time / this = {base / t:.1f}x")
+    # The same ratios from interleaved rounds (DOP853, Tsit5, Dopri8 back to back), so
+    # that a change in machine load during the run hits all three alike.
+    rounds = {"DOP853": [], "tsit5": [], "dopri8": []}
+    dop853 = lambda: solve_ivp(rhs, (0, T1), y0, method="DOP853", rtol=1e-10, atol=1e-10)  # noqa: E731
+    for _ in range(args.repeats):
+        for name, fn in (("DOP853", dop853), ("tsit5", lagrax_run("tsit5", 1e-10)),
+                         ("dopri8", lagrax_run("dopri8", 1e-10))):  # fmt: skip
+            t0 = time.perf_counter()
+            fn()
+            rounds[name].append(time.perf_counter() - t0)
+    for method in ("tsit5", "dopri8"):
+        ratios = sorted(a / b for a, b in zip(rounds["DOP853"], rounds[method], strict=True))
+        print(f"   interleaved, {args.repeats} rounds: DOP853 / lagrax {method}: median "
+              f"{statistics.median(ratios):.1f}x (range {ratios[0]:.1f}x - {ratios[-1]:.1f}x)")
 
     print("\n2. matched final-state accuracy")
     ladder = [10.0 ** (-k / 2) for k in range(8, 27)]  # 1e-4 ... 1e-13

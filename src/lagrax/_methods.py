@@ -1,5 +1,6 @@
 """Named integration methods for ``simulate``: what each is, and how it must be run."""
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ class MethodInfo:
     summary: str
 
     def solver(self) -> dfx.AbstractSolver:
-        return self.make()
+        return _instance(self.make)
 
 
 METHODS: dict[str, MethodInfo] = {
@@ -46,6 +47,13 @@ METHODS: dict[str, MethodInfo] = {
         "triple-jump composition of the midpoint variational integrator, order 4, fixed step",
     ),
 }  # fmt: skip
+
+
+@functools.cache
+def _instance(make: Callable[[], dfx.AbstractSolver]) -> dfx.AbstractSolver:
+    # solvers are immutable: one instance per method (building an equinox Module on every
+    # simulate call costs tens of µs)
+    return make()
 
 
 def resolve_solver(solver) -> tuple[dfx.AbstractSolver, bool]:

@@ -1,6 +1,8 @@
 """One trajectory: ``simulate`` and its ``Solution``, on diffrax."""
 
 
+import functools
+
 import diffrax as dfx
 import equinox as eqx
 import jax
@@ -195,13 +197,35 @@ def _inputs_ok(system, q0, qd0, params, tau_fn, tau_const, t0):
 
 
 @eqx.filter_jit
-def _simulate_checked(system, solver, tau_fn, y0, params, tau_const, t0, *rest):
-    """``_solve`` plus the two flags ``simulate`` needs on the host, fetched at once:
-    whether the inputs were valid, and whether the solve succeeded with finite saves."""
+def _checked_once(system, solver, tau_fn, y0, params, tau_const, t0, *rest):
     sol = _solve_core(system, solver, tau_fn, y0, params, tau_const, t0, *rest)
     inputs_ok = _inputs_ok(system, *y0, params, tau_fn, tau_const, t0)
     solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
     return sol, jnp.stack([inputs_ok, solved_ok])
+
+
+@eqx.filter_jit
+def _simulate_checked(system, solver, tau_fn, y0, params, tau_const, t0, *rest):
+    """``_solve`` plus the two flags ``simulate`` needs on the host, fetched at once:
+    whether the inputs were valid, and whether the solve succeeded with finite saves.
+
+    Only called on concrete inputs (never differentiated), so the whole program can sit
+    in a ``lax.while_loop`` that runs once: XLA:CPU then compiles it into one kernel (see
+    ``_xla_flags``) instead of running dozens of small ones around the solver loop, which
+    cost ~0.1 ms a call.
+    """
+
+    args = (system, solver, tau_fn, y0, params, tau_const, t0, *rest)
+    shapes = eqx.filter_eval_shape(_checked_once, *args)  # traced once; the loop reuses it
+    init = (jnp.asarray(False), jax.tree_util.tree_map(
+        lambda x: jnp.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
+        shapes))  # fmt: skip
+
+    def once(_):
+        return _checked_once(*args)
+
+    _, out = jax.lax.while_loop(lambda c: ~c[0], lambda c: (jnp.asarray(True), once(None)), init)
+    return out
 
 
 def simulate(
@@ -363,7 +387,7 @@ def simulate(
             "lagrax.simulate failed (max steps, non-finite state or singular mass "
             "matrix); call it outside jit, or with throw=False, for a diagnosis",
         )
-    sol, flags = _simulate_checked(*call)
+    sol, flags = _call_checked(call)
     inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
     if not inputs_ok:
         system.check_state(q0, qd0, params)  # raises with the values in the message
@@ -372,6 +396,51 @@ def simulate(
     if sol.result == RESULTS.constraint_projection_failed:  # checked already; in case
         raise ConstraintError(system._projection_message(q0, params))
     raise SimulationError(_diagnose(system, sol, params, max_steps, rtol, atol))
+
+
+# positions in a ``_simulate_checked`` call of the arguments that are arrays (or None) on
+# every call: they are traced; the rest (model, solver, settings) are static
+_DYNAMIC = (3, 4, 5, 6, 7, 8, 10, 11, 12)
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled_checked(static):
+    """A ``jax.jit`` of ``_simulate_checked`` for one static configuration.
+
+    ``equinox.filter_jit`` sorts arrays from static values on every call, which for
+    ``simulate``'s arguments costs about as much as a short solve; with the static part
+    fixed here, a call is ``jax.jit``'s C++ fast path.
+    """
+    out_static = []
+
+    def run(dynamic):
+        args = list(static)
+        for i, x in zip(_DYNAMIC, dynamic, strict=True):
+            args[i] = x
+        leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(*args))
+        arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
+        out_static[:] = [treedef, leaves, arrays]
+        return [leaves[i] for i in arrays]
+
+    return jax.jit(run), out_static
+
+
+def _call_checked(call):
+    """``_simulate_checked(*call)``, through a cached ``jax.jit`` when it can be."""
+    dynamic = tuple(call[i] for i in _DYNAMIC)
+    static = tuple(None if i in _DYNAMIC else x for i, x in enumerate(call))
+    try:
+        if not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(dynamic)):
+            raise TypeError  # e.g. strings in params: equinox sorts them out
+        fn, out_static = _compiled_checked(static)
+    except TypeError:  # an unhashable setting (a controller or saveat with arrays)
+        return _simulate_checked(*call)
+    values = fn(dynamic)
+    treedef, leaves, arrays = out_static
+    leaves = list(leaves)  # the static leaves, with the arrays put back in their places
+    for i, value in zip(arrays, values, strict=True):
+        leaves[i] = value
+    return jax.tree_util.tree_unflatten(treedef, leaves)
 
 
 def _host_state(system, q0, qd0):
