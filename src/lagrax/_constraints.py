@@ -174,6 +174,9 @@ class ConstrainedSystem(eqx.Module):
     def _state(self, q, qd=None, **others):
         return self.system._state(q, qd, **others)
 
+    def _host_state(self, q, qd):
+        return self.system._host_state(q, qd)
+
     _finite = staticmethod(LagrangianSystem._finite)
 
     def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:

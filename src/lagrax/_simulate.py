@@ -319,7 +319,7 @@ def simulate(
     if eager:
         # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
         # of its own, and a simulate call should cost one dispatch, not a dozen.
-        q0, qd0 = _host_state(system, q0, qd0)
+        q0, qd0 = system._host_state(q0, qd0)
         dtype = np.result_type(q0, qd0)
     else:
         q0, qd0 = system._state(q0, qd0)
@@ -441,31 +441,6 @@ def _call_checked(call):
     for i, value in zip(arrays, values, strict=True):
         leaves[i] = value
     return jax.tree_util.tree_unflatten(treedef, leaves)
-
-
-def _host_state(system, q0, qd0):
-    """``(q0, q̇0)`` as NumPy arrays, with ``LagrangianSystem._state``'s checks."""
-    out = []
-    for name, v in (("q", q0), ("qd", qd0)):
-        v = np.asarray(v)
-        if not np.issubdtype(v.dtype, np.floating):
-            v = v.astype(jnp.result_type(float))
-        if v.ndim != 1:
-            raise ShapeError(
-                f"{name} must be a 1-D array of generalized coordinates, got shape {v.shape}"
-                " (use jax.vmap for batches)"
-            )
-        if system.n_dof is not None and v.shape[0] != system.n_dof:
-            raise ShapeError(
-                f"{name} has length {v.shape[0]} but {system.name} has {system.n_dof} "
-                "degrees of freedom"
-            )
-        out.append(v)
-    if out[1].shape != out[0].shape:
-        raise ShapeError(
-            f"qd has shape {out[1].shape} but q has shape {out[0].shape}; they must match"
-        )
-    return out
 
 
 def _configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):

@@ -128,8 +128,8 @@ class LagrangianSystem(eqx.Module):
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
 
     # ------------------------------------------------------------------ input checks
-    def _coords(self, q: Coordinates, name: str = "q") -> Vector:
-        q = jnp.asarray(q)
+    def _coords(self, q: Coordinates, name: str = "q", host: bool = False) -> Vector:
+        q = np.asarray(q) if host else jnp.asarray(q)
         if not jnp.issubdtype(q.dtype, jnp.floating):
             q = q.astype(jnp.result_type(float))
         if q.ndim != 1:
@@ -153,12 +153,15 @@ class LagrangianSystem(eqx.Module):
                 out.append(None)
                 continue
             v = self._coords(value, key)
-            if v.shape != q.shape:
-                raise ShapeError(
-                    f"{key} has shape {v.shape} but q has shape {q.shape}; they must match"
-                )
+            _same_shape(key, v, q)
             out.append(v.astype(jnp.result_type(q, v)))
         return out
+
+    def _host_state(self, q: Coordinates, qd: Velocities):
+        """``(q, q̇)`` as NumPy arrays, with ``_state``'s checks and no device transfer."""
+        q, qd = self._coords(q, "q", host=True), self._coords(qd, "qd", host=True)
+        _same_shape("qd", qd, q)
+        return q, qd
 
     @staticmethod
     def _finite(x: jax.Array, name: str) -> jax.Array:
@@ -574,5 +577,10 @@ class LagrangianSystem(eqx.Module):
 
 
 @eqx.filter_jit
+def _same_shape(name: str, v, q) -> None:
+    if v.shape != q.shape:
+        raise ShapeError(f"{name} has shape {v.shape} but q has shape {q.shape}; they must match")
+
+
 def _energy_and_mass(system: LagrangianSystem, q, qd, params):
     return system.energy(q, qd, params), system.mass_matrix(q, params, qd)
