@@ -50,7 +50,7 @@ def main(argv=None):
         "lagrax forward_dynamics (checked)": lambda a, b, u: system.forward_dynamics(
             a, b, params, u
         ),
-        "lagrax, unchecked (as inside simulate)": lambda a, b, u: system._forward(
+        "lagrax, unchecked (as inside simulate)": lambda a, b, u: system.accelerations(
             0.0, a, b, params, u
         ),
         "naive autodiff (hessian + linalg.solve)": naive,
@@ -72,12 +72,16 @@ def main(argv=None):
             f(q, qd, tau).block_until_ready()
             times[name].append(time.perf_counter() - t0)
     base = statistics.median(times["closed form (hand-written JAX)"])
-    print(f"\nforward dynamics of the 2R arm, vmap over {args.batch} states, "
-          f"median of {args.repeats} interleaved calls ({jax.devices()[0].platform}):")
+    print(
+        f"\nforward dynamics of the 2R arm, vmap over {args.batch} states, "
+        f"median of {args.repeats} interleaved calls ({jax.devices()[0].platform}):"
+    )
     for name, ts in times.items():
         med = statistics.median(ts)
-        print(f"  {name:42s} {med * 1e6:9.1f} µs  {med / args.batch * 1e9:6.1f} ns/state  "
-              f"ratio {med / base:5.2f}  (compile+first call {compile_s[name]:.2f} s)")
+        print(
+            f"  {name:42s} {med * 1e6:9.1f} µs  {med / args.batch * 1e9:6.1f} ns/state  "
+            f"ratio {med / base:5.2f}  (compile+first call {compile_s[name]:.2f} s)"
+        )
 
 
 if __name__ == "__main__":

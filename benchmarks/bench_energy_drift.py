@@ -31,18 +31,23 @@ def main(argv=None):
     system, params = lx.models.planar_2r()
     q0, qd0 = jnp.array([-math.pi / 2 + 0.6, 0.4]), jnp.zeros(2)
     runs = [("tsit5, rtol = atol = 1e-8", dict(solver="tsit5", rtol=1e-8, atol=1e-8))]
-    runs += [(f"variational, dt = {dt:g}", dict(solver="variational", dt=dt))
-             for dt in (0.02, 0.025, 0.03)]  # fmt: skip
+    runs += [
+        (f"variational, dt = {dt:g}", dict(solver="variational", dt=dt))
+        for dt in (0.02, 0.025, 0.03)
+    ]
 
     def go(kw):
-        sol = lx.simulate(system, q0, qd0, params, t1=args.t1, n_save=2001,
-                          max_steps=50_000_000, **kw)  # fmt: skip
+        sol = lx.simulate(
+            system, q0, qd0, params, t1=args.t1, n_save=2001, max_steps=50_000_000, **kw
+        )
         jax.block_until_ready(sol.q)
         return sol
 
     print(f"torque-free 2R arm, {args.t1:g} s; times: median of {args.repeats} after compiling")
-    print(f"{'run':28s} {'time':>9s} {'ratio':>6s} {'steps':>9s} {'trend/1000 s':>13s} "
-          f"{'max |dE/E|':>11s} {'trend share':>11s}")  # fmt: skip
+    print(
+        f"{'run':28s} {'time':>9s} {'ratio':>6s} {'steps':>9s} {'trend/1000 s':>13s} "
+        f"{'max |dE/E|':>11s} {'trend share':>11s}"
+    )
     base = None
     for name, kw in runs:
         go(kw)  # compile
@@ -55,8 +60,10 @@ def main(argv=None):
         base = base or t
         slope, emax = energy_trend(sol.ts, sol.energy_error)
         share = abs(slope) * args.t1 / emax  # > ~0.5: the drift dominates the error
-        print(f"{name:28s} {t:8.3f}s {t / base:6.2f} {int(sol.stats['num_steps']):9d} "
-              f"{slope * 1000:+13.1e} {emax:11.1e} {share:11.2f}")
+        print(
+            f"{name:28s} {t:8.3f}s {t / base:6.2f} {int(sol.stats['num_steps']):9d} "
+            f"{slope * 1000:+13.1e} {emax:11.1e} {share:11.2f}"
+        )
 
 
 if __name__ == "__main__":

@@ -74,8 +74,20 @@ def closed_form_sweep(batch_params, n_lanes):
 
     @jax.jit
     def run(p, y0):
-        out = run_lanes(term, dfx.Tsit5(), ctrl, p, y0, None, jnp.asarray(0.0),
-                        jnp.asarray(T1), None, jnp.zeros(0), n_lanes, 100_000)  # fmt: skip
+        out = run_lanes(
+            term,
+            dfx.Tsit5(),
+            ctrl,
+            p,
+            y0,
+            None,
+            jnp.asarray(0.0),
+            jnp.asarray(T1),
+            None,
+            jnp.zeros(0),
+            n_lanes,
+            100_000,
+        )
         return out.y_end
 
     return lambda: jax.block_until_ready(run(batch_params, y0))
@@ -133,8 +145,7 @@ def scipy_loop(params_list, method):
 
     def run():
         for p in params_list:
-            solve_ivp(numpy_rhs(p), (0, T1), [*Q0, 0.0, 0.0], method=method, rtol=TOL,
-                      atol=TOL)  # fmt: skip
+            solve_ivp(numpy_rhs(p), (0, T1), [*Q0, 0.0, 0.0], method=method, rtol=TOL, atol=TOL)
 
     return run
 
@@ -149,7 +160,7 @@ n = int(sys.argv[1])
 system, params = lx.models.planar_2r()
 rng = np.random.default_rng(0)
 batch = lx.samples(params, m2=rng.uniform(0.5, 2, n), l1=rng.uniform(0.5, 1.5, n))
-ds = lx.sweep(system, batch, [-1.5707963267948966 + 1.4, 0.8], [0.0, 0.0], t1=1.0,
+ds = lx.sweep(system, [-1.5707963267948966 + 1.4, 0.8], [0.0, 0.0], batch, t1=1.0,
               progress=False)
 assert int(ds.attrs["n_failed"]) == 0
 print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
@@ -161,7 +172,7 @@ system, params = lx.models.planar_2r()
 batch = lx.grid(params, m2=np.linspace(0.5, 2, 64), l1=np.linspace(0.5, 1.5, 64))
 out = {}
 for d in (1, 2):
-    run = lambda: lx.sweep(system, batch, [-1.5707963267948966 + 1.4, 0.8], [0.0, 0.0],
+    run = lambda: lx.sweep(system, [-1.5707963267948966 + 1.4, 0.8], [0.0, 0.0], batch,
                            t1=10.0, devices=d, progress=False)
     run()
     ts = []
@@ -190,7 +201,7 @@ def main(argv=None):
     rows = []
 
     def sweep(schedule):
-        return lambda: lx.sweep(system, batch, Q0, [0.0, 0.0], schedule=schedule, **kw)
+        return lambda: lx.sweep(system, Q0, [0.0, 0.0], batch, schedule=schedule, **kw)
 
     ds, c_queue, t_queue = timed(sweep("queue"), args.repeats)
     idle_queue = ds.attrs["lane_idle_fraction"]
@@ -204,8 +215,9 @@ def main(argv=None):
     # accuracy on a subset, against Dopri8 at 1e-12
     pick = np.linspace(0, n - 1, 64).astype(int)
     sub = lx.samples(params, m2=flat["m2"][pick], l1=flat["l1"][pick])
-    ref = lx.sweep(system, sub, Q0, [0.0, 0.0], t1=T1, solver="dopri8", rtol=1e-12,
-                   atol=1e-12, progress=False)  # fmt: skip
+    ref = lx.sweep(
+        system, Q0, [0.0, 0.0], sub, t1=T1, solver="dopri8", rtol=1e-12, atol=1e-12, progress=False
+    )
     q = ds.q.values.reshape(n, 2)[pick]
     qd = ds.qd.values.reshape(n, 2)[pick]
     err_lagrax = final_error(q, qd, ref.q.values, ref.qd.values)
@@ -235,8 +247,10 @@ def main(argv=None):
         ("lagrax sweep, autodiff, lock-step vmap", t_lock, c_lock),
         ("lagrax work queue, closed-form RHS", t_closed, c_closed),
         (f"numba RK4, closed form, 1 thread, dt={dt:g}", t_numba, c_numba),
-    ] + [(f"SciPy {m} loop ({args.subset} members, extrapolated)", t, float("nan"))
-         for m, t in t_scipy.items()]
+    ] + [
+        (f"SciPy {m} loop ({args.subset} members, extrapolated)", t, float("nan"))
+        for m, t in t_scipy.items()
+    ]
     print(f"\n2R sweep: {n} members, {T1:g} s, rtol=atol={TOL:g}, final state kept")
     print(f"{'run':<52} {'time [s]':>9} {'traj/s':>9} {'compile+1st [s]':>16}")
     for name, t, c in rows:
@@ -257,18 +271,25 @@ def main(argv=None):
     if args.memory:
         print("\npeak RSS, final state only (fresh process each, t1 = 1 s)")
         for m in (10_000, 100_000):
-            r = subprocess.run([sys.executable, "-c", MEMORY_CHILD, str(m)], check=True,
-                               capture_output=True, text=True)  # fmt: skip
+            r = subprocess.run(
+                [sys.executable, "-c", MEMORY_CHILD, str(m)],
+                check=True,
+                capture_output=True,
+                text=True,
+            )
             print(f"  {m:>7} members: {float(r.stdout.strip().splitlines()[-1]):7.0f} MiB")
     if args.devices:
         env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
         code = DEVICES_CHILD.replace("REPEATS", str(args.repeats))
-        r = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
-                           text=True, env=env)  # fmt: skip
+        r = subprocess.run(
+            [sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env
+        )
         d = json.loads(r.stdout.strip().splitlines()[-1])
-        print(f"\n{d['n']} simulated CPU devices: 1 device {d['t1']:.3f} s, 2 devices "
-              f"{d['t2']:.3f} s -> {d['t1'] / d['t2']:.2f}x (median |difference| of final "
-              f"states {d['diff']:.1e}: round-off, amplified by the chaotic arm)")
+        print(
+            f"\n{d['n']} simulated CPU devices: 1 device {d['t1']:.3f} s, 2 devices "
+            f"{d['t2']:.3f} s -> {d['t1'] / d['t2']:.2f}x (median |difference| of final "
+            f"states {d['diff']:.1e}: round-off, amplified by the chaotic arm)"
+        )
 
 
 if __name__ == "__main__":

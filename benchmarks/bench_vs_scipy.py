@@ -74,8 +74,9 @@ print(time.perf_counter() - t0)
 
 
 def first_call_in_fresh_process() -> float:
-    out = subprocess.run([sys.executable, "-c", FIRST_CALL], capture_output=True, text=True,
-                         check=True)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", FIRST_CALL], capture_output=True, text=True, check=True
+    )
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -95,18 +96,18 @@ def mujoco_model(params):
     p = {k: float(v) for k, v in params.items()}
     xml = f"""
 <mujoco>
-  <option gravity="0 0 -{p['g']}" integrator="RK4">
+  <option gravity="0 0 -{p["g"]}" integrator="RK4">
     <flag contact="disable" energy="enable"/>
   </option>
   <worldbody>
     <body name="link1">
       <joint name="j1" type="hinge" axis="0 -1 0"/>
-      <inertial pos="{p['r1']} 0 0" mass="{p['m1']}"
-                diaginertia="{p['I1']} {p['I1']} {p['I1']}"/>
-      <body name="link2" pos="{p['l1']} 0 0">
+      <inertial pos="{p["r1"]} 0 0" mass="{p["m1"]}"
+                diaginertia="{p["I1"]} {p["I1"]} {p["I1"]}"/>
+      <body name="link2" pos="{p["l1"]} 0 0">
         <joint name="j2" type="hinge" axis="0 -1 0"/>
-        <inertial pos="{p['r2']} 0 0" mass="{p['m2']}"
-                  diaginertia="{p['I2']} {p['I2']} {p['I2']}"/>
+        <inertial pos="{p["r2"]} 0 0" mass="{p["m2"]}"
+                  diaginertia="{p["I2"]} {p["I2"]} {p["I2"]}"/>
       </body>
     </body>
   </worldbody>
@@ -135,8 +136,18 @@ def main(argv=None):
     system, params = lx.models.planar_2r()
     q0, qd0 = jnp.array(Q0), jnp.zeros(2)
     # the reference is not on the ladder below, so no run is compared with itself
-    ref = lx.simulate(system, q0, qd0, params, t1=T1, solver="dopri8", rtol=1e-14,
-                      atol=1e-14, n_save=2, max_steps=1_000_000)  # fmt: skip
+    ref = lx.simulate(
+        system,
+        q0,
+        qd0,
+        params,
+        t1=T1,
+        solver="dopri8",
+        rtol=1e-14,
+        atol=1e-14,
+        n_save=2,
+        max_steps=1_000_000,
+    )
     y_ref = np.concatenate([np.asarray(ref.q_end), np.asarray(ref.qd_end)])
 
     def err(y):
@@ -144,8 +155,9 @@ def main(argv=None):
 
     def lagrax_run(method, tol):
         def run():
-            sol = lx.simulate(system, q0, qd0, params, t1=T1, solver=method, rtol=tol,
-                              atol=tol, n_save=2)  # fmt: skip
+            sol = lx.simulate(
+                system, q0, qd0, params, t1=T1, solver=method, rtol=tol, atol=tol, n_save=2
+            )
             jax.block_until_ready(sol.q_end)
             return np.concatenate([np.asarray(sol.q_end), np.asarray(sol.qd_end)]), sol
 
@@ -157,8 +169,10 @@ def main(argv=None):
 
     # the first call of simulate (trace + compile + run), each in a fresh process
     firsts = sorted(first_call_in_fresh_process() for _ in range(3))
-    print(f"lagrax first call of simulate (trace + compile + run, default Tsit5), three fresh "
-          f"processes: {', '.join(f'{t:.2f}' for t in firsts)} s (median {firsts[1]:.2f} s)")
+    print(
+        f"lagrax first call of simulate (trace + compile + run, default Tsit5), three fresh "
+        f"processes: {', '.join(f'{t:.2f}' for t in firsts)} s (median {firsts[1]:.2f} s)"
+    )
     small_loops = "small_while_loop" in os.environ.get("XLA_FLAGS", "")
     print(f"XLA:CPU small-loop kernels (see lagrax/_xla_flags.py): {small_loops}")
 
@@ -166,30 +180,40 @@ def main(argv=None):
     scipy_res = {}
     for method in ("DOP853", "RK45", "Radau"):
         reps = 1 if method == "Radau" else args.repeats
-        sol, t = timed(lambda m=method: solve_ivp(rhs, (0, T1), y0, method=m, rtol=1e-10,
-                                                   atol=1e-10), reps)  # fmt: skip
+        sol, t = timed(
+            lambda m=method: solve_ivp(rhs, (0, T1), y0, method=m, rtol=1e-10, atol=1e-10), reps
+        )
         scipy_res[method] = (err(sol.y[:, -1]), t)
-        print(f"   scipy {method:7s} {t * 1e3:9.2f} ms  error {err(sol.y[:, -1]):.1e}  "
-              f"nfev {sol.nfev}")
+        print(
+            f"   scipy {method:7s} {t * 1e3:9.2f} ms  error {err(sol.y[:, -1]):.1e}  "
+            f"nfev {sol.nfev}"
+        )
     base = scipy_res["DOP853"][1]
     for method in ("tsit5", "dopri8"):
         (y, sol), t = timed(lagrax_run(method, 1e-10), args.repeats)
-        print(f"   lagrax {method:6s} {t * 1e3:9.2f} ms  error {err(y):.1e}  "
-              f"steps {int(sol.stats['num_steps'])}   DOP853 time / this = {base / t:.1f}x")
+        print(
+            f"   lagrax {method:6s} {t * 1e3:9.2f} ms  error {err(y):.1e}  "
+            f"steps {int(sol.stats['num_steps'])}   DOP853 time / this = {base / t:.1f}x"
+        )
     # The same ratios from interleaved rounds (DOP853, Tsit5, Dopri8 back to back), so
     # that a change in machine load during the run hits all three alike.
     rounds = {"DOP853": [], "tsit5": [], "dopri8": []}
     dop853 = lambda: solve_ivp(rhs, (0, T1), y0, method="DOP853", rtol=1e-10, atol=1e-10)  # noqa: E731
     for _ in range(args.repeats):
-        for name, fn in (("DOP853", dop853), ("tsit5", lagrax_run("tsit5", 1e-10)),
-                         ("dopri8", lagrax_run("dopri8", 1e-10))):  # fmt: skip
+        for name, fn in (
+            ("DOP853", dop853),
+            ("tsit5", lagrax_run("tsit5", 1e-10)),
+            ("dopri8", lagrax_run("dopri8", 1e-10)),
+        ):
             t0 = time.perf_counter()
             fn()
             rounds[name].append(time.perf_counter() - t0)
     for method in ("tsit5", "dopri8"):
         ratios = sorted(a / b for a, b in zip(rounds["DOP853"], rounds[method], strict=True))
-        print(f"   interleaved, {args.repeats} rounds: DOP853 / lagrax {method}: median "
-              f"{statistics.median(ratios):.1f}x (range {ratios[0]:.1f}x - {ratios[-1]:.1f}x)")
+        print(
+            f"   interleaved, {args.repeats} rounds: DOP853 / lagrax {method}: median "
+            f"{statistics.median(ratios):.1f}x (range {ratios[0]:.1f}x - {ratios[-1]:.1f}x)"
+        )
 
     print("\n2. matched final-state accuracy")
     ladder = [10.0 ** (-k / 2) for k in range(8, 27)]  # 1e-4 ... 1e-13
@@ -204,9 +228,11 @@ def main(argv=None):
             print(f"   scipy {smethod}: no lagrax run reached error {serr:.1e}")
             continue
         best = min(ok, key=lambda r: r[3])
-        print(f"   scipy {smethod:7s} error {serr:.1e} in {st * 1e3:8.2f} ms; lagrax "
-              f"{best[0]} tol {best[1]:.0e}: error {best[2]:.1e} in {best[3] * 1e3:6.2f} ms"
-              f"  -> {st / best[3]:.1f}x faster")
+        print(
+            f"   scipy {smethod:7s} error {serr:.1e} in {st * 1e3:8.2f} ms; lagrax "
+            f"{best[0]} tol {best[1]:.0e}: error {best[2]:.1e} in {best[3] * 1e3:6.2f} ms"
+            f"  -> {st / best[3]:.1f}x faster"
+        )
 
     mujoco_runs = []
     try:
@@ -221,8 +247,14 @@ def main(argv=None):
             mujoco_runs.append((dt, err(y), t))
             better = [r for r in runs if r[2] <= err(y)]
             best = min(better, key=lambda r: r[3]) if better else None
-            extra = (f"; lagrax {best[0]} tol {best[1]:.0e}: {best[3] * 1e3:.2f} ms -> "
-                     f"{t / best[3]:.1f}x faster") if best else ""  # fmt: skip
+            extra = (
+                (
+                    f"; lagrax {best[0]} tol {best[1]:.0e}: {best[3] * 1e3:.2f} ms -> "
+                    f"{t / best[3]:.1f}x faster"
+                )
+                if best
+                else ""
+            )
             print(f"   mujoco RK4 dt {dt:.1e}: {t * 1e3:8.2f} ms  error {err(y):.1e}{extra}")
 
     print("\n4. work-precision: fastest run reaching each error level (best of each tool)")
@@ -231,16 +263,20 @@ def main(argv=None):
         for k in tols:
             tol = 10.0**-k
             reps = 1 if method == "Radau" else max(args.repeats // 2, 1)
-            sol, t = timed(lambda m=method, tol=tol: solve_ivp(rhs, (0, T1), y0, method=m,
-                                                               rtol=tol, atol=tol), reps)
+            sol, t = timed(
+                lambda m=method, tol=tol: solve_ivp(rhs, (0, T1), y0, method=m, rtol=tol, atol=tol),
+                reps,
+            )
             scipy_runs.append((method, tol, err(sol.y[:, -1]), t))
 
     def fastest(rows, level, err_i, time_i):
         ok = [r for r in rows if r[err_i] <= level]
         return min(ok, key=lambda r: r[time_i]) if ok else None
 
-    print(f"   {'error':>7s} {'lagrax':>22s} {'SciPy best':>24s} {'ratio':>7s} "
-          f"{'MuJoCo RK4':>20s} {'ratio':>7s}")
+    print(
+        f"   {'error':>7s} {'lagrax':>22s} {'SciPy best':>24s} {'ratio':>7s} "
+        f"{'MuJoCo RK4':>20s} {'ratio':>7s}"
+    )
     for k in range(4, 11):
         level = 10.0**-k
         lg = fastest(runs, level, 2, 3)

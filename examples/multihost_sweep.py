@@ -34,10 +34,12 @@ def main():
 
     system, params = lx.models.planar_2r()
     batch = lx.grid(params, m2=np.linspace(0.5, 2.0, 16), l1=np.linspace(0.5, 1.5, 16))
-    ds = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=5.0, progress=False)
-    print(f"process {jax.process_index()}/{jax.process_count()}: {len(jax.devices())} devices, "
-          f"{ds.attrs['n_members']} members, {ds.attrs['n_failed']} failed, "
-          f"mean final θ2 = {float(ds.q.sel(dof=1).mean()):.6f}")
+    ds = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, t1=5.0, progress=False)
+    print(
+        f"process {jax.process_index()}/{jax.process_count()}: {len(jax.devices())} devices, "
+        f"{ds.attrs['n_members']} members, {ds.attrs['n_failed']} failed, "
+        f"mean final θ2 = {float(ds.q.sel(dof=1).mean()):.6f}"
+    )
     if jax.process_index() == 0:
         lx.save_sweep(ds, args.out)
     jax.distributed.shutdown()

@@ -248,9 +248,12 @@ def test_spatial_body_angular_velocity_from_rotation_jvp():
         ]
     )
     v = np.array(
-        [qd[3], qd[4] * np.cos(ps) - q[4] * np.sin(ps) * dps,
-         qd[4] * np.sin(ps) + q[4] * np.cos(ps) * dps]
-    )  # fmt: skip
+        [
+            qd[3],
+            qd[4] * np.cos(ps) - q[4] * np.sin(ps) * dps,
+            qd[4] * np.sin(ps) + q[4] * np.cos(ps) * dps,
+        ]
+    )
     np.testing.assert_allclose(
         kinetic, 0.5 * 2.5 * v @ v + 0.5 * omega @ inertia @ omega, rtol=1e-13
     )
@@ -444,8 +447,9 @@ def test_energy_balance_with_dampers():
 def test_gravity_options_and_float32():
     point = B.PointMass(2.0, lambda q, p: q)
     q, qd = jnp.zeros(3), jnp.zeros(3)
-    np.testing.assert_allclose(B.Scene([point], n_dof=3).system().forward_dynamics(q, qd, {}),
-                               [0, 0, -9.81])  # fmt: skip
+    np.testing.assert_allclose(
+        B.Scene([point], n_dof=3).system().forward_dynamics(q, qd, {}), [0, 0, -9.81]
+    )
     tilted = B.Scene([point], gravity=jnp.array([1.0, 0.0, -2.0]), n_dof=3).system()
     np.testing.assert_allclose(tilted.forward_dynamics(q, qd, {}), [1.0, 0, -2.0])
     free = B.Scene([point], gravity=None, n_dof=3).system()

@@ -138,9 +138,16 @@ def arm_params_pair(rng):
     r, inertia, g = length * rng.uniform(0.05, 0.95, 2), rng.uniform(0.01, 2.0, 2), 9.0
     chain_p = CHAIN2.params(m=m, l=length, r=r, I=inertia, g=g)
     arm_p = dict(
-        m1=m[0], m2=m[1], l1=length[0], l2=length[1], r1=r[0], r2=r[1],
-        I1=inertia[0], I2=inertia[1], g=g,
-    )  # fmt: skip
+        m1=m[0],
+        m2=m[1],
+        l1=length[0],
+        l2=length[1],
+        r1=r[0],
+        r2=r[1],
+        I1=inertia[0],
+        I2=inertia[1],
+        g=g,
+    )
     return chain_p, {k: jnp.asarray(v) for k, v in arm_p.items()}
 
 
@@ -182,9 +189,12 @@ def test_yaw_pitch_arm_closed_form():
     chain = SpatialChain("RR", axes=[(0, 0, 1), (0, 1, 0)])
     m, r, g = 1.7, 0.8, 9.81
     p = chain.params(
-        m=[0.0, m], offset=np.zeros((2, 3)), com=[(0, 0, 0), (r, 0, 0)],
-        inertia=np.zeros((3, 3)), g=g,
-    )  # fmt: skip
+        m=[0.0, m],
+        offset=np.zeros((2, 3)),
+        com=[(0, 0, 0), (r, 0, 0)],
+        inertia=np.zeros((3, 3)),
+        g=g,
+    )
     q, qd, qdd = np.array([0.4, -0.7]), np.array([1.3, -0.6]), np.array([0.9, 2.1])
     c2, s2 = np.cos(q[1]), np.sin(q[1])
     expected = np.array(
@@ -206,9 +216,11 @@ def test_rotating_slider_closed_form():
     chain = SpatialChain("RP", axes=[(0, 0, 1), (1, 0, 0)])
     m, big_j = 2.5, 0.3
     p = chain.params(
-        m=[1.0, m], offset=np.zeros((2, 3)), com=np.zeros((2, 3)),
+        m=[1.0, m],
+        offset=np.zeros((2, 3)),
+        com=np.zeros((2, 3)),
         inertia=[np.diag([0.2, 0.2, big_j]), np.zeros((3, 3))],
-    )  # fmt: skip
+    )
     q, qd, qdd = np.array([0.4, 0.7]), np.array([1.3, -0.6]), np.array([0.9, 2.1])
     expected = np.array(
         [

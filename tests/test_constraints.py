@@ -113,12 +113,18 @@ def test_constrained_accelerations_and_forces_at_a_state(pendulum):
     batch = jax.vmap(lambda a, b: system.forward_dynamics(a, b, params))(qs, qds)
     np.testing.assert_allclose(batch[0], qdd_exact, atol=1e-12)
     pull = 5.0 * e_r
-    np.testing.assert_allclose(system.forward_dynamics(q, qd, params, tau=pull), qdd_exact,
-                               atol=1e-12)  # fmt: skip
-    np.testing.assert_allclose(system.constraint_forces(q, qd, params, tau=pull),
-                               -(tension + 5.0) * e_r, atol=1e-12)  # fmt: skip
-    check_grads(lambda a, b: system.forward_dynamics(a, b, params), (jnp.asarray(q),
-                jnp.asarray(qd)), order=1, modes=("fwd", "rev"))  # fmt: skip
+    np.testing.assert_allclose(
+        system.forward_dynamics(q, qd, params, tau=pull), qdd_exact, atol=1e-12
+    )
+    np.testing.assert_allclose(
+        system.constraint_forces(q, qd, params, tau=pull), -(tension + 5.0) * e_r, atol=1e-12
+    )
+    check_grads(
+        lambda a, b: system.forward_dynamics(a, b, params),
+        (jnp.asarray(q), jnp.asarray(qd)),
+        order=1,
+        modes=("fwd", "rev"),
+    )
 
 
 def test_initial_state_is_projected(pendulum):
@@ -169,8 +175,16 @@ def four_bar():
 def four_bar_run(four_bar):
     system, params = four_bar
     # crank up, coupler and rocker roughly assembled (projected by simulate)
-    return lx.simulate(system, [1.57, 0.35, 1.9], [2.0, 0.0, 0.0], params, t1=100.0,
-                       n_save=1001, rtol=1e-10, atol=1e-10)  # fmt: skip
+    return lx.simulate(
+        system,
+        [1.57, 0.35, 1.9],
+        [2.0, 0.0, 0.0],
+        params,
+        t1=100.0,
+        n_save=1001,
+        rtol=1e-10,
+        atol=1e-10,
+    )
 
 
 def test_four_bar_long_run_keeps_constraint_and_energy(four_bar, four_bar_run):
@@ -244,8 +258,9 @@ def test_projection_failure_is_reported_per_member_under_vmap(pendulum):
     system = lx.ConstrainedSystem(free, rod_and_wall)
 
     def run(c):
-        return lx.simulate(system, _bob(0.3), [0.0, 0.0], {**_params(), "c": c}, t1=0.5,
-                           n_save=5, throw=False)  # fmt: skip
+        return lx.simulate(
+            system, _bob(0.3), [0.0, 0.0], {**_params(), "c": c}, t1=0.5, n_save=5, throw=False
+        )
 
     sols = jax.vmap(run)(jnp.array([0.2, 3.0]))
     assert bool(sols.ok[0]) and not bool(sols.ok[1])

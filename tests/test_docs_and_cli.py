@@ -59,8 +59,20 @@ def test_plot_functions_return_axes(tmp_path):
 
 
 def test_bench_work_precision_command(tmp_path, capsys):
-    code = cli.main(["bench", "work-precision", "--out", str(tmp_path), "--t1", "2",
-                     "--repeats", "1", "--methods", "tsit5"])  # fmt: skip
+    code = cli.main(
+        [
+            "bench",
+            "work-precision",
+            "--out",
+            str(tmp_path),
+            "--t1",
+            "2",
+            "--repeats",
+            "1",
+            "--methods",
+            "tsit5",
+        ]
+    )
     assert code == 0
     rows = (tmp_path / "work_precision.csv").read_text().splitlines()
     assert rows[0].startswith("method,setting,value,final_error")

@@ -34,8 +34,9 @@ def problem():
 
     def fit(q_obs):
         solver = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)
-        out = optx.least_squares(residuals, solver, GUESS, args=q_obs,
-                                 options={"jac": "bwd"}, max_steps=100)  # fmt: skip
+        out = optx.least_squares(
+            residuals, solver, GUESS, args=q_obs, options={"jac": "bwd"}, max_steps=100
+        )
         return out.value, int(out.stats["num_steps"])
 
     return trajectory, residuals, fit
@@ -57,8 +58,14 @@ def test_noisy_fit_within_its_standard_errors(problem):
     # standard errors from J = ∂q/∂(m2, r2) at the fit, by central differences (the
     # forward solve is compiled already; a reverse-mode Jacobian would compile again)
     h = 1e-6
-    jac = np.stack([(np.asarray(trajectory(value + h * e)) - np.asarray(trajectory(value - h * e)))
-                    .ravel() / (2 * h) for e in np.eye(2)], axis=1)  # fmt: skip
+    jac = np.stack(
+        [
+            (np.asarray(trajectory(value + h * e)) - np.asarray(trajectory(value - h * e))).ravel()
+            / (2 * h)
+            for e in np.eye(2)
+        ],
+        axis=1,
+    )
     std = SIGMA * np.sqrt(np.diag(np.linalg.inv(jac.T @ jac)))
     z = np.abs(np.asarray(value - TRUE)) / std
     assert np.all(z < 4.0), (value, std)

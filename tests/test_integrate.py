@@ -56,8 +56,9 @@ def test_simulate_runs_the_lean_loop_unless_given_an_adjoint(monkeypatch):
 
     calls = []
     original = integrate_module.integrate
-    monkeypatch.setattr(integrate_module, "integrate",
-                        lambda *a, **k: calls.append(1) or original(*a, **k))  # fmt: skip
+    monkeypatch.setattr(
+        integrate_module, "integrate", lambda *a, **k: calls.append(1) or original(*a, **k)
+    )
     # a system of its own, so nothing is reused from the compilation cache
     pendulum = lx.LagrangianSystem(
         kinetic=lambda q, qd, p: 0.5 * qd[0] ** 2, potential=lambda q, p: -jnp.cos(q[0])
@@ -128,8 +129,13 @@ def test_small_lu_solves_general_systems(n):
 def _run(code, extra_env):
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "LAGRAX_XLA_FLAGS")}
     env.update(extra_env)
-    out = subprocess.run([sys.executable, "-W", "always", "-c", code], capture_output=True,
-                         text=True, env=env, timeout=120)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-W", "always", "-c", code],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     return out
 

@@ -43,8 +43,19 @@ def test_measured_convergence_order(method, references):
     order, t1, dts = ORDERS[method]
     errs = []
     for dt in dts:
-        sol = lx.simulate(ARM, Q0, QD0, P, t1=t1, solver=method, dt=dt, rtol=1e-13,
-                          atol=1e-13, max_steps=4096, n_save=2)  # fmt: skip
+        sol = lx.simulate(
+            ARM,
+            Q0,
+            QD0,
+            P,
+            t1=t1,
+            solver=method,
+            dt=dt,
+            rtol=1e-13,
+            atol=1e-13,
+            max_steps=4096,
+            n_save=2,
+        )
         errs.append(float(jnp.max(jnp.abs(sol.q_end - references[t1].q_end))))
     slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
     assert abs(slope - order) <= 0.3, (method, errs, slope)
@@ -70,8 +81,7 @@ def test_variational_conserves_momentum_of_a_cyclic_coordinate():
     p_vi = np.asarray(mom(vi.q, vi.qd))[:, 0]
     assert np.max(np.abs(p_vi - p_vi[0])) < 1e-11 * abs(p_vi[0])
     # an explicit method at a loose tolerance does drift: the check above can fail
-    rk = lx.simulate(ARM, q0, qd0, p0, t1=20.0, solver="tsit5", rtol=1e-5, atol=1e-5,
-                     n_save=401)  # fmt: skip
+    rk = lx.simulate(ARM, q0, qd0, p0, t1=20.0, solver="tsit5", rtol=1e-5, atol=1e-5, n_save=401)
     p_rk = np.asarray(mom(rk.q, rk.qd))[:, 0]
     assert np.max(np.abs(p_rk - p_rk[0])) > 1e3 * np.max(np.abs(p_vi - p_vi[0]))
 
@@ -79,8 +89,9 @@ def test_variational_conserves_momentum_of_a_cyclic_coordinate():
 def test_variational_with_damping_dissipates_like_the_continuous_system():
     # Lagrange–d'Alembert forcing: damped arm loses energy; agrees with an adaptive solve
     system, params = st.stiff_arm(1.0)  # soft spring/damper at joint 2: not stiff
-    ref = lx.simulate(system, Q0, QD0, params, t1=2.0, solver="dopri8", rtol=1e-12,
-                      atol=1e-12, n_save=2)  # fmt: skip
+    ref = lx.simulate(
+        system, Q0, QD0, params, t1=2.0, solver="dopri8", rtol=1e-12, atol=1e-12, n_save=2
+    )
     vi = lx.simulate(system, Q0, QD0, params, t1=2.0, solver="variational", dt=0.002, n_save=2)
     assert float(jnp.max(jnp.abs(vi.q_end - ref.q_end))) < 1e-4
     assert float(vi.energy[-1]) < float(vi.energy[0])

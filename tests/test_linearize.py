@@ -21,8 +21,12 @@ def _pendulum(damping: bool = False):
         return 0.5 * p["c"] * qd[0] ** 2
 
     system = lx.LagrangianSystem(T, V, dissipation=D if damping else None, n_dof=1)
-    params = {"m": jnp.asarray(0.7), "l": jnp.asarray(1.3), "g": jnp.asarray(9.81),
-              "c": jnp.asarray(0.2)}  # fmt: skip
+    params = {
+        "m": jnp.asarray(0.7),
+        "l": jnp.asarray(1.3),
+        "g": jnp.asarray(9.81),
+        "c": jnp.asarray(0.2),
+    }
     return system, params
 
 

@@ -48,8 +48,7 @@ def test_animate(sol, arm_params, kind, tmp_path):
     assert html.count("data:image/png;base64") == 5
     # the last frame draws the arm at the final state: base, elbow, tip
     links = fig.axes[0].lines[1].get_xydata()
-    np.testing.assert_allclose(links, lx.plot.planar_chain_points(sol.q[-1], lengths),
-                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(links, lx.plot.planar_chain_points(sol.q[-1], lengths), atol=1e-12)
     if kind == "lengths":
         anim.save(tmp_path / "arm.gif", writer="pillow")
         assert (tmp_path / "arm.gif").stat().st_size > 1_000
@@ -63,7 +62,7 @@ def test_animate_needs_params_for_a_chain(sol):
 def test_sweep_heatmap(arm):
     system, params = arm
     batch = lx.grid(params, m2=np.linspace(0.5, 2.0, 3), l1=np.linspace(0.5, 1.5, 4))
-    ds = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=0.2, progress=False)
+    ds = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, t1=0.2, progress=False)
     ax = lx.plot.sweep_heatmap(ds, "q", dof=1)
     mesh = ax.collections[0]
     assert mesh.get_array().shape == (3, 4)  # (m2, l1): the grid's shape
@@ -80,8 +79,9 @@ def test_sweep_heatmap_marks_failures():
     values = np.array([[1.0, 2.0], [np.inf, 4.0], [5.0, 6.0]])
     ok = np.isfinite(values)
     ok[2, 0] = False  # a failure with a finite-looking value is still marked
-    ds = xr.Dataset({"steps": (("m2", "l1"), values), "ok": (("m2", "l1"), ok)},
-                    coords={"m2": m2, "l1": l1})  # fmt: skip
+    ds = xr.Dataset(
+        {"steps": (("m2", "l1"), values), "ok": (("m2", "l1"), ok)}, coords={"m2": m2, "l1": l1}
+    )
     ax = lx.plot.sweep_heatmap(ds, "steps", x="m2", y="l1", log=True)
     mesh = ax.collections[0]
     assert mesh.get_array().shape == (2, 3)  # transposed: l1 on y

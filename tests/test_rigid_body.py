@@ -37,8 +37,10 @@ def elliptic_omega(omega0, t, inertia=INERTIA):
 
 def _first_sign_change(ts, x):
     k = np.nonzero(np.sign(x[1:]) != np.sign(x[:-1]))[0]
-    return None if k.size == 0 else ts[k[0]] - x[k[0]] * (ts[k[0] + 1] - ts[k[0]]) / (
-        x[k[0] + 1] - x[k[0]]
+    return (
+        None
+        if k.size == 0
+        else ts[k[0]] - x[k[0]] * (ts[k[0] + 1] - ts[k[0]]) / (x[k[0] + 1] - x[k[0]])
     )
 
 
@@ -64,8 +66,11 @@ def test_attitude_maps_are_consistent():
         np.testing.assert_allclose(rot.T @ rot_dot, rb.hat(omega), atol=1e-14)
         np.testing.assert_allclose(rb.euler_angle_rates(angles, omega), rates, rtol=1e-12)
     # conventions: yaw turns x towards y; rotations compose body → space
-    np.testing.assert_allclose(rb.euler_angles_to_matrix(jnp.array([0.5, 0.0, 0.0]))[:, 0],
-                               [np.cos(0.5), np.sin(0.5), 0.0], atol=1e-16)  # fmt: skip
+    np.testing.assert_allclose(
+        rb.euler_angles_to_matrix(jnp.array([0.5, 0.0, 0.0]))[:, 0],
+        [np.cos(0.5), np.sin(0.5), 0.0],
+        atol=1e-16,
+    )
     p, q = jnp.array([0.3, 0.1, -0.5, 0.8]), jnp.array([-0.2, 0.9, 0.4, 0.1])
     np.testing.assert_allclose(
         rb.quaternion_to_matrix(rb.quaternion_product(p, q)),
@@ -85,8 +90,9 @@ def test_euler_equations_match_the_elliptic_solution():
     assert np.max(np.abs(sol.energy / sol.energy[0] - 1)) < 1e-9
     body_l = np.linalg.norm(np.asarray(sol.body_angular_momentum), axis=1)
     assert np.max(np.abs(body_l / body_l[0] - 1)) < 1e-9
-    np.testing.assert_allclose(sol.angular_momentum, np.tile(INERTIA * omega0, (TS.size, 1)),
-                               atol=1e-8)  # fmt: skip
+    np.testing.assert_allclose(
+        sol.angular_momentum, np.tile(INERTIA * omega0, (TS.size, 1)), atol=1e-8
+    )
     assert np.max(np.abs(np.linalg.norm(np.asarray(sol.quat), axis=1) - 1)) < 1e-9
 
 
@@ -97,11 +103,13 @@ def test_euler_equations_general_inertia_and_torque():
     full = rot @ np.diag(INERTIA) @ rot.T
     omega0 = np.array([0.8, 0.0, 1.5])
     w_principal = rb.euler_equations(omega0, INERTIA)
-    np.testing.assert_allclose(rb.euler_equations(rot @ omega0, full), rot @ w_principal,
-                               atol=1e-14)  # fmt: skip
+    np.testing.assert_allclose(
+        rb.euler_equations(rot @ omega0, full), rot @ w_principal, atol=1e-14
+    )
     expected = np.array([0.0, 0.0, 0.5]) / INERTIA[2]
-    np.testing.assert_allclose(rb.euler_equations(np.zeros(3), INERTIA, [0.0, 0.0, 0.5]),
-                               expected, atol=1e-16)  # fmt: skip
+    np.testing.assert_allclose(
+        rb.euler_equations(np.zeros(3), INERTIA, [0.0, 0.0, 0.5]), expected, atol=1e-16
+    )
 
 
 @pytest.mark.parametrize(
@@ -137,8 +145,15 @@ def angle_run(euler_model):
     omega0 = jnp.array([0.3, 0.2, 2.0])  # mostly about the major axis: pitch stays small
     qd0 = rb.euler_angle_rates(q0, omega0)
     sol_b = lx.simulate(system, q0, qd0, params, t1=10.0, ts=TS / 3, rtol=1e-11, atol=1e-11)
-    sol_a = rb.simulate_euler(INERTIA, omega0, quat0=rb.euler_angles_to_quaternion(q0),
-                              t1=10.0, ts=TS / 3, rtol=1e-11, atol=1e-11)  # fmt: skip
+    sol_a = rb.simulate_euler(
+        INERTIA,
+        omega0,
+        quat0=rb.euler_angles_to_quaternion(q0),
+        t1=10.0,
+        ts=TS / 3,
+        rtol=1e-11,
+        atol=1e-11,
+    )
     return sol_a, sol_b
 
 
@@ -173,8 +188,7 @@ def test_gimbal_lock_is_a_clear_error(euler_model):
     omega0 = jnp.array([1e-8, 1.0, 1e-8])
     qd0 = rb.euler_angle_rates(jnp.zeros(3), omega0)
     with pytest.raises(lx.SimulationError) as info:
-        lx.simulate(system, jnp.zeros(3), qd0, params, t1=10.0, ts=TS / 3, rtol=1e-11,
-                    atol=1e-11)  # fmt: skip
+        lx.simulate(system, jnp.zeros(3), qd0, params, t1=10.0, ts=TS / 3, rtol=1e-11, atol=1e-11)
     msg = str(info.value)
     assert "singular" in msg and "Use coordinates without this singularity" in msg
     t_stop = float(msg.split("stopped at t=")[1].split()[0])
@@ -189,7 +203,13 @@ def test_simulate_euler_input_checks_and_float32():
         rb.simulate_euler(np.ones(4), np.ones(3), t1=1.0)
     with pytest.raises(lx.MassMatrixError, match="positive-definite"):
         rb.simulate_euler(np.array([1.0, -2.0, 3.0]), np.ones(3), t1=1.0)
-    sol = rb.simulate_euler(INERTIA.astype(np.float32), np.array([0.8, 0.0, 1.5], np.float32),
-                            t1=5.0, n_save=11, rtol=1e-6, atol=1e-6)  # fmt: skip
+    sol = rb.simulate_euler(
+        INERTIA.astype(np.float32),
+        np.array([0.8, 0.0, 1.5], np.float32),
+        t1=5.0,
+        n_save=11,
+        rtol=1e-6,
+        atol=1e-6,
+    )
     assert sol.omega.dtype == jnp.float32 and sol.quat.dtype == jnp.float32
     assert float(np.max(np.abs(sol.energy / sol.energy[0] - 1))) < 1e-4

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax import _sweep
+from lagrax._sweep import _chunk, _driver
 
 Q0_2R = [-np.pi / 2 + 1.4, 0.8]
 
@@ -50,8 +50,9 @@ def arm_grid(arm):
 @pytest.fixture(scope="module")
 def arm_traj(arm, arm_grid):
     system, _ = arm
-    return lx.sweep(system, arm_grid, Q0_2R, [0.0, 0.0], t1=2.0, keep="trajectory", n_save=11,
-                    n_lanes=2)  # fmt: skip
+    return lx.sweep(
+        system, Q0_2R, [0.0, 0.0], arm_grid, t1=2.0, keep="trajectory", n_save=11, n_lanes=2
+    )
 
 
 def test_sweep_equals_loop_of_simulate(arm, arm_grid, arm_traj):
@@ -73,8 +74,16 @@ def test_sweep_equals_loop_of_simulate(arm, arm_grid, arm_traj):
 
 def test_lockstep_schedule_matches_queue(arm, arm_grid, arm_traj):
     system, _ = arm
-    ds = lx.sweep(system, arm_grid, Q0_2R, [0.0, 0.0], t1=2.0, keep="trajectory", n_save=11,
-                  schedule="lockstep")  # fmt: skip
+    ds = lx.sweep(
+        system,
+        Q0_2R,
+        [0.0, 0.0],
+        arm_grid,
+        t1=2.0,
+        keep="trajectory",
+        n_save=11,
+        schedule="lockstep",
+    )
     np.testing.assert_allclose(ds.q.values, arm_traj.q.values, rtol=0, atol=1e-11)
     np.testing.assert_array_equal(ds.num_steps.values, arm_traj.num_steps.values)
     # lock-step pads the fast members: its idle share is at least the work queue's
@@ -86,7 +95,7 @@ def test_final_state_against_closed_form(oscillator):
     system, params = oscillator
     ks, cs = np.array([0.5, 1.0, 4.0, 9.0]), np.array([0.0, 0.1, 0.5])
     batch = lx.grid(params, k=ks, c=cs)
-    ds = lx.sweep(system, batch, [1.0], [0.0], t1=3.0, rtol=1e-10, atol=1e-10)
+    ds = lx.sweep(system, [1.0], [0.0], batch, t1=3.0, rtol=1e-10, atol=1e-10)
     assert ds.q.dims == ("k", "c", "dof")
     np.testing.assert_array_equal(ds.k.values, ks)
     np.testing.assert_array_equal(ds.c.values, cs)
@@ -125,7 +134,7 @@ def test_keep_times_and_reduction(oscillator):
     system, params = oscillator
     batch = lx.samples(params, k=[1.0, 4.0])
     times = np.array([0.0, 0.5, 2.0])
-    ds = lx.sweep(system, batch, [1.0], [0.0], t1=2.0, keep=times, rtol=1e-10, atol=1e-10)
+    ds = lx.sweep(system, [1.0], [0.0], batch, t1=2.0, keep=times, rtol=1e-10, atol=1e-10)
     assert ds.q.dims == ("member", "time", "dof")
     np.testing.assert_array_equal(ds.time.values, times)
     np.testing.assert_array_equal(ds.k.values, [1.0, 4.0])
@@ -133,11 +142,15 @@ def test_keep_times_and_reduction(oscillator):
     np.testing.assert_allclose(ds.q.values[..., 0], x, atol=1e-8)
 
     def reduce(sol):
-        return {"x_max": jnp.max(sol.q[:, 0]), "x_min": jnp.min(sol.q[:, 0]),
-                "e_err": jnp.max(jnp.abs(sol.energy_error))}  # fmt: skip
+        return {
+            "x_max": jnp.max(sol.q[:, 0]),
+            "x_min": jnp.min(sol.q[:, 0]),
+            "e_err": jnp.max(jnp.abs(sol.energy_error)),
+        }
 
-    red = lx.sweep(system, batch, [1.0], [0.0], t1=2.0, keep=reduce, n_save=201, rtol=1e-10,
-                   atol=1e-10)  # fmt: skip
+    red = lx.sweep(
+        system, [1.0], [0.0], batch, t1=2.0, keep=reduce, n_save=201, rtol=1e-10, atol=1e-10
+    )
     assert set(red.data_vars) >= {"x_max", "x_min", "e_err", "ok"}
     assert "q" not in red.data_vars
     tt = np.linspace(0, 2, 201)
@@ -152,7 +165,7 @@ def test_failed_members_are_flagged_not_fatal(oscillator):
     """A stiff member runs out of steps, a massless one is invalid; the rest finish."""
     system, params = oscillator
     batch = lx.samples(params, k=[1.0, 1e8, 2.0, 3.0], m=[1.0, 1.0, 0.0, 1.0])
-    ds = lx.sweep(system, batch, [1.0], [0.0], t1=1.0, max_steps=2000)
+    ds = lx.sweep(system, [1.0], [0.0], batch, t1=1.0, max_steps=2000)
     codes = ds.result.values
     assert codes.tolist() == [
         lx.RESULTS.successful._value,
@@ -181,32 +194,32 @@ def test_batched_pytree_params_and_states(arm):
     batch = {k: np.full(2, float(v)) for k, v in params.items()}
     batch["m2"] = m2
     q0 = np.array([[0.3, 0.2], [0.1, -0.4]])
-    ds = lx.sweep(system, batch, q0, np.zeros((2, 2)), t1=1.0, keep="final", n_lanes=2)
+    ds = lx.sweep(system, q0, np.zeros((2, 2)), batch, t1=1.0, keep="final", n_lanes=2)
     assert ds.q.dims == ("member", "dof")
     np.testing.assert_array_equal(ds.m2.values, m2)
     for i in range(2):
         sol = lx.simulate(system, q0[i], [0.0, 0.0], dict(params, m2=m2[i]), t1=1.0)
         np.testing.assert_allclose(ds.q.values[i], sol.q_end, atol=1e-11)
     with pytest.raises(lx.ShapeError, match="leading batch axis"):
-        lx.sweep(system, params, Q0_2R, [0.0, 0.0], t1=1.0)
+        lx.sweep(system, Q0_2R, [0.0, 0.0], params, t1=1.0)
     with pytest.raises(lx.ShapeError, match="q0"):
-        lx.sweep(system, batch, np.zeros((3, 2)), [0.0, 0.0], t1=1.0)
+        lx.sweep(system, np.zeros((3, 2)), [0.0, 0.0], batch, t1=1.0)
 
 
 def test_chunks_bound_the_compiled_batch(oscillator, monkeypatch):
     system, params = oscillator
     ks = np.linspace(0.5, 5.0, 10)
     batch = lx.samples(params, k=ks)
-    whole = lx.sweep(system, batch, [1.0], [0.0], t1=1.0, chunk_size=16)
+    whole = lx.sweep(system, [1.0], [0.0], batch, t1=1.0, chunk_size=16)
     sizes = []
-    real = _sweep._run_chunk
+    real = _chunk._run_chunk
 
     def spy(setup, mesh, members, y0s, *rest):
         sizes.append(int(y0s[0].shape[0]))
         return real(setup, mesh, members, y0s, *rest)
 
-    monkeypatch.setattr(_sweep, "_run_chunk", spy)
-    chunked = lx.sweep(system, batch, [1.0], [0.0], t1=1.0, chunk_size=4)
+    monkeypatch.setattr(_chunk, "_run_chunk", spy)
+    chunked = lx.sweep(system, [1.0], [0.0], batch, t1=1.0, chunk_size=4)
     assert sizes == [4, 4, 4]  # the last chunk is padded: one compiled size
     np.testing.assert_array_equal(chunked.q.values, whole.q.values)
     np.testing.assert_array_equal(chunked.k.values, ks)
@@ -226,10 +239,10 @@ def test_save_and_load_roundtrip(arm_traj, tmp_path):
 
 def test_progress_bar(oscillator, capsys):
     system, params = oscillator
-    lx.sweep(system, lx.samples(params, k=[1.0, 2.0]), [1.0], [0.0], t1=0.5, progress=True)
+    lx.sweep(system, [1.0], [0.0], lx.samples(params, k=[1.0, 2.0]), t1=0.5, progress=True)
     err = capsys.readouterr().err
     assert "member" in err and "2/2" in err
-    lx.sweep(system, lx.samples(params, k=[1.0, 2.0]), [1.0], [0.0], t1=0.5, progress=False)
+    lx.sweep(system, [1.0], [0.0], lx.samples(params, k=[1.0, 2.0]), t1=0.5, progress=False)
     assert capsys.readouterr().err == ""
 
 
@@ -239,8 +252,8 @@ SHARDED = textwrap.dedent(
     system, params = lx.models.planar_2r()
     batch = lx.grid(params, m2=np.linspace(0.5, 2, 5), l1=np.linspace(0.5, 1.5, 3))
     kw = dict(t1=1.0, keep="trajectory", n_save=5, progress=False)
-    one = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], devices=1, **kw)
-    four = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], devices=4, **kw)
+    one = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, devices=1, **kw)
+    four = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, devices=4, **kw)
     print(json.dumps(dict(n=len(jax.devices()), devices=four.attrs["devices"],
                           diff=float(np.max(np.abs(one.q.values - four.q.values))),
                           same_steps=bool(np.array_equal(one.num_steps, four.num_steps)),
@@ -251,8 +264,9 @@ SHARDED = textwrap.dedent(
 
 def test_sharded_equals_unsharded():
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4")
-    r = subprocess.run([sys.executable, "-c", SHARDED], env=env, capture_output=True,
-                       text=True, timeout=600)  # fmt: skip
+    r = subprocess.run(
+        [sys.executable, "-c", SHARDED], env=env, capture_output=True, text=True, timeout=600
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     out = json.loads(r.stdout.strip().splitlines()[-1])
     # the same steps on every member; values equal up to round-off of the vector width
@@ -263,16 +277,16 @@ def test_sharded_equals_unsharded():
 CHECKPOINTED = textwrap.dedent(
     """
     import sys, time, numpy as np, lagrax as lx
-    from lagrax import _sweep
-    real = _sweep._solve_chunk
+    from lagrax._sweep import _driver
+    real = _driver.solve_chunk
     def slow(*a, **k):  # give the test time to kill us between chunks
         out = real(*a, **k)
         time.sleep(0.5)
         return out
-    _sweep._solve_chunk = slow
+    _driver.solve_chunk = slow
     system, params = lx.models.planar_2r()
     batch = lx.grid(params, m2=np.linspace(0.5, 2, 6), l1=np.linspace(0.5, 1.5, 4))
-    lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=1.0, chunk_size=4,
+    lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, t1=1.0, chunk_size=4,
              checkpoint=sys.argv[1], progress=False)
     """
 )
@@ -282,8 +296,11 @@ def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
     system, params = arm
     batch = lx.grid(params, m2=np.linspace(0.5, 2, 6), l1=np.linspace(0.5, 1.5, 4))
     ckpt = tmp_path / "ckpt"
-    proc = subprocess.Popen([sys.executable, "-c", CHECKPOINTED, str(ckpt)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CHECKPOINTED, str(ckpt)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     deadline = time.time() + 300
     while time.time() < deadline and len(list(ckpt.glob("chunk_*.npz"))) < 2:
         if proc.poll() is not None:
@@ -296,28 +313,28 @@ def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
     assert 2 <= len(done) < 6 and not list(ckpt.glob("*.tmp"))
 
     calls = []
-    real = _sweep._solve_chunk
+    real = _driver.solve_chunk
 
     def counting(*a, **k):
         calls.append(1)
         return real(*a, **k)
 
-    monkeypatch.setattr(_sweep, "_solve_chunk", counting)
+    monkeypatch.setattr(_driver, "solve_chunk", counting)
     kw = dict(t1=1.0, chunk_size=4)
-    resumed = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], checkpoint=ckpt, **kw)
+    resumed = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, checkpoint=ckpt, **kw)
     assert len(calls) == 6 - len(done)  # nothing finished is recomputed
-    fresh = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], **kw)
+    fresh = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, **kw)
     for name in ("q", "qd", "energy", "num_steps", "result"):
         np.testing.assert_array_equal(resumed[name].values, fresh[name].values)
 
     again = len(calls)
-    lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], checkpoint=ckpt, **kw)
+    lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, checkpoint=ckpt, **kw)
     assert len(calls) == again  # all chunks on disk now
     with pytest.raises(ValueError, match="different sweep definition"):
-        lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], checkpoint=ckpt, rtol=1e-9, **kw)
+        lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, checkpoint=ckpt, rtol=1e-9, **kw)
     other = lx.grid(params, m2=np.linspace(0.5, 2.5, 6), l1=np.linspace(0.5, 1.5, 4))
     with pytest.raises(ValueError, match="different sweep definition"):
-        lx.sweep(system, other, [0.3, 0.8], [0.0, 0.0], checkpoint=ckpt, **kw)
+        lx.sweep(system, [0.3, 0.8], [0.0, 0.0], other, checkpoint=ckpt, **kw)
 
 
 def test_multihost_example_matches_single_process(arm, tmp_path):
@@ -329,17 +346,32 @@ def test_multihost_example_matches_single_process(arm, tmp_path):
         port = s.getsockname()[1]
     script = os.path.join(os.path.dirname(__file__), "..", "examples", "multihost_sweep.py")
     out = tmp_path / "multi.npz"
-    common = [sys.executable, script, "--coordinator", f"localhost:{port}",
-              "--num-processes", "2", "--out", str(out)]  # fmt: skip
-    procs = [subprocess.Popen(common + ["--process-id", str(i)], stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True) for i in (0, 1)]  # fmt: skip
+    common = [
+        sys.executable,
+        script,
+        "--coordinator",
+        f"localhost:{port}",
+        "--num-processes",
+        "2",
+        "--out",
+        str(out),
+    ]
+    procs = [
+        subprocess.Popen(
+            common + ["--process-id", str(i)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for i in (0, 1)
+    ]
     logs = [p.communicate(timeout=600)[0] for p in procs]
     assert all(p.returncode == 0 for p in procs), logs[0][-2000:] + logs[1][-2000:]
     assert all("process" in log and "2 devices" in log for log in logs)
     multi = lx.load_sweep(out)
     system, params = arm
     batch = lx.grid(params, m2=np.linspace(0.5, 2.0, 16), l1=np.linspace(0.5, 1.5, 16))
-    single = lx.sweep(system, batch, [0.3, 0.8], [0.0, 0.0], t1=5.0)
+    single = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, t1=5.0)
     np.testing.assert_array_equal(multi.num_steps.values, single.num_steps.values)
     # same steps; values agree up to round-off (the per-device loops are compiled for
     # different lane counts), amplified by the chaotic arm over 5 s: median ~1e-12
@@ -352,12 +384,14 @@ def test_constrained_system_sweep_matches_simulate():
     system, params = lx.models.cartesian_pendulum()
     lengths = np.array([0.5, 1.0, 2.0])
     q0 = np.array([0.6, -0.9])  # off the circle for every length: projected first
-    ds = lx.sweep(system, lx.samples(params, l=lengths), q0, [0.0, 0.0], t1=2.0, rtol=1e-10,
-                  atol=1e-10)  # fmt: skip
+    ds = lx.sweep(
+        system, q0, [0.0, 0.0], lx.samples(params, l=lengths), t1=2.0, rtol=1e-10, atol=1e-10
+    )
     assert bool(ds.ok.all())
     assert float(ds.constraint_violation.max()) < 1e-8
     for i, length in enumerate(lengths):
-        sol = lx.simulate(system, q0, [0.0, 0.0], dict(params, l=length), t1=2.0, rtol=1e-10,
-                          atol=1e-10)  # fmt: skip
+        sol = lx.simulate(
+            system, q0, [0.0, 0.0], dict(params, l=length), t1=2.0, rtol=1e-10, atol=1e-10
+        )
         np.testing.assert_allclose(ds.q.values[i], sol.q_end, atol=1e-9)
         assert float(np.hypot(*ds.q.values[i])) == pytest.approx(length, rel=1e-8)

@@ -1,0 +1,91 @@
+"""lagrax: equations of motion of mechanical systems from their energies, with JAX.
+
+Write a kinetic energy ``T(q, qd, params)`` and a potential ``V(q, params)``; lagrax forms
+``M(q) q̈ + C(q, q̇) q̇ + G(q) = τ`` by automatic differentiation and integrates it with
+diffrax.
+
+lagrax enables JAX's 64-bit mode on import (``jax_enable_x64``): float64 is the default
+for accuracy. Arrays you pass in float32 stay float32. It also lets XLA:CPU compile small
+solver loops into single kernels (an ``XLA_FLAGS`` entry, added only if JAX has not
+started yet and you have not set ``xla_backend_extra_options``; ``LAGRAX_XLA_FLAGS=0``
+opts out): see ``lagrax/_xla_flags.py``.
+"""
+
+import importlib.metadata
+
+from . import _xla_flags
+
+_xla_flags.configure()  # before JAX starts its backend: see lagrax/_xla_flags.py
+
+import jax as _jax  # noqa: E402
+
+_jax.config.update("jax_enable_x64", True)
+
+from . import bench as bench  # noqa: E402
+from . import bodies as bodies  # noqa: E402
+from . import chains as chains  # noqa: E402
+from . import integrators as integrators  # noqa: E402
+from . import models as models  # noqa: E402
+from . import newton_euler as newton_euler  # noqa: E402
+from . import plot as plot  # noqa: E402
+from . import rigid_body as rigid_body  # noqa: E402
+from ._abstract_system import AbstractSystem as AbstractSystem  # noqa: E402
+from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
+from ._errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
+from ._errors import ConfigurationError as ConfigurationError  # noqa: E402
+from ._errors import ConstraintError as ConstraintError  # noqa: E402
+from ._errors import LagraxError as LagraxError  # noqa: E402
+from ._errors import MassMatrixError as MassMatrixError  # noqa: E402
+from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
+from ._errors import ParameterError as ParameterError  # noqa: E402
+from ._errors import ShapeError as ShapeError  # noqa: E402
+from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._methods import METHODS as METHODS  # noqa: E402
+from ._results import RESULTS as RESULTS  # noqa: E402
+from ._simulate import simulate as simulate  # noqa: E402
+from ._solution import Solution as Solution  # noqa: E402
+from ._sweep import Grid as Grid  # noqa: E402
+from ._sweep import grid as grid  # noqa: E402
+from ._sweep import load_sweep as load_sweep  # noqa: E402
+from ._sweep import samples as samples  # noqa: E402
+from ._sweep import save_sweep as save_sweep  # noqa: E402
+from ._sweep import sweep as sweep  # noqa: E402
+from ._system import LagrangianSystem as LagrangianSystem  # noqa: E402
+
+try:
+    __version__ = importlib.metadata.version("lagrax")
+except importlib.metadata.PackageNotFoundError:  # pragma: no cover - source tree
+    __version__ = "0.0.0"
+
+__all__ = [
+    "AbstractSystem",
+    "LagrangianSystem",
+    "ConstrainedSystem",
+    "rigid_body",
+    "ConstraintError",
+    "simulate",
+    "sweep",
+    "grid",
+    "samples",
+    "Grid",
+    "save_sweep",
+    "load_sweep",
+    "METHODS",
+    "integrators",
+    "bench",
+    "Solution",
+    "RESULTS",
+    "models",
+    "bodies",
+    "chains",
+    "newton_euler",
+    "plot",
+    "LagraxError",
+    "ArgumentTypeError",
+    "ConfigurationError",
+    "MassMatrixError",
+    "NonFiniteError",
+    "ParameterError",
+    "ShapeError",
+    "SimulationError",
+]

@@ -1,0 +1,119 @@
+"""``AbstractSystem``: what ``simulate``, ``sweep``, the vector field and the integrators
+may ask of any mechanical system."""
+
+import abc
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._checks import coords, same_shape
+from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
+
+
+class AbstractSystem(eqx.Module):
+    r"""The interface every kind of mechanical system implements.
+
+    A system has ``n`` generalized coordinates ``q`` and velocities ``q̇`` and defines
+    accelerations ``q̈(t, q, q̇; params, τ)``. ``simulate`` and ``sweep`` integrate the
+    first-order system ``(q, q̇)' = (q̇, q̈)`` through this interface only, so a new kind
+    of system (a constrained one, one that knows its rigid bodies …) is a subclass that
+    fills in the abstract members below; nothing in the solve and sweep paths asks which
+    kind it is.
+
+    Following equinox's abstract/final rule, this class is never instantiated and its
+    concrete subclasses (:class:`lagrax.LagrangianSystem`,
+    :class:`lagrax.ConstrainedSystem`) are never subclassed.
+
+    **Abstract attributes:**
+
+    - ``n_dof``: the number of generalized coordinates, or ``None`` if not fixed.
+    - ``name``: a label for messages and plots.
+
+    **Abstract methods** (each documented below): :meth:`energy`, :meth:`mass_matrix`,
+    :meth:`forward_dynamics` (checked, raising), :meth:`accelerations` (unchecked, for
+    inside a solver loop), :meth:`check_state`.
+
+    **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
+    :meth:`failure_hint` (none).
+    """
+
+    n_dof: eqx.AbstractVar[int | None]
+    name: eqx.AbstractVar[str]
+
+    # ------------------------------------------------------------------ the interface
+    @abc.abstractmethod
+    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """The energy reported along a solution (``T + V`` for a mechanical system)."""
+
+    @abc.abstractmethod
+    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
+        """``M(q) = ∂²T/∂q̇²``, shape ``(n, n)``; ``simulate`` and ``sweep`` check that it is
+        positive-definite at the initial state."""
+
+    @abc.abstractmethod
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Accelerations ``q̈``, with every input checked (raises a ``LagraxError``)."""
+
+    @abc.abstractmethod
+    def accelerations(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Vector:
+        """Accelerations ``q̈`` of already-checked 1-D arrays, never raising: NaN where they
+        are undefined (a singular mass matrix, …). This is what a solver integrates;
+        ``tau`` is the input generalized force or ``None``."""
+
+    @abc.abstractmethod
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params) -> None:
+        """Validate a state eagerly (outside ``jit``), raising a ``LagraxError`` that names
+        the problem and the values."""
+
+    # ------------------------------------------------------------------ hooks
+    def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
+        """``(q, q̇, ok)``: the state a solve starts from, given the user's initial state.
+
+        The default returns it unchanged with ``ok = True``; a constrained system projects
+        it onto its constraints (``ok`` false where that fails). Never raises.
+        """
+        return q, qd, jnp.asarray(True)
+
+    def observables(
+        self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
+    ) -> dict[str, Any]:
+        """Extra quantities this kind reports at one state of a solution, by
+        :class:`lagrax.Solution` field name (default none). Never raises."""
+        return {}
+
+    def failure_hint(self, q: Any, params: Params) -> str | None:
+        """Eagerly, a sentence on why the accelerations may be undefined at ``q`` beyond a
+        singular mass matrix (``None``: nothing to add). Used in failure messages."""
+        return None
+
+    # ------------------------------------------------------------------ input shapes
+    def _coords(self, q: Coordinates, name: str = "q", host: bool = False):
+        return coords(q, name, self.n_dof, self.name, host=host)
+
+    def _state(self, q: Coordinates, qd: Velocities | None = None, **others: Any):
+        """``q`` (and ``qd``, …) as 1-D arrays of one shape and dtype, or a ``ShapeError``."""
+        q = self._coords(q, "q")
+        out = [q]
+        named = {"qd": qd, **others} if qd is not None else dict(others)
+        for key, value in named.items():
+            if value is None:
+                out.append(None)
+                continue
+            v = self._coords(value, key)
+            same_shape(key, v, q)
+            out.append(v.astype(jnp.result_type(q, v)))
+        return out
+
+    def _host_state(self, q: Coordinates, qd: Velocities):
+        """``(q, q̇)`` as NumPy arrays, with ``_state``'s checks and no device transfer."""
+        q, qd = self._coords(q, "q", host=True), self._coords(qd, "qd", host=True)
+        same_shape("qd", qd, q)
+        return q, qd

@@ -1,0 +1,479 @@
+"""Holonomic constraints ``φ(q) = 0`` by Lagrange multipliers: ``ConstrainedSystem``."""
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _derivatives as d
+from ._abstract_system import AbstractSystem
+from ._checks import call_user, finite, is_traced
+from ._errors import (
+    ArgumentTypeError,
+    ConfigurationError,
+    ConstraintError,
+    NonFiniteError,
+    ShapeError,
+)
+from ._linalg import PIVOT_RTOL, cholesky_solve
+from ._system import LagrangianSystem
+from ._typing import (
+    ConstraintJacobian,
+    ConstraintValues,
+    Coordinates,
+    Matrix,
+    Params,
+    Scalar,
+    Time,
+    Vector,
+    Velocities,
+)
+
+ConstraintFn = Callable[[Vector, Params], ConstraintValues]
+
+# Newton iterations to project a state onto φ(q) = 0 (quadratic convergence: a start
+# within the basin needs a handful).
+_PROJECTION_ITERS = 30
+
+
+def solve_kkt(mass: Matrix, jac: ConstraintJacobian, force: Vector, gamma: ConstraintValues):
+    r"""Solve ``[[M, Jᵀ], [J, 0]] [x; −λ] = [f; γ]`` for ``(x, λ)`` by the Schur complement.
+
+    ``M x = f + Jᵀ λ`` and ``J x = γ`` give ``λ = S⁻¹(γ − J M⁻¹ f)`` with the Schur
+    complement ``S = J M⁻¹ Jᵀ`` and ``x = M⁻¹(f + Jᵀ λ)``: one Cholesky factorization of
+    ``M`` (shared by the ``1 + m`` right-hand sides) and one of ``S``. ``S`` is
+    positive-definite exactly when ``M`` is and ``J`` has full row rank; otherwise (a
+    Cholesky pivot below ``64 ε`` relative to the largest diagonal entry) the result is
+    NaN, never a finite wrong answer.
+    """
+    cols = jnp.concatenate([force[:, None], jac.T], axis=1)
+    sol = jax.vmap(lambda b: cholesky_solve(mass, b), in_axes=1, out_axes=1)(cols)
+    x_free, m_inv_jt = sol[:, 0], sol[:, 1:]
+    schur = jac @ m_inv_jt
+    schur = 0.5 * (schur + schur.T)
+    lam = cholesky_solve(schur, gamma - jac @ x_free)
+    return x_free + m_inv_jt @ lam, lam
+
+
+class ConstrainedSystem(AbstractSystem):
+    r"""A ``LagrangianSystem`` subject to holonomic constraints ``φ(q) = 0``.
+
+    The constrained equations of motion, with Lagrange multipliers ``λ`` (``m`` of them),
+
+    .. math::  M(q) q̈ + C(q, q̇) q̇ + G(q) = τ + F − ∂D/∂q̇ + J(q)ᵀ λ,   φ(q) = 0,
+
+    with ``J = ∂φ/∂q`` (shape ``(m, n)``), are solved as the index-1 KKT system
+
+    .. math::  \begin{bmatrix} M & Jᵀ \\ J & 0 \end{bmatrix}
+               \begin{bmatrix} q̈ \\ −λ \end{bmatrix}
+             = \begin{bmatrix} τ + F − C q̇ − G − ∂D/∂q̇ \\
+                               −\dot J q̇ − 2α J q̇ − β² φ \end{bmatrix}.
+
+    The second row is the constraint differentiated twice, ``φ̈ = J q̈ + J̇ q̇``, with
+    Baumgarte's stabilization: it enforces ``φ̈ + 2α φ̇ + β² φ = 0``, so a drift of the
+    integrator away from ``φ = 0`` decays instead of growing (critically damped for
+    ``α = β``; ``α = β = 0`` is the bare index-1 formulation). ``J̇ q̇`` is the second
+    directional derivative of ``φ`` along ``q̇`` (a JVP of ``J q̇``; no Hessian), and ``J``
+    comes from ``n`` JVPs of ``φ``. The solve uses the Schur complement ``J M⁻¹ Jᵀ``
+    (Cholesky factorizations only); it is singular exactly when ``J`` loses rank
+    (redundant constraints, or a singular configuration such as a linkage at a change
+    point), which is refused with a ``ConstraintError`` instead of returning NaN.
+
+    ``J(q)ᵀ λ`` is the generalized constraint force (:meth:`constraint_forces`); ``λ``
+    (:meth:`multipliers`) is the force along each constraint gradient: for the Cartesian
+    pendulum ``φ = x² + y² − l²``, ``Jᵀλ = 2λ (x, y)``, so the rod tension is ``−2 l λ``.
+
+    ``lagrax.simulate`` accepts a ``ConstrainedSystem``. It first projects the initial
+    state onto the constraint manifold (``project_initial=True``, see :meth:`project`),
+    then integrates; the ``Solution`` carries ``constraint_violation`` (``φ(q)`` at the
+    saved times) and ``multipliers`` (``λ``). The energy ``T + V`` is conserved by the
+    exact constrained motion (scleronomic constraints do no work).
+
+    **Arguments:**
+
+    - ``system``: the unconstrained ``LagrangianSystem`` (in redundant coordinates).
+    - ``constraints``: ``φ(q, params) -> (m,)``, zero on admissible configurations. A
+      scalar is taken as ``m = 1``.
+    - ``alpha``, ``beta``: Baumgarte gains in 1/time units (default 10 each: drift decays
+      like ``exp(−10 t)``). Larger values hold the constraint tighter but make the
+      equations stiffer; keep ``α, β`` well below ``1/dt`` for a fixed-step method.
+    - ``project_initial``: project the initial state of ``simulate`` onto ``φ = 0``,
+      ``J q̇ = 0`` (default ``True``).
+    - ``name``: a label for messages (default: the system's name with "constrained").
+
+    **Example:**
+
+    ```python
+    import jax.numpy as jnp
+    import lagrax as lx
+
+    free = lx.LagrangianSystem(lambda q, qd, p: 0.5 * p["m"] * qd @ qd,
+                               lambda q, p: p["m"] * p["g"] * q[1], n_dof=2)
+    rod = lambda q, p: jnp.stack([q @ q - p["l"] ** 2])   # |r| = l
+    pendulum = lx.ConstrainedSystem(free, rod)
+    params = {"m": 1.0, "g": 9.81, "l": 1.0}
+    sol = lx.simulate(pendulum, [0.6, -0.8], [0.0, 0.0], params, t1=10.0)
+    abs(sol.constraint_violation).max(), sol.multipliers[0]   # ~5e-9, λ = −T/(2l)
+    ```
+
+    **Raises** (from its methods and ``simulate``): ``ConstraintError`` when ``J`` is
+    rank-deficient or a state cannot be projected onto ``φ = 0``; the errors of
+    ``LagrangianSystem`` (``ShapeError``, ``NonFiniteError``, ``ParameterError``,
+    ``MassMatrixError``).
+    """
+
+    system: LagrangianSystem
+    constraints: ConstraintFn
+    alpha: float = eqx.field(static=True)
+    beta: float = eqx.field(static=True)
+    project_initial: bool = eqx.field(static=True)
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        system: LagrangianSystem,
+        constraints: ConstraintFn,
+        *,
+        alpha: float = 10.0,
+        beta: float = 10.0,
+        project_initial: bool = True,
+        name: str | None = None,
+    ):
+        if not isinstance(system, LagrangianSystem):
+            raise ArgumentTypeError(
+                f"ConstrainedSystem wraps a LagrangianSystem, got {type(system).__name__}"
+            )
+        if not callable(constraints):
+            raise ArgumentTypeError(
+                f"constraints must be a function phi(q, params) -> (m,), got {constraints!r}"
+            )
+        alpha, beta = float(alpha), float(beta)
+        if not (alpha >= 0.0 and beta >= 0.0 and np.isfinite(alpha) and np.isfinite(beta)):
+            raise ConfigurationError(
+                f"Baumgarte gains must be finite and non-negative, got alpha={alpha}, "
+                f"beta={beta} (negative gains make the constraint drift grow)"
+            )
+        self.system = system
+        self.constraints = constraints
+        # Python floats: static (hashable, so jax.jit(system.method) works) and weakly
+        # typed (a float32 state stays float32); changing a gain recompiles simulate
+        self.alpha = alpha
+        self.beta = beta
+        self.project_initial = bool(project_initial)
+        self.name = f"{system.name} (constrained)" if name is None else name
+
+    # ------------------------------------------------------------ shared with the system
+    @property
+    def n_dof(self) -> int | None:
+        """Number of (redundant) generalized coordinates ``n``, if the system states it."""
+        return self.system.n_dof
+
+    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """Total mechanical energy ``E = T + V`` (constraint forces do no work)."""
+        return self.system.energy(q, qd, params)
+
+    def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``T(q, q̇)`` of the underlying system."""
+        return self.system.kinetic_energy(q, qd, params)
+
+    def potential_energy(self, q: Coordinates, params: Params) -> Scalar:
+        """``V(q)`` of the underlying system."""
+        return self.system.potential_energy(q, params)
+
+    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
+        """Mass matrix ``M(q)`` of the unconstrained system, shape ``(n, n)``."""
+        return self.system.mass_matrix(q, params, qd)
+
+    # ------------------------------------------------------------ constraint functions
+    def _phi(self, q, params):
+        out = jnp.asarray(call_user(self.constraints, "constraint", params, q))
+        if out.ndim == 0:
+            out = out[None]
+        if out.ndim != 1:
+            raise ShapeError(
+                f"the constraint function of {self.name} returned shape {out.shape}; "
+                "it must return a 1-D array phi(q) of shape (m,)"
+            )
+        return out
+
+    def _jacobian(self, q, params):
+        return jax.jacfwd(lambda a: self._phi(a, params))(q)
+
+    def violation(self, q: Coordinates, params: Params) -> ConstraintValues:
+        """Constraint values ``φ(q)``, shape ``(m,)``: zero on the constraint manifold."""
+        (q,) = self._state(q)
+        return self._phi(q, params)
+
+    def velocity_violation(
+        self, q: Coordinates, qd: Velocities, params: Params
+    ) -> ConstraintValues:
+        """``φ̇ = J(q) q̇`` (one JVP of ``φ``), shape ``(m,)``: zero for admissible
+        velocities."""
+        q, qd = self._state(q, qd)
+        return jax.jvp(lambda a: self._phi(a, params), (q,), (qd,))[1]
+
+    def constraint_jacobian(self, q: Coordinates, params: Params) -> ConstraintJacobian:
+        """``J = ∂φ/∂q``, shape ``(m, n)`` (``n`` JVPs of ``φ``)."""
+        (q,) = self._state(q)
+        return self._jacobian(q, params)
+
+    # ------------------------------------------------------------ dynamics
+    def _kkt(self, t, q, qd, params, tau):
+        """``(q̈, λ)`` without raising: NaN where ``M`` is not PD or ``J`` loses rank."""
+        sys = self.system
+        mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+
+        def phi_and_rate(a):
+            return jax.jvp(lambda b: self._phi(b, params), (a,), (qd,))
+
+        (phi, jqd), (_, jdot_qd) = jax.jvp(phi_and_rate, (q,), (qd,))
+        gamma = -jdot_qd - 2.0 * self.alpha * jqd - self.beta**2 * phi
+        return solve_kkt(mass, self._jacobian(q, params), force, gamma)
+
+    def accelerations(self, t, q, qd, params, tau):
+        """Constrained accelerations without raising (what ``simulate`` integrates)."""
+        return self._kkt(t, q, qd, params, tau)[0]
+
+    def initial_state(self, q, qd, params):
+        """The state projected onto ``φ = 0``, ``J q̇ = 0`` (when ``project_initial``), and
+        whether that succeeded; see :meth:`project`."""
+        if not self.project_initial:
+            return q, qd, jnp.asarray(True)
+        return self._project(q, qd, params)
+
+    def observables(self, t, q, qd, params, tau):
+        """``constraint_violation`` ``φ(q)`` and ``multipliers`` ``λ`` at one state."""
+        return dict(
+            constraint_violation=self._phi(q, params),
+            multipliers=self._kkt(t, q, qd, params, tau)[1],
+        )
+
+    def failure_hint(self, q, params):
+        """The rank deficiency of ``J(q)``, if any (see :meth:`check_state`)."""
+        return self._rank_message(q, params)
+
+    def _checked_kkt(self, q, qd, params, tau, t, what: str):
+        q, qd, tau = self._state(q, qd, tau=tau)
+        if not is_traced(q, qd, tau, params, t):
+            finite(q, "q")
+            finite(qd, "qd")
+            if tau is not None:
+                finite(tau, "tau")
+            qdd, lam = self._kkt(t, q, qd, params, tau)
+            if not bool(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam))):
+                self.check_state(q, qd, params, project=False)  # raises with the cause
+                raise NonFiniteError(
+                    f"{what} of {self.name} is not finite at q={np.asarray(q)}, "
+                    f"qd={np.asarray(qd)} although M(q) is positive-definite and J(q) has "
+                    "full rank: check the force, dissipation, tau and the constraint "
+                    "function's derivatives there"
+                )
+            return qdd, lam
+        qdd, lam = self._kkt(t, q, qd, params, tau)
+        bad = ~(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam)))
+        return eqx.error_if(
+            (qdd, lam),
+            bad,
+            f"{what} of {self.name} is non-finite: q, qd, tau or params contain NaN/inf, "
+            "M(q) is not positive-definite, or the constraint Jacobian J = dphi/dq is "
+            "rank-deficient (redundant constraints or a singular configuration, so the "
+            "KKT matrix [[M, J^T], [J, 0]] is singular). Outside jit the message names "
+            "which.",
+        )
+
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Constrained accelerations ``q̈`` from the KKT system (see the class docstring).
+
+        **Arguments:** the state ``q``, ``qd`` (shape ``(n,)``), ``params``, input forces
+        ``tau`` (default none) and the time ``t`` (for the system's ``force``).
+
+        **Returns:** ``q̈``, shape ``(n,)``.
+
+        **Raises:** ``ConstraintError`` when ``J(q)`` is rank-deficient;
+        ``MassMatrixError`` when ``M(q)`` is not positive-definite; ``ShapeError``,
+        ``NonFiniteError``. Under ``jit``, a run-time error by ``equinox.error_if``.
+        """
+        return self._checked_kkt(q, qd, params, tau, t, "forward_dynamics")[0]
+
+    def multipliers(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> ConstraintValues:
+        """Lagrange multipliers ``λ``, shape ``(m,)``: ``J(q)ᵀ λ`` is the generalized force
+        the constraints exert (sign: ``M q̈ + C q̇ + G = τ + F − ∂D/∂q̇ + Jᵀλ``).
+
+        Computed with the Baumgarte terms, which vanish on the constraint manifold.
+        Arguments and errors as :meth:`forward_dynamics`.
+        """
+        return self._checked_kkt(q, qd, params, tau, t, "multipliers")[1]
+
+    def constraint_forces(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Generalized constraint force ``J(q)ᵀ λ``, shape ``(n,)``: what the constraints
+        add to the right-hand side of ``M q̈ + C q̇ + G = τ + F − ∂D/∂q̇``.
+
+        Arguments and errors as :meth:`forward_dynamics`.
+        """
+        q, qd, tau = self._state(q, qd, tau=tau)
+        lam = self._checked_kkt(q, qd, params, tau, t, "constraint_forces")[1]
+        return self._jacobian(q, params).T @ lam
+
+    # ------------------------------------------------------------ projection
+    def _project(self, q, qd, params):
+        """Project ``(q, q̇)`` onto ``φ = 0``, ``J q̇ = 0`` without raising.
+
+        Returns ``(q, q̇, ok)``; when ``ok`` is false, the returned state is the
+        input state unchanged (finite, so a solve from it still runs and is flagged).
+        """
+        q0, qd0 = q, qd
+        dtype = q.dtype
+        eps = float(jnp.finfo(dtype).eps)
+        zero = jnp.zeros_like(q)
+        metric = d.mass_matrix(self.system, q0, zero, params)  # M(q0): a fixed SPD metric
+
+        def newton_step(a):
+            phi = self._phi(a, params)
+            jac = self._jacobian(a, params)
+            # minimal-norm step in the metric M(q0): Δq = −M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹ φ
+            return solve_kkt(metric, jac, zero, -phi)[0]
+
+        def body(_, carry):
+            a, _ = carry
+            step = newton_step(a)
+            return a + step, step
+
+        # a fixed number of iterations (a scan, so reverse-mode differentiable); after
+        # convergence the steps are round-off sized and change nothing
+        q1, step = jax.lax.fori_loop(0, _PROJECTION_ITERS, body, (q0, jnp.zeros_like(q0)))
+        scale = 1.0 + jnp.max(jnp.abs(q1))
+        q_ok = jnp.all(jnp.isfinite(q1)) & (jnp.max(jnp.abs(step)) <= eps**0.5 * scale)
+        # velocities: the M(q)-orthogonal projection onto J q̇ = 0 (what an impulsive
+        # constraint would do: the admissible velocity of least kinetic-energy change)
+        q1_safe = jnp.where(q_ok, q1, q0)
+        mass = d.mass_matrix(self.system, q1_safe, zero, params)
+        jac = self._jacobian(q1_safe, params)
+        qd1 = qd0 + solve_kkt(mass, jac, zero, -(jac @ qd0))[0]
+        ok = q_ok & jnp.all(jnp.isfinite(qd1))
+        return jnp.where(ok, q1, q0), jnp.where(ok, qd1, qd0), ok
+
+    def project(self, q: Coordinates, qd: Velocities, params: Params) -> tuple[Vector, Vector]:
+        r"""The nearest consistent state: ``φ(q*) = 0`` and ``J(q*) q̇* = 0``.
+
+        Positions by Newton's method on ``φ(q) = 0`` with minimal-norm steps in the
+        kinetic metric ``M(q0)``: ``Δq = −M⁻¹Jᵀ(J M⁻¹ Jᵀ)⁻¹ φ(q)`` (converges
+        quadratically from a start near the manifold). Velocities by the ``M``-orthogonal
+        projection ``q̇* = q̇ − M⁻¹Jᵀ(J M⁻¹ Jᵀ)⁻¹ J q̇`` at ``q*``, the admissible velocity
+        closest in kinetic energy (what an impulsive constraint does).
+
+        **Arguments:** ``q``, ``qd`` (shape ``(n,)``) and ``params``.
+
+        **Returns:** ``(q*, q̇*)``.
+
+        **Raises:** ``ConstraintError`` when Newton's method does not converge within 30
+        iterations (no admissible configuration near ``q``: inconsistent constraints or a
+        start too far away) or ``J`` is rank-deficient on the way. Under ``jit``, a
+        run-time error by ``equinox.error_if``.
+        """
+        q, qd = self._state(q, qd)
+        if is_traced(q, qd, params):
+            q1, qd1, ok = self._project(q, qd, params)
+            return eqx.error_if(
+                (q1, qd1),
+                ~ok,
+                f"could not project the state of {self.name} onto its constraints "
+                "phi(q) = 0 (no convergence, or a rank-deficient constraint Jacobian); "
+                "call project outside jit for a diagnosis",
+            )
+        finite(q, "q")
+        finite(qd, "qd")
+        q1, qd1, ok = _project_jit(self, q, qd, params)
+        if not bool(ok):
+            raise ConstraintError(self._projection_message(q, params))
+        return q1, qd1
+
+    def _projection_message(self, q, params) -> str:
+        head = f"could not project the state of {self.name} onto its constraints phi(q) = 0"
+        rank = self._rank_message(q, params)
+        if rank is not None:
+            return f"{head}: at the initial q, {rank}"
+        phi = np.asarray(self._phi(q, params))
+        return (
+            f"{head}: Newton's method did not converge in {_PROJECTION_ITERS} iterations from "
+            f"q={np.asarray(q)} (|phi(q)| = {np.max(np.abs(phi)):.3g} there; phi = {phi}), "
+            "or met a configuration where J = dphi/dq is rank-deficient. The constraints "
+            "may have no solution near this q (check the lengths/parameters and the "
+            "constraint function) or the start is too far from one: start from an "
+            "(approximately) consistent configuration."
+        )
+
+    # ------------------------------------------------------------ checks
+    def _rank_message(self, q, params) -> str | None:
+        """A description of a rank-deficient ``J`` at ``q`` (``None`` if it has full rank)."""
+        jac = np.asarray(self._jacobian(jnp.asarray(q), params))
+        mass = np.asarray(self.system.mass_matrix(q, params))
+        m, n = jac.shape
+        sv = np.linalg.svd(jac, compute_uv=False) if jac.size else np.zeros(0)
+        schur = jac @ np.linalg.solve(mass, jac.T)
+        eigs = np.linalg.eigvalsh(0.5 * (schur + schur.T)) if m else np.zeros(0)
+        tol = PIVOT_RTOL * np.finfo(jac.dtype).eps
+        if m <= n and (m == 0 or eigs[0] > tol * max(np.max(np.abs(np.diag(schur))), 1e-300)):
+            return None
+        why = (
+            f"there are more constraints (m={m}) than coordinates (n={n})"
+            if m > n
+            else "the constraints are redundant (remove the dependent ones) or q is a "
+            "singular configuration of the mechanism (e.g. a linkage at a change point, "
+            "links aligned)"
+        )
+        return (
+            f"the constraint Jacobian J = dphi/dq of {self.name} is rank-deficient at "
+            f"q={np.asarray(q)} (shape {jac.shape}, singular values {sv}), so the KKT "
+            f"matrix [[M, J^T], [J, 0]] is singular: {why}"
+        )
+
+    def check_state(
+        self, q: Coordinates, qd: Velocities, params: Params, *, project: bool | None = None
+    ) -> None:
+        """Validate a state eagerly (outside ``jit``), with the values in the messages.
+
+        The checks of :meth:`LagrangianSystem.check_state` (shapes, finiteness, parameters,
+        ``M(q)`` positive-definite), that ``φ`` returns a 1-D array, that the state can be
+        projected onto the constraints (if ``project``, default ``project_initial``), and
+        that ``J`` has full row rank at the (projected) configuration.
+
+        **Raises:** ``ConstraintError``, ``ShapeError``, ``NonFiniteError``,
+        ``ParameterError``, ``MassMatrixError``.
+        """
+        self.system.check_state(q, qd, params)
+        q, qd = self._state(q, qd)
+        phi = self._phi(q, params)
+        finite(phi, "the constraint values phi(q)")
+        if self.project_initial if project is None else project:
+            q, qd = self.project(q, qd, params)
+        message = self._rank_message(q, params)
+        if message is not None:
+            raise ConstraintError(message)
+
+
+@eqx.filter_jit
+def _project_jit(system: ConstrainedSystem, q, qd, params):
+    return system._project(q, qd, params)

@@ -1,0 +1,45 @@
+"""Exception types raised by lagrax.  All derive from the built-in they refine."""
+
+
+class LagraxError(Exception):
+    """Base class of every error lagrax raises on purpose."""
+
+
+class ShapeError(LagraxError, ValueError):
+    """An array has the wrong shape for the system (e.g. ``q`` of length 3 for a 2-DOF arm)."""
+
+
+class NonFiniteError(LagraxError, ValueError):
+    """An input or a state contains NaN or infinity."""
+
+
+class ParameterError(LagraxError, KeyError):
+    """``params`` lacks an entry that an energy or force function reads."""
+
+    def __str__(self) -> str:  # KeyError would quote the whole message
+        return str(self.args[0])
+
+
+class MassMatrixError(LagraxError, ValueError):
+    """The mass matrix ``M(q) = ∂²T/∂q̇²`` is singular or not positive-definite."""
+
+
+class SimulationError(LagraxError, RuntimeError):
+    """A solve failed (step budget exhausted, non-finite state, singular mass matrix)."""
+
+
+class ConstraintError(LagraxError, ValueError):
+    """Holonomic constraints cannot be enforced: their Jacobian ``J = ∂φ/∂q`` is
+    rank-deficient (redundant constraints or a singular configuration, so the KKT matrix
+    ``[[M, Jᵀ], [J, 0]]`` is singular), or a state cannot be projected onto ``φ(q) = 0``."""
+
+
+class ConfigurationError(LagraxError, ValueError):
+    """An option has a value lagrax cannot use (``t1 <= t0``, an unknown method name,
+    ``dt`` together with ``stepsize_controller``, ...): the message names the option, the
+    value and the fix."""
+
+
+class ArgumentTypeError(ConfigurationError, TypeError):
+    """An argument is the wrong kind of object (an energy function where a system goes,
+    a solver that is neither a method name nor a diffrax solver, ...)."""

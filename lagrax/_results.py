@@ -1,0 +1,40 @@
+"""Result codes: diffrax's, plus the failures lagrax detects itself."""
+
+import diffrax as dfx
+import jax.tree_util as jtu
+import numpy as np
+
+
+class RESULTS(dfx.RESULTS):
+    """diffrax's result codes, plus the failures lagrax detects itself."""
+
+    non_finite_state = (
+        "The state became non-finite (NaN or inf): the solve blew up, typically a fixed "
+        "step past the method's stability limit, or a force that diverges."
+    )
+    constraint_projection_failed = (
+        "The initial state could not be projected onto the constraint manifold phi(q) = 0 "
+        "(no admissible configuration nearby, or a rank-deficient constraint Jacobian); the "
+        "solve ran from the unprojected state."
+    )
+    invalid_input = (
+        "This member was not solved: its parameters or initial state are non-finite, or "
+        "its mass matrix is not positive-definite at the initial state."
+    )
+
+
+def code_of(result: RESULTS):
+    """The integer code of a result (an ``int32`` array, batched under ``vmap``): a result
+    is a pytree whose one leaf is its code."""
+    (value,) = jtu.tree_leaves(result)
+    return value
+
+
+def from_code(code) -> RESULTS:
+    """The ``RESULTS`` item with integer code ``code`` (e.g. one read back from a file)."""
+    return jtu.tree_unflatten(jtu.tree_structure(RESULTS.successful), [code])
+
+
+def messages() -> list[str]:
+    """Every result's message, indexed by its integer code."""
+    return [RESULTS[from_code(np.asarray(i, np.int32))] for i in range(len(RESULTS))]

@@ -1,0 +1,414 @@
+"""One trajectory: ``simulate``, on diffrax's steps."""
+
+import functools
+from collections.abc import Callable
+from typing import Any
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from . import _checks, _integrate
+from ._abstract_system import AbstractSystem
+from ._diagnose import diagnose
+from ._errors import ArgumentTypeError, ShapeError, SimulationError
+from ._methods import configure
+from ._results import RESULTS, code_of, messages
+from ._solution import Solution
+from ._typing import Coordinates, Params, Velocities
+from ._vector_field import LagrangianVectorField, TauFn
+
+
+class SolveConfig(eqx.Module):
+    """What fixes the compiled program of a solve: the model and the method.
+
+    ``simulate`` compiles one program per configuration and caches it; ``sweep`` runs
+    the same solve under ``vmap`` or on its lane queue.
+    """
+
+    system: AbstractSystem
+    solver: dfx.AbstractSolver
+    tau_fn: Callable | None = None
+    stepsize_controller: dfx.AbstractStepSizeController | None = None
+    saveat: dfx.SaveAt | None = None
+    adjoint: dfx.AbstractAdjoint | None = None
+    n_save: int = eqx.field(default=0, static=True)
+    max_steps: int = eqx.field(default=100_000, static=True)
+
+
+class SolveInputs(eqx.Module):
+    """The arrays of a solve: changing them does not recompile."""
+
+    y0: tuple[Any, Any]
+    params: Any
+    tau_const: Any
+    t0: Any
+    t1: Any
+    ts: Any
+    rtol: Any
+    atol: Any
+    dt0: Any
+
+
+def solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
+    """The solve of ``simulate``, never raising: the start from
+    :meth:`AbstractSystem.initial_state`, then :func:`solve_from`."""
+    q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
+    return solve_from(config, inputs, (q0, qd0), started)
+
+
+def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solution:
+    """Integrate from ``y0`` (already the system's initial state; ``started`` says whether
+    it could be formed) and collect the :class:`Solution`."""
+    system, solver, params = config.system, config.solver, inputs.params
+    t0, t1, ts, max_steps = inputs.t0, inputs.t1, inputs.ts, config.max_steps
+    saveat = config.saveat
+    own_saveat = saveat is None
+    if own_saveat:
+        if ts is None:
+            ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, config.n_save, dtype=t0.dtype)
+        else:  # traced ts (eager calls are checked in simulate)
+            ts = _checks.traced_save_times(ts, t0, t1)
+        saveat = dfx.SaveAt(ts=ts, t1=True)  # the extra last entry: where the solve ended
+    requested_ts = ts
+    controller = config.stepsize_controller
+    if controller is None:
+        controller = dfx.PIDController(rtol=inputs.rtol, atol=inputs.atol)
+    field = LagrangianVectorField(system, config.tau_fn)
+    term = dfx.ODETerm(field)
+    args = (params, inputs.tau_const)
+    if config.adjoint is None and own_saveat and _integrate.is_lean(controller):
+        # the lean loop: the same steps as diffeqsolve, without its per-step machinery
+        (q, qd), end = _integrate.integrate(
+            term, solver, controller, y0, args, t0, t1, inputs.dt0, ts, max_steps
+        )
+        t_end, (q_end, qd_end), result = end.t, end.y, end.result
+        ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
+        steps, accepted = end.num_steps, end.num_accepted_steps
+        stats = dict(
+            num_steps=steps,
+            num_accepted_steps=accepted,
+            num_rejected_steps=steps - accepted,
+            max_steps=max_steps,
+        )
+    else:
+        sol = dfx.diffeqsolve(
+            term,
+            solver,
+            t0,
+            t1,
+            inputs.dt0,
+            y0,
+            args=args,
+            saveat=saveat,
+            stepsize_controller=controller,
+            max_steps=max_steps,
+            throw=False,
+            **({} if config.adjoint is None else {"adjoint": config.adjoint}),
+        )
+        q, qd = sol.ys
+        ts = sol.ts
+        # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
+        # failure diffrax writes it into the first unreached slot, so unreached slots
+        # (whose time differs from the requested one) are reset to inf.
+        last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
+        t_end, q_end, qd_end = ts[last], q[last], qd[last]
+        if own_saveat:
+            ts, q, qd = ts[:-1], q[:-1], qd[:-1]
+            reached = ts == requested_ts
+            inf = jnp.asarray(jnp.inf, q.dtype)
+            ts = jnp.where(reached, ts, inf)
+            q = jnp.where(reached[:, None], q, inf)
+            qd = jnp.where(reached[:, None], qd, inf)
+        result = RESULTS.promote(sol.result)
+        stats = dict(sol.stats)
+    energy = jax.vmap(lambda a, b: system.energy(a, b, params))(q, qd)
+    energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
+    # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
+    finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
+    result = RESULTS.where(
+        finite | (result != RESULTS.successful), result, RESULTS.non_finite_state
+    )
+    result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
+    extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
+    return Solution(ts, q, qd, energy, result, stats, t_end, q_end, qd_end, **extras)
+
+
+def observables(system, field, params, tau_const, ts, q, qd) -> dict[str, Any]:
+    """The system's extra observables at the saved states (``inf`` where not reached)."""
+    out = jax.vmap(
+        lambda t, a, b: system.observables(t, a, b, params, field.tau(t, a, b, tau_const))
+    )(ts, q, qd)
+    reached = jnp.isfinite(ts)
+    return {
+        k: jnp.where(reached.reshape(reached.shape + (1,) * (v.ndim - 1)), v, jnp.inf)
+        for k, v in out.items()
+    }
+
+
+_solve = eqx.filter_jit(solve)
+
+
+def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
+    """In-graph validity of a solve's inputs: the initial state could be formed, finite
+    parameters and state, finite energy, and finite accelerations at the start (which
+    also requires a positive-definite mass matrix). A ``False`` here sends ``simulate`` to
+    the eager, precise ``check_state``."""
+    params, system = inputs.params, config.system
+    leaves = [
+        jnp.all(jnp.isfinite(x))
+        for x in jax.tree_util.tree_leaves(params)
+        if eqx.is_inexact_array(x)
+    ]
+    field = LagrangianVectorField(system, config.tau_fn)
+    q0, qd0 = y0
+    _, qdd = field(inputs.t0, (q0, qd0), (params, inputs.tau_const))
+    energy = system.energy(q0, qd0, params)
+    checks = [
+        *leaves,
+        jnp.asarray(started),
+        jnp.all(jnp.isfinite(q0)),
+        jnp.all(jnp.isfinite(qd0)),
+        jnp.isfinite(energy),
+        jnp.all(jnp.isfinite(qdd)),
+    ]
+    return jnp.all(jnp.stack(checks))
+
+
+@eqx.filter_jit
+def _checked_once(config: SolveConfig, inputs: SolveInputs):
+    q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
+    sol = solve_from(config, inputs, (q0, qd0), started)
+    inputs_ok = _inputs_ok(config, inputs, (q0, qd0), started)
+    solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
+    return sol, jnp.stack([inputs_ok, solved_ok])
+
+
+@eqx.filter_jit
+def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
+    """``solve`` plus the two flags ``simulate`` needs on the host, fetched at once:
+    whether the inputs were valid, and whether the solve succeeded with finite saves.
+
+    Only called on concrete inputs (never differentiated), so the whole program can sit
+    in a ``lax.while_loop`` that runs once: XLA:CPU then compiles it into one kernel (see
+    ``_xla_flags``) instead of running dozens of small ones around the solver loop, which
+    cost ~0.1 ms a call.
+    """
+    shapes = eqx.filter_eval_shape(_checked_once, config, inputs)  # traced once; reused
+    init = (
+        jnp.asarray(False),
+        jax.tree_util.tree_map(
+            lambda x: jnp.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
+            shapes,
+        ),
+    )
+
+    def once(_):
+        return _checked_once(config, inputs)
+
+    _, out = jax.lax.while_loop(lambda c: ~c[0], lambda c: (jnp.asarray(True), once(None)), init)
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled_checked(config: SolveConfig):
+    """A ``jax.jit`` of ``_simulate_checked`` for one configuration.
+
+    ``equinox.filter_jit`` sorts arrays from static values on every call, which for
+    ``simulate``'s arguments costs about as much as a short solve; with the configuration
+    fixed here and every input an array, a call is ``jax.jit``'s C++ fast path.
+    """
+    out_static = []
+
+    def run(inputs):
+        leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
+        arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
+        out_static[:] = [treedef, leaves, arrays]
+        return [leaves[i] for i in arrays]
+
+    return jax.jit(run), out_static
+
+
+def _call_checked(config: SolveConfig, inputs: SolveInputs):
+    """``_simulate_checked(config, inputs)``, through a cached ``jax.jit`` when it can be."""
+    try:
+        if not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(inputs)):
+            raise TypeError  # e.g. strings in params: equinox sorts them out
+        fn, out_static = _compiled_checked(config)
+    except TypeError:  # an unhashable setting (a controller or saveat with arrays)
+        return _simulate_checked(config, inputs)
+    values = fn(inputs)
+    treedef, leaves, arrays = out_static
+    leaves = list(leaves)  # the static leaves, with the arrays put back in their places
+    for i, value in zip(arrays, values, strict=True):
+        leaves[i] = value
+    return jax.tree_util.tree_unflatten(treedef, leaves)
+
+
+def simulate(
+    system: AbstractSystem,
+    q0: Coordinates,
+    qd0: Velocities,
+    params: Params,
+    *,
+    t1: float,
+    t0: float = 0.0,
+    ts: Float[Array, " T"] | None = None,
+    n_save: int = 501,
+    tau: Velocities | TauFn | None = None,
+    solver: str | dfx.AbstractSolver | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt: float | None = None,
+    dt0: float | None = None,
+    max_steps: int | None = None,
+    saveat: dfx.SaveAt | None = None,
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    adjoint: dfx.AbstractAdjoint | None = None,
+    throw: bool = True,
+) -> Solution:
+    """Integrate ``M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇`` from ``(q0, q̇0)`` over ``[t0, t1]``.
+
+    The state ``(q, q̇)`` is integrated as a first-order system with diffrax; the
+    accelerations come from :meth:`LagrangianSystem.forward_dynamics` (unchecked inside the
+    solver loop; failures are diagnosed after it, see *Raises*).
+
+    A :class:`ConstrainedSystem` is integrated the same way with its constrained
+    accelerations (KKT system with Baumgarte stabilization); its initial state is first
+    projected onto ``φ(q) = 0``, ``J q̇ = 0`` (unless ``project_initial=False``), so
+    ``Solution.q[0]`` may differ from ``q0``; ``Solution.constraint_violation`` and
+    ``Solution.multipliers`` report ``φ`` and ``λ`` along the path. The variational
+    integrators do not apply to constrained systems.
+
+    **Arguments:**
+
+    - ``system``, ``q0``, ``qd0``, ``params``: the model, its initial state and parameters.
+    - ``t1``, ``t0``: time interval.
+    - ``ts``: times at which to save; default ``n_save`` evenly spaced points in
+      ``[t0, t1]``. ``saveat`` (a ``diffrax.SaveAt``) overrides both.
+    - ``tau``: input generalized forces, a constant ``(n,)`` array or a function
+      ``tau(t, q, qd) -> (n,)`` (a controller). Added to the system's own ``force``.
+    - ``solver``: a method name or a diffrax solver. Names (see ``lagrax.METHODS``):
+      ``"tsit5"`` (default; explicit 5(4), adaptive), ``"dopri5"``, ``"dopri8"`` (tight
+      tolerances), ``"kvaerno5"`` (implicit; stiff springs and dampers), ``"rk4"`` (fixed
+      step), ``"variational"`` / ``"variational4"`` (symplectic, fixed step; bounded
+      energy error over long horizons).
+    - ``rtol``, ``atol``: error-control tolerances of the adaptive step (default 1e-8);
+      for implicit methods at a fixed step, the tolerances of their Newton iterations.
+      Changing them, ``params``, the initial state, ``t1`` or ``dt`` does not recompile.
+    - ``dt``: run at this fixed step instead (``diffrax.ConstantStepSize``). Required by
+      the fixed-step methods; allowed with every method.
+    - ``dt0``: initial step of an adaptive solve (default: chosen by diffrax).
+    - ``max_steps``: step budget (accepted + rejected). Default: 100,000 for an adaptive
+      solve; at a fixed step, enough steps for ``[t0, t1]``.
+    - ``stepsize_controller``: override the default ``diffrax.PIDController(rtol, atol)``.
+    - ``adjoint``: how to differentiate the solve. Default ``None``: lagrax's own lean
+      stepping loop (diffrax's steps without ``diffeqsolve``'s per-step machinery; about
+      2–3× faster for small mechanisms), differentiable by reverse mode (``jax.grad``,
+      recursive checkpointing, as diffrax's default). Pass a diffrax adjoint to run
+      ``diffrax.diffeqsolve`` with it instead, e.g. ``diffrax.ForwardMode()`` for
+      ``jax.jacfwd`` / ``jax.jvp`` (few parameters, many outputs) or
+      ``diffrax.RecursiveCheckpointAdjoint()`` for diffrax's default. A custom ``saveat``
+      or a step-size controller other than ``PIDController`` / ``ConstantStepSize``
+      also runs ``diffeqsolve``.
+    - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
+      in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
+      need: one bad member does not kill the batch.
+
+    **Returns:** a :class:`Solution`.
+
+    **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
+    for bad input (checked at the initial state), ``ConstraintError`` for a constrained
+    system whose initial state cannot be projected onto its constraints or whose
+    constraint Jacobian is rank-deficient there, and ``SimulationError`` when the solve
+    fails: the message names the cause (step budget, non-finite state, singular mass
+    matrix), the time reached and what to try.
+
+    **Example:**
+
+    ```python
+    system, params = lagrax.models.planar_2r()
+    sol = lagrax.simulate(system, [0.5, 0.8], [0.0, 0.0], params, t1=10.0)
+    sol.q[-1], sol.energy_error.max()
+    ```
+    """
+    if not isinstance(system, AbstractSystem):
+        raise ArgumentTypeError(
+            "simulate needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) "
+            f"as its first argument, got {type(system).__name__}: {system!r}"
+        )
+    eager = not _checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
+    if eager:
+        # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
+        # of its own, and a simulate call should cost one dispatch, not a dozen.
+        q0, qd0 = system._host_state(q0, qd0)
+        dtype = np.result_type(q0, qd0)
+    else:
+        q0, qd0 = system._state(q0, qd0)
+        dtype = jnp.result_type(q0, qd0)
+    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    tdt = np.dtype(dtype)
+    # Python scalars in params would be static under filter_jit (a recompile per value);
+    # as arrays of the state's dtype they behave as JAX's weakly typed scalars would.
+    params = jax.tree_util.tree_map(
+        lambda x: (
+            np.asarray(x, tdt if isinstance(x, float) else None)
+            if isinstance(x, (bool, int, float, complex))
+            else x
+        ),
+        params,
+    )
+    tau_fn = tau if callable(tau) else None
+    tau_const = None
+    if tau is not None and not callable(tau):
+        (tau_const,) = system._state(q0, tau=tau)[1:]
+        tau_const = _checks.finite(tau_const.astype(dtype), "tau")
+    if eager:
+        _checks.interval(t0, t1)
+    if saveat is None and ts is not None:
+        ts = (np.asarray if eager else jnp.asarray)(ts, dtype)
+        if ts.ndim != 1:
+            raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
+        if eager:
+            _checks.save_times(ts, t0, t1)
+    solver, stepsize_controller, dt0, max_steps = configure(
+        solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
+    )
+    asarray = np.asarray if eager else jnp.asarray
+    config = SolveConfig(
+        system, solver, tau_fn, stepsize_controller, saveat, adjoint, int(n_save), int(max_steps)
+    )
+    inputs = SolveInputs(
+        y0=(q0, qd0),
+        params=params,
+        tau_const=tau_const,
+        t0=asarray(t0, tdt),
+        t1=asarray(t1, tdt),
+        ts=ts,
+        rtol=asarray(rtol, tdt),
+        atol=asarray(atol, tdt),
+        dt0=None if dt0 is None else asarray(dt0, tdt),
+    )
+    if not eager:
+        sol = _solve(config, inputs)
+        if not throw:
+            return sol
+        # inside a user's jit: fail at run time, with the failure's own message
+        return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
+    sol, flags = _call_checked(config, inputs)
+    inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
+    if not inputs_ok:
+        system.check_state(q0, qd0, params)  # raises with the values in the message
+    if not throw or solved_ok:
+        return sol
+    raise SimulationError(diagnose(system, sol, params, max_steps, rtol, atol))
+
+
+_JIT_MESSAGES = [
+    f"lagrax.simulate failed: {message} Call simulate outside jit, or with throw=False, "
+    "for a diagnosis."
+    for message in messages()
+]

@@ -1,0 +1,13 @@
+"""Many trajectories: ``sweep`` over parameter sets, with ``grid`` and ``samples``.
+
+One concept a module: ``_grid`` (the batch), ``_chunk`` (the compiled chunk), ``_checkpoint``
+(fingerprints, atomic files), ``_devices`` (mesh, transfers), ``_progress``, ``_dataset``
+(the xarray result), ``_io`` (files) and ``_driver`` (``sweep`` itself).
+"""
+
+from ._driver import sweep as sweep
+from ._grid import Grid as Grid
+from ._grid import grid as grid
+from ._grid import samples as samples
+from ._io import load_sweep as load_sweep
+from ._io import save_sweep as save_sweep

@@ -1,0 +1,245 @@
+"""The compiled chunk of a sweep: members solved on lanes (or in lock-step) on devices."""
+
+from collections.abc import Callable
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+import numpy as np
+
+from .._checks import pivot_threshold
+from .._lanes import LaneOutput, run_lanes
+from .._results import RESULTS, code_of, from_code
+from .._simulate import SolveConfig, SolveInputs, observables, solve
+from .._solution import Solution
+from .._vector_field import LagrangianVectorField
+from ._devices import to_device, to_host
+
+_OK = int(code_of(RESULTS.successful))
+_INVALID = int(code_of(RESULTS.invalid_input))
+_NOT_PROJECTED = int(code_of(RESULTS.constraint_projection_failed))
+
+
+class Setup(eqx.Module):
+    """What fixes the compiled chunk function: the solve's configuration (its controller
+    always given), the ``keep=`` reduction, the lane count and the schedule."""
+
+    config: SolveConfig
+    reduce: Callable | None
+    n_lanes: int = eqx.field(static=True)
+    schedule: str = eqx.field(static=True)
+
+
+def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOutput:
+    """Plain ``vmap`` of ``simulate``'s solve: every member steps until the slowest is done."""
+    rtol = atol = jnp.asarray(0.0, t0.dtype)  # unused: the controller is always given
+    save_ts = ts if ts.shape[0] else t1[None]
+
+    def one(p, y0):
+        return solve(setup.config, SolveInputs(y0, p, tau_const, t0, t1, save_ts, rtol, atol, dt0))
+
+    sol = jax.vmap(one)(members, y0s)
+    steps = sol.stats["num_steps"]
+    ys = (sol.q, sol.qd) if ts.shape[0] else (sol.q[:, :0], sol.qd[:, :0])
+    return LaneOutput(
+        ys=ys,
+        y_end=(sol.q_end, sol.qd_end),
+        t_end=sol.t_end,
+        result=code_of(sol.result).astype(jnp.int32),
+        num_steps=steps,
+        num_accepted_steps=sol.stats["num_accepted_steps"],
+        num_rejected_steps=sol.stats["num_rejected_steps"],
+        busy_lane_steps=jnp.sum(steps),
+        lane_steps=jnp.max(steps) * steps.shape[0],
+    )
+
+
+def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
+    if setup.schedule == "lockstep":
+        out = _lockstep(setup, members, y0s, tau_const, t0, t1, dt0, ts)
+    else:
+        c = setup.config
+        term = dfx.ODETerm(LagrangianVectorField(c.system, c.tau_fn))
+        out = run_lanes(
+            term,
+            c.solver,
+            c.stepsize_controller,
+            members,
+            y0s,
+            tau_const,
+            t0,
+            t1,
+            dt0,
+            ts,
+            setup.n_lanes,
+            c.max_steps,
+        )
+    # scalars become (1,) so that shards concatenate
+    return eqx.tree_at(
+        lambda o: (o.busy_lane_steps, o.lane_steps),
+        out,
+        (out.busy_lane_steps[None], out.lane_steps[None]),
+    )
+
+
+@eqx.filter_jit
+def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
+    """Solve one chunk of members (sharded over ``mesh`` when given) and post-process it."""
+    if mesh is None:
+        out = _per_device(setup, members, y0s, tau_const, t0, t1, dt0, ts)
+    else:
+        spec = jax.sharding.PartitionSpec("batch")
+        fn = jax.shard_map(
+            lambda m, y: _per_device(setup, m, y, tau_const, t0, t1, dt0, ts),
+            mesh=mesh,
+            in_specs=(spec, spec),
+            out_specs=spec,
+            check_vma=False,
+        )
+        out = fn(members, y0s)
+    system = setup.config.system
+    field = LagrangianVectorField(system, setup.config.tau_fn)
+    energy = jax.vmap(jax.vmap(system.energy, in_axes=(0, 0, None)))
+    q, qd = out.ys
+    e = energy(q, qd, members) if q.shape[1] else q[..., 0]
+    e = jnp.where(jnp.isfinite(e), e, jnp.inf)
+    q0, qd0 = y0s
+    e0 = jax.vmap(system.energy)(q0, qd0, members)
+    q_end, qd_end = out.y_end
+    e_end = jax.vmap(system.energy)(q_end, qd_end, members)
+    # the system's observables at the end state (a constrained system: max |φ(q)| there)
+    at_end = jax.vmap(
+        lambda t, a, b, p: system.observables(t, a, b, p, field.tau(t, a, b, tau_const))
+    )(jnp.minimum(out.t_end, t1), q_end, qd_end, members)
+    violation = at_end.get("constraint_violation")
+    if violation is not None:
+        violation = jnp.max(jnp.abs(violation), axis=1)
+    reduced = None
+    if setup.reduce is not None:
+
+        def reduce_one(p, i_q, i_qd, i_e, res, t_end, qe, qde, st, acc, rej):
+            stats = dict(
+                num_steps=st,
+                num_accepted_steps=acc,
+                num_rejected_steps=rej,
+                max_steps=jnp.asarray(setup.config.max_steps),
+            )
+            reached = jnp.all(jnp.isfinite(i_q), axis=1)
+            i_ts = jnp.where(reached, ts, jnp.inf)
+            extras = observables(system, field, p, tau_const, i_ts, i_q, i_qd)
+            sol = Solution(i_ts, i_q, i_qd, i_e, from_code(res), stats, t_end, qe, qde, **extras)
+            return setup.reduce(sol)
+
+        reduced = jax.vmap(reduce_one)(
+            members,
+            q,
+            qd,
+            e,
+            out.result,
+            out.t_end,
+            q_end,
+            qd_end,
+            out.num_steps,
+            out.num_accepted_steps,
+            out.num_rejected_steps,
+        )
+    return out, e, e0, e_end, reduced, violation
+
+
+@eqx.filter_jit
+def _initial_states(system, q0s, qd0s, members):
+    """Per member: the system's initial state (e.g. projected onto its constraints), and
+    whether it could be formed."""
+    return jax.vmap(system.initial_state)(q0s, qd0s, members)
+
+
+@eqx.filter_jit
+def _mass_check(system, q0s, qd0s, members):
+    """Per member: the mass matrix at the initial state (for a positive-definiteness check)."""
+    return jax.vmap(lambda q, qd, p: system.mass_matrix(q, p, qd))(q0s, qd0s, members)
+
+
+def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt):
+    """Run one chunk (padded to ``size`` members so every chunk reuses one compilation)."""
+    m = q0s.shape[0]
+    members = jtu.tree_map(lambda x: np.asarray(x), members)
+    # every process computes the whole chunk's initial states (not sharded: no gather)
+    start = _initial_states(
+        system, jnp.asarray(q0s), jnp.asarray(qd0s), jtu.tree_map(jnp.asarray, members)
+    )
+    q0s, qd0s, projected = (np.asarray(x) for x in start)
+    # per member: finite inputs and a positive-definite mass matrix at the initial state
+    fin = np.isfinite(q0s).all(1) & np.isfinite(qd0s).all(1)
+    for leaf in jtu.tree_leaves(members):
+        fin &= np.isfinite(leaf.reshape(m, -1)).all(1) if leaf.dtype.kind in "fc" else True
+    valid = fin.copy()
+    if fin.any():
+        mm = np.asarray(
+            _mass_check(
+                system, jnp.asarray(q0s), jnp.asarray(qd0s), jtu.tree_map(jnp.asarray, members)
+            )
+        )
+        with np.errstate(invalid="ignore"):
+            ok_mm = np.all(np.isfinite(mm.reshape(m, -1)), axis=1)
+            eig = np.full((m, mm.shape[-1]), -np.inf)
+            eig[ok_mm] = np.linalg.eigvalsh(mm[ok_mm])
+            scale = np.maximum(np.abs(eig).max(axis=1), np.finfo(mm.dtype).tiny)
+            valid &= ok_mm & (eig[:, 0] > pivot_threshold(mm.dtype) * scale)
+    # invalid members are solved as a stand-in (a valid one) and overwritten afterwards
+    stand_in = int(np.argmax(valid)) if valid.any() else 0
+    src = np.where(valid, np.arange(m), stand_in)
+    src = np.concatenate([src, np.full(size - m, src[0] if m else 0)])
+    pick = lambda x: np.asarray(x)[src]  # noqa: E731
+    members_d = jtu.tree_map(lambda x: to_device(pick(x), mesh), members)
+    y0s = (to_device(pick(q0s), mesh), to_device(pick(qd0s), mesh))
+    out, e, e0, e_end, reduced, violation = _run_chunk(
+        setup,
+        mesh,
+        members_d,
+        y0s,
+        tau_const,
+        jnp.asarray(t0, tdt),
+        jnp.asarray(t1, tdt),
+        None if dt0 is None else jnp.asarray(dt0, tdt),
+        ts,
+    )
+    out, e, e0, e_end, reduced, violation = to_host((out, e, e0, e_end, reduced, violation))
+    cut = lambda x: x[:m]  # noqa: E731
+    q, qd = out.ys
+    q_end, qd_end = out.y_end
+    res = cut(out.result).copy()
+    res[~projected & (res == _OK)] = _NOT_PROJECTED
+    res[~valid] = _INVALID
+    bad = ~valid
+
+    def blank(x):
+        x = cut(x).astype(np.result_type(x.dtype, np.float32), copy=True)
+        x[bad] = np.inf
+        return x
+
+    chunk = dict(
+        q=blank(q),
+        qd=blank(qd),
+        energy=blank(e),
+        energy0=blank(e0),
+        energy_end=blank(e_end),
+        q_end=blank(q_end),
+        qd_end=blank(qd_end),
+        t_end=blank(out.t_end),
+        result=res,
+        num_steps=np.where(bad, 0, cut(out.num_steps)),
+        num_accepted_steps=np.where(bad, 0, cut(out.num_accepted_steps)),
+        num_rejected_steps=np.where(bad, 0, cut(out.num_rejected_steps)),
+        busy_lane_steps=np.asarray([out.busy_lane_steps.sum()]),
+        lane_steps=np.asarray([out.lane_steps.sum()]),
+    )
+    if violation is not None:
+        chunk["constraint_violation"] = blank(violation)
+    if reduced is not None:
+        leaves, _ = jtu.tree_flatten_with_path(reduced)
+        for path, leaf in leaves:
+            chunk["reduce" + jtu.keystr(path)] = blank(np.asarray(leaf))
+        chunk["__reduce_paths__"] = np.asarray([jtu.keystr(p) for p, _ in leaves])
+    return chunk

@@ -1,0 +1,119 @@
+"""The result of a sweep as an ``xarray.Dataset``."""
+
+import json
+from collections.abc import Mapping
+
+import numpy as np
+
+from .._results import RESULTS, code_of, messages
+
+_OK = int(code_of(RESULTS.successful))
+
+
+def dataset(
+    xr,
+    chunks,
+    batch,
+    raw_params,
+    ts,
+    keep,
+    n,
+    n_members,
+    settings,
+    solver,
+    rtol,
+    atol,
+    schedule,
+    n_dev,
+):
+    cat = {
+        k: np.concatenate([c[k] for c in chunks])
+        for k in chunks[0]
+        if k not in ("busy_lane_steps", "lane_steps", "__reduce_paths__")
+    }
+    busy = sum(int(c["busy_lane_steps"].sum()) for c in chunks)
+    total = sum(int(c["lane_steps"].sum()) for c in chunks)
+    if batch is not None:
+        dims, shape = batch.dims, batch.shape
+    else:
+        dims, shape = ("member",), (n_members,)
+
+    def shaped(x):
+        return x.reshape(shape + x.shape[1:])
+
+    sweep_dims = list(dims)
+    data = {}
+    final = isinstance(keep, str) and keep == "final"
+    time_dims = [] if final else ["time"]
+    ok = cat["result"] == _OK
+    if final:
+        at_t1 = ok[:, None]
+        data["q"] = (sweep_dims + ["dof"], shaped(np.where(at_t1, cat["q_end"], np.inf)))
+        data["qd"] = (sweep_dims + ["dof"], shaped(np.where(at_t1, cat["qd_end"], np.inf)))
+        data["energy"] = (sweep_dims, shaped(np.where(ok, cat["energy_end"], np.inf)))
+    elif not callable(keep):
+        data["q"] = (sweep_dims + time_dims + ["dof"], shaped(cat["q"]))
+        data["qd"] = (sweep_dims + time_dims + ["dof"], shaped(cat["qd"]))
+        data["energy"] = (sweep_dims + time_dims, shaped(cat["energy"]))
+    else:
+        paths = [str(p) for p in chunks[0]["__reduce_paths__"]]
+        for p in paths:
+            name = _reduce_name(p)
+            x = shaped(cat["reduce" + p])
+            extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(sweep_dims))]
+            data[name] = (sweep_dims + extra, x)
+    e0 = cat["energy0"]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = (cat["energy_end"] - e0) / np.maximum(np.abs(e0), np.finfo(float).tiny)
+    data["energy_error"] = (sweep_dims, shaped(np.where(ok, rel, np.inf)))
+    data["ok"] = (sweep_dims, shaped(ok))
+    data["result"] = (sweep_dims, shaped(cat["result"]))
+    text = messages()
+    status = np.asarray(["ok" if r == _OK else _short(text[r]) for r in cat["result"]])
+    data["status"] = (sweep_dims, shaped(status))
+    if "constraint_violation" in cat:
+        data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
+    for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
+        data[k] = (sweep_dims, shaped(cat[k]))
+    coords = {"dof": np.arange(n)}
+    if not final and not callable(keep):
+        coords["time"] = ts
+    if batch is not None:
+        if batch.product:
+            coords.update({k: v for k, v in batch.axes.items()})
+        else:
+            coords.update({k: ("member", v) for k, v in batch.axes.items()})
+    else:
+        coords["member"] = np.arange(n_members)
+        if isinstance(raw_params, Mapping):  # per-member scalar parameters label the members
+            for k, v in raw_params.items():
+                v = np.asarray(v)
+                if v.ndim == 1 and not np.all(v == v[0]):
+                    coords[k] = ("member", v)
+    failed = ~ok
+    counts = {}
+    for r in np.unique(cat["result"][failed]):
+        counts[_short(text[r])] = int(np.sum(cat["result"] == r))
+    attrs = dict(
+        n_members=int(n_members),
+        n_failed=int(failed.sum()),
+        failures=json.dumps(counts),
+        solver=type(solver).__name__,
+        rtol=float(rtol),
+        atol=float(atol),
+        t0=settings["t0"],
+        t1=settings["t1"],
+        schedule=schedule,
+        devices=int(n_dev),
+        lane_idle_fraction=float(1 - busy / total) if total else 0.0,
+    )
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _reduce_name(path: str) -> str:
+    name = path.strip("[]'\".").replace("']['", "_").replace("][", "_")
+    return name or "value"
+
+
+def _short(message: str) -> str:
+    return message.split("\n")[0].strip()

@@ -1,0 +1,345 @@
+"""``sweep``: many trajectories, chunk by chunk, with checkpoints and progress."""
+
+import json
+import math
+import os
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import diffrax as dfx
+import jax.numpy as jnp
+import jax.tree_util as jtu
+import numpy as np
+
+from .. import _checks
+from .._abstract_system import AbstractSystem
+from .._errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._methods import configure
+from .._simulate import SolveConfig
+from .._solution import Solution
+from ._checkpoint import FORMAT_VERSION, atomic_write, fingerprint
+from ._chunk import Setup, solve_chunk
+from ._dataset import dataset
+from ._devices import mesh_of
+from ._grid import Grid
+from ._progress import progress_bar, progress_default
+
+
+def _batch_size(params: Any) -> int:
+    leaves = jtu.tree_leaves_with_path(params)
+    if not leaves:
+        raise ShapeError("params has no array leaves to sweep over")
+    sizes = {jtu.keystr(path): np.shape(x)[0] if np.ndim(x) else None for path, x in leaves}
+    bad = [k for k, v in sizes.items() if v is None]
+    if bad:
+        raise ShapeError(
+            f"sweep() params must carry a leading batch axis on every leaf; {bad} are "
+            "scalars. Use lagrax.grid(params, name=values) or lagrax.samples(...) for a mix "
+            "of fixed and swept parameters."
+        )
+    if len(set(sizes.values())) != 1:
+        raise ShapeError(f"params leaves have different batch sizes: {sizes}")
+    return next(iter(sizes.values()))
+
+
+def _states(x: Any, name: str, n_members: int) -> np.ndarray:
+    a = np.asarray(x, dtype=float if np.asarray(x).dtype.kind in "biu" else None)
+    if a.ndim == 1:
+        return np.broadcast_to(a, (n_members,) + a.shape)
+    if a.ndim >= 2 and math.prod(a.shape[:-1]) == n_members:
+        return a.reshape(n_members, a.shape[-1])
+    raise ShapeError(
+        f"{name} must have shape (n,) (shared by all members) or (members, n) / grid shape + "
+        f"(n,) with {n_members} members; got {a.shape}"
+    )
+
+
+def sweep(
+    system: AbstractSystem,
+    q0: Any,
+    qd0: Any,
+    params: Any,
+    *,
+    t1: float,
+    t0: float = 0.0,
+    keep: str | Sequence[float] | np.ndarray | Callable[[Solution], Any] = "final",
+    n_save: int = 101,
+    tau: Any = None,
+    solver: str | dfx.AbstractSolver | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt: float | None = None,
+    dt0: float | None = None,
+    max_steps: int | None = None,
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    chunk_size: int | None = None,
+    n_lanes: int | None = None,
+    schedule: str = "queue",
+    devices: Any = None,
+    checkpoint: str | os.PathLike | None = None,
+    progress: bool | None = None,
+):
+    """Simulate ``system`` for many parameter sets (and initial states) at once.
+
+    Each member is the solve ``simulate(system, q0[i], qd0[i], params[i], t1=t1, ...)``;
+    the arguments come in ``simulate``'s order.
+    The batch is cut into chunks (bounding memory; the unit of progress and of
+    checkpoints); each chunk is one compiled call, sharded over ``devices``. Inside a
+    chunk, members are integrated on ``n_lanes`` vectorized lanes as a work queue: a lane
+    whose member is done takes the next member, so fast members do not wait for slow ones
+    (``schedule="queue"``). ``schedule="lockstep"`` is a plain ``vmap`` of ``simulate``
+    instead (bitwise the same numbers as ``simulate``, but every member of a chunk steps
+    until the slowest is done).
+
+    A member that fails (step budget, blow-up, invalid input) is flagged in the result's
+    ``ok`` / ``result`` / ``status`` and never stops the sweep; its values past the failure
+    are ``inf``, as in :class:`Solution`.
+
+    **Arguments:**
+
+    - ``system``: a :class:`LagrangianSystem`, or a :class:`ConstrainedSystem` (each
+      member's initial state is first projected onto its constraints, as in
+      ``simulate``; the result then also has ``constraint_violation``, ``max |φ(q)|`` at
+      the end).
+    - ``q0``, ``qd0``: initial state, ``(n,)`` for all members, or one per member
+      (``(members, n)``, or the grid's shape + ``(n,)``).
+    - ``params``: a :class:`Grid` from :func:`grid` / :func:`samples`, or a pytree whose
+      every leaf has a leading batch axis (one entry per member).
+    - ``t1``, ``t0``: time interval (shared).
+    - ``keep``: what to keep per member: ``"final"`` (the state at ``t1``; default),
+      ``"trajectory"`` (``n_save`` evenly spaced times), an array of times, or a function
+      ``reduce(solution) -> pytree of arrays`` applied to each member's
+      :class:`Solution` (saved at ``n_save`` times) inside the compiled call, so only its
+      output is kept, e.g. ``lambda s: jnp.max(jnp.abs(s.energy_error))``.
+    - ``tau``, ``solver``, ``rtol``, ``atol``, ``dt``, ``dt0``, ``max_steps``,
+      ``stepsize_controller``: as for :func:`lagrax.simulate` (shared by all members).
+    - ``chunk_size``: members per compiled call (default: up to 8,192, fewer when the kept
+      output is large: about 64 MiB of it per chunk).
+    - ``n_lanes``: members integrated at once inside a chunk, per device (default: an
+      eighth of the chunk's members per device, at most 1,024).
+    - ``schedule``: ``"queue"`` (default) or ``"lockstep"``, see above.
+    - ``devices``: devices to shard the batch over: ``None`` (all of ``jax.devices()``),
+      a count, or a list. On a multi-host run (after ``jax.distributed.initialize()``)
+      every process makes the same call; each gets the whole result.
+    - ``checkpoint``: a directory. Each finished chunk is written there atomically; the
+      same call again resumes, computing only what is missing. A different sweep
+      definition (model, parameters, states, solver settings, ``keep``) is refused.
+    - ``progress``: show a progress bar (tqdm; members/s). Default: on in a terminal or
+      notebook, off otherwise.
+
+    **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
+    ``"time"`` (when kept) and ``"dof"``; variables ``q``, ``qd``, ``energy`` (at the kept
+    times, or at ``t1`` for ``keep="final"``), ``energy_error`` (relative change of
+    ``T + V`` from ``t0`` to the end), ``ok``, ``result`` (code of ``lagrax.RESULTS``),
+    ``status`` (its message), ``t_end``, ``num_steps``, ``num_accepted_steps``,
+    ``num_rejected_steps`` (or the outputs of ``reduce``); swept parameters as
+    coordinates; ``attrs`` with the failure count and the share of lane-steps that were
+    idle (``lane_idle_fraction``). Save it with :func:`save_sweep`.
+
+    **Example:**
+
+    ```python
+    system, params = lagrax.models.planar_2r()
+    batch = lagrax.grid(params, m2=np.linspace(0.5, 2, 32), l1=np.linspace(0.5, 1.5, 32))
+    ds = lagrax.sweep(system, [0.0, 0.0], batch, [0.5, 0.8], t1=10.0)
+    ds.q.sel(dof=1).plot()   # final θ2 over the (m2, l1) grid
+    ```
+    """
+    import xarray as xr
+
+    system, q0, qd0, params = _argument_order(system, q0, qd0, params)
+    # --- the batch
+    if isinstance(params, Grid):
+        batch, n_members = params, params.size
+        get_params = params.params
+    else:
+        n_members = _batch_size(params)
+        batch = None
+        params = jtu.tree_map(jnp.asarray, params)
+
+        def get_params(a, b):
+            return jtu.tree_map(lambda x: x[a:b], params)
+
+    q0s = _states(q0, "q0", n_members)
+    qd0s = _states(qd0, "qd0", n_members)
+    if q0s.shape != qd0s.shape:
+        raise ShapeError(
+            f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
+            f"and {qd0s.shape[1:]}"
+        )
+    dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
+    q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
+    n = q0s.shape[1]
+    # one member through the eager checks of a single trajectory: shapes, params, tau
+    q_probe, _ = system._state(q0s[0], qd0s[0])
+    tdt = jnp.asarray(0.0, dtype).dtype
+    tau_fn = tau if callable(tau) else None
+    tau_const = None
+    if tau is not None and not callable(tau):
+        (tau_const,) = system._state(q_probe, tau=tau)[1:]
+        tau_const = system._finite(jnp.asarray(tau_const, dtype), "tau")
+    _checks.interval(t0, t1)
+
+    # --- what to keep
+    reduce = None
+    if callable(keep):
+        reduce, ts = keep, np.linspace(t0, t1, int(n_save))
+    elif isinstance(keep, str):
+        if keep == "final":
+            ts = np.zeros(0)
+        elif keep == "trajectory":
+            ts = np.linspace(t0, t1, int(n_save))
+        else:
+            raise ConfigurationError(
+                f"keep must be 'final', 'trajectory', times or a function; got {keep!r}"
+            )
+    else:
+        ts = np.asarray(keep, dtype=float)
+        if ts.ndim != 1 or ts.size == 0:
+            raise ShapeError(f"keep= times must be a non-empty 1-D array, got shape {ts.shape}")
+        _checks.save_times(ts, t0, t1, "keep= times")
+    ts_dev = jnp.asarray(ts, tdt)
+
+    solver_, controller, dt0_, max_steps_ = configure(
+        solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, True
+    )
+    if controller is None:
+        controller = dfx.PIDController(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt))
+    if schedule not in ("queue", "lockstep"):
+        raise ConfigurationError(f"schedule must be 'queue' or 'lockstep', got {schedule!r}")
+
+    # --- chunks and devices
+    mesh = mesh_of(devices)
+    n_dev = 1 if mesh is None else mesh.size
+    per_member = 8 * (2 * n * max(len(ts), 1) + max(len(ts), 1) + 4 * n + 8)
+    manifest_chunk = None
+    ckpt = Path(checkpoint) if checkpoint is not None else None
+    if ckpt is not None and (ckpt / "manifest.json").exists():
+        manifest_chunk = json.loads((ckpt / "manifest.json").read_text()).get("chunk_size")
+    if chunk_size is None:
+        chunk_size = manifest_chunk or int(min(8192, max(64, (64 << 20) // per_member)))
+    chunk_size = int(min(chunk_size, n_members))
+    chunk_size = -(-chunk_size // n_dev) * n_dev  # a whole number of members per device
+    # about eight members per lane: enough to refill lanes, few enough to keep the tail short
+    lanes = int(n_lanes) if n_lanes is not None else max(1, min(1024, chunk_size // n_dev // 8))
+    config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_)
+    setup = Setup(config, reduce, lanes, schedule)
+    n_chunks = -(-n_members // chunk_size)
+
+    # --- checkpoint
+    settings = dict(
+        t0=float(t0),
+        t1=float(t1),
+        ts=ts.tolist(),
+        dt0=dt0_,
+        n=n,
+        n_members=n_members,
+        keep=keep if isinstance(keep, str) else None,
+        dtype=str(dtype),
+        tau=None if tau_const is None else np.asarray(tau_const).tolist(),
+    )
+    if ckpt is not None:
+        swept = batch.params() if batch is not None else params
+        fp = fingerprint(setup, [swept, q0s, qd0s], settings)
+        ckpt.mkdir(parents=True, exist_ok=True)
+        manifest = ckpt / "manifest.json"
+        if manifest.exists():
+            old = json.loads(manifest.read_text())
+            if old.get("fingerprint") != fp or old.get("chunk_size") != chunk_size:
+                raise ConfigurationError(
+                    f"the checkpoint at {ckpt} belongs to a different sweep definition "
+                    "(model, parameters, initial states, solver settings, keep= or "
+                    "chunk_size differ); refusing to mix results. Use another checkpoint "
+                    "directory, or delete this one to start over."
+                )
+        else:
+            info = dict(
+                fingerprint=fp,
+                chunk_size=chunk_size,
+                n_members=n_members,
+                n_chunks=n_chunks,
+                version=FORMAT_VERSION,
+            )
+            atomic_write(manifest, lambda f: f.write(json.dumps(info, indent=1).encode()))
+
+    if progress is None:
+        progress = progress_default()
+    bar = progress_bar(progress)(total=n_members, unit="member", disable=not progress, desc="sweep")
+    results = []
+    try:
+        for c in range(n_chunks):
+            a, b = c * chunk_size, min((c + 1) * chunk_size, n_members)
+            path = ckpt / f"chunk_{c:06d}.npz" if ckpt is not None else None
+            if path is not None and path.exists():
+                with np.load(path, allow_pickle=False) as z:
+                    results.append({k: np.asarray(z[k]) for k in z.files})
+                bar.update(b - a)
+                continue
+            chunk = solve_chunk(
+                setup,
+                mesh,
+                system,
+                get_params(a, b),
+                q0s[a:b],
+                qd0s[a:b],
+                tau_const,
+                t0,
+                t1,
+                dt0_,
+                ts_dev,
+                chunk_size,
+                tdt,
+            )
+            if path is not None:
+                atomic_write(path, lambda f, c=chunk: np.savez(f, **c))
+            results.append(chunk)
+            bar.update(b - a)
+    finally:
+        bar.close()
+    return dataset(
+        xr,
+        results,
+        batch,
+        params if batch is None else None,
+        ts,
+        keep,
+        n,
+        n_members,
+        settings,
+        solver_,
+        rtol,
+        atol,
+        schedule,
+        n_dev,
+    )
+
+
+def _is_state(x: Any) -> bool:
+    """Whether ``x`` reads as an array of numbers (an initial state), not a parameter set."""
+    if isinstance(x, Grid | Mapping) or hasattr(x, "_fields"):
+        return False
+    try:
+        return np.asarray(x).dtype.kind in "biuf"
+    except (TypeError, ValueError):
+        return False
+
+
+def _argument_order(system, q0, qd0, params):
+    """``(system, q0, qd0, params)``, accepting the order before 0.2,
+    ``sweep(system, params, q0, qd0)``, with a ``DeprecationWarning``."""
+    if not isinstance(system, AbstractSystem):
+        raise ArgumentTypeError(
+            "sweep needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) as "
+            f"its first argument, got {type(system).__name__}: {system!r}"
+        )
+    if not _is_state(q0) and _is_state(params):
+        warnings.warn(
+            "sweep(system, params, q0, qd0) is deprecated: pass the arguments in simulate's "
+            "order, sweep(system, q0, qd0, params); the old order stops working in 0.3",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+        return system, qd0, params, q0
+    return system, q0, qd0, params

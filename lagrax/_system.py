@@ -1,0 +1,377 @@
+"""Equations of motion from energies: ``LagrangianSystem``."""
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import _derivatives as d
+from ._abstract_system import AbstractSystem
+from ._checks import finite, finite_params, is_traced, pivot_threshold
+from ._errors import MassMatrixError, NonFiniteError
+from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
+
+KineticFn = Callable[[Vector, Vector, Params], Scalar]
+PotentialFn = Callable[[Vector, Params], Scalar]
+DissipationFn = Callable[[Vector, Vector, Params], Scalar]
+ForceFn = Callable[[Scalar, Vector, Vector, Params], Vector]
+
+
+class LagrangianSystem(AbstractSystem):
+    r"""A mechanical system given by its energies; its equations of motion by autodiff.
+
+    With ``L(q, q̇) = T(q, q̇) − V(q)``, generalized input forces ``τ``, an applied
+    generalized force ``F(t, q, q̇)`` and a Rayleigh dissipation function ``D(q, q̇)``,
+    the Euler–Lagrange equations
+
+    .. math::  \frac{d}{dt}\frac{∂L}{∂q̇} − \frac{∂L}{∂q} = τ + F − \frac{∂D}{∂q̇}
+
+    expand to ``M(q) q̈ + C(q, q̇) q̇ + G(q) = τ + F − ∂D/∂q̇`` with
+
+    - ``M = ∂²T/∂q̇²`` (``mass_matrix``), symmetric positive-definite for a physical system;
+    - ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q`` (``coriolis``), one forward-over-reverse
+      product, no Jacobian formed;
+    - ``G = ∂V/∂q`` (``gravity``).
+
+    Every method is a pure function of its array arguments and works under ``jax.jit``,
+    ``jax.vmap`` (over states and over ``params``) and ``jax.grad``.
+
+    **Arguments:**
+
+    - ``kinetic``: ``T(q, qd, params) -> scalar``. For a mechanical system, a quadratic
+      form in ``qd`` whose Hessian ``M(q)`` is positive-definite.
+    - ``potential``: ``V(q, params) -> scalar`` (gravity, springs). Optional.
+    - ``dissipation``: Rayleigh ``D(q, qd, params) -> scalar``; the damping force is
+      ``−∂D/∂q̇``. Optional.
+    - ``force``: ``F(t, q, qd, params) -> (n,)`` applied generalized force (controllers,
+      prescribed torques, non-conservative loads). Optional.
+    - ``n_dof``: number of generalized coordinates, if known; inputs of another length are
+      refused with a ``ShapeError`` (without it, ``q`` of any length is passed to ``T``).
+    - ``name``: a label used in messages and plots.
+    - ``scalar_derivatives``: how :meth:`forward_dynamics` differentiates ``L``: ``True``
+      by scalar forward-over-forward directional derivatives (fastest to run for small,
+      cheap energies), ``False`` by one vmapped forward-over-reverse pass (much faster to
+      compile when ``L`` is large, e.g. spatial rigid bodies). Default ``None``: scalar for
+      ``n <= 6``.
+
+    **Example:**
+
+    ```python
+    import jax.numpy as jnp
+    import lagrax as lx
+
+    def T(q, qd, p):   # simple pendulum of mass m, length l
+        return 0.5 * p["m"] * p["l"] ** 2 * qd[0] ** 2
+
+    def V(q, p):
+        return -p["m"] * p["g"] * p["l"] * jnp.cos(q[0])
+
+    pendulum = lx.LagrangianSystem(T, V, n_dof=1)
+    params = {"m": 1.0, "l": 1.0, "g": 9.81}
+    pendulum.forward_dynamics(jnp.array([0.3]), jnp.array([0.0]), params)  # -g/l sin(0.3)
+    ```
+    """
+
+    kinetic: KineticFn
+    potential: PotentialFn | None = None
+    dissipation: DissipationFn | None = None
+    force: ForceFn | None = None
+    n_dof: int | None = eqx.field(default=None, static=True)
+    name: str = eqx.field(default="system", static=True)
+    scalar_derivatives: bool | None = eqx.field(default=None, static=True)
+
+    # ------------------------------------------------------------------ energies
+    def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``T(q, q̇)``."""
+        q, qd = self._state(q, qd)
+        return jnp.asarray(d.kinetic(self, q, qd, params))
+
+    def potential_energy(self, q: Coordinates, params: Params) -> Scalar:
+        """``V(q)`` (zero when the system has no potential)."""
+        (q,) = self._state(q)
+        return d.potential(self, q, params)
+
+    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """Total mechanical energy ``E = T + V``."""
+        q, qd = self._state(q, qd)
+        return d.kinetic(self, q, qd, params) + d.potential(self, q, params)
+
+    def lagrangian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``L = T − V``."""
+        q, qd = self._state(q, qd)
+        return d.kinetic(self, q, qd, params) - d.potential(self, q, params)
+
+    def momentum(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Generalized momenta ``p = ∂L/∂q̇`` (one reverse pass of ``T``)."""
+        q, qd = self._state(q, qd)
+        return d.grad_kinetic(self, q, qd, params)[1]
+
+    def hamiltonian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """``H = p·q̇ − L``; equals ``T + V`` when ``T`` is quadratic in ``q̇``."""
+        q, qd = self._state(q, qd)
+        p = d.grad_kinetic(self, q, qd, params)[1]
+        t = d.kinetic(self, q, qd, params)
+        return jnp.dot(p, qd) - (t - d.potential(self, q, params))
+
+    # ------------------------------------------------------------------ derivatives
+    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
+        """Mass (inertia) matrix ``M(q) = ∂²T/∂q̇²``, shape ``(n, n)``.
+
+        Formed by ``n`` JVPs of ``∂T/∂q̇`` (forward-over-reverse). For a ``T`` quadratic in
+        ``q̇`` the result does not depend on ``qd`` (default: zero velocities).
+        """
+        q, qd = self._state(q, jnp.zeros_like(jnp.asarray(q)) if qd is None else qd)
+        return d.mass_matrix(self, q, qd, params)
+
+    def coriolis(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Coriolis and centrifugal forces ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``.
+
+        One JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, 0)``; no matrix is formed.
+        """
+        q, qd = self._state(q, qd)
+        return d.coriolis(self, q, qd, params)
+
+    def coriolis_matrix(self, q: Coordinates, qd: Velocities, params: Params) -> Matrix:
+        r"""Coriolis matrix ``C(q, q̇)`` in Christoffel form.
+
+        ``C_ij = Σ_k Γ_ijk q̇_k`` with ``Γ_ijk = ½(∂M_ij/∂q_k + ∂M_ik/∂q_j − ∂M_jk/∂q_i)``,
+        computed as ``C = ½(Ṁ + A − Aᵀ)`` with ``Ṁ = (∂M/∂q)·q̇`` (one JVP of ``M``) and
+        ``A = ∂(M(q) q̇)/∂q``. With this choice ``Ṁ − 2C = Aᵀ − A`` is skew-symmetric and,
+        for ``T = ½ q̇ᵀ M(q) q̇``, ``C q̇`` equals :meth:`coriolis`.
+        """
+        q, qd = self._state(q, qd)
+
+        def m_of(a):
+            return d.mass_matrix(self, a, qd, params)
+
+        m_dot = jax.jvp(m_of, (q,), (qd,))[1]
+        a_mat = jax.jacfwd(lambda a: m_of(a) @ qd)(q)
+        return 0.5 * (m_dot + a_mat - a_mat.T)
+
+    def gravity(self, q: Coordinates, params: Params) -> Vector:
+        """Potential forces ``G(q) = ∂V/∂q`` (gravity, springs), shape ``(n,)``."""
+        (q,) = self._state(q)
+        return d.gravity(self, q, params)
+
+    def damping(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+        """Dissipative force magnitude ``∂D/∂q̇`` (the force acting is its negative)."""
+        q, qd = self._state(q, qd)
+        return d.damping(self, q, qd, params)
+
+    # ------------------------------------------------------------------ dynamics
+    def accelerations(self, t, q, qd, params, tau):
+        """Forward dynamics of checked 1-D arrays without raising: ``q̈``, NaN where ``M``
+        is not positive-definite (what the solvers integrate)."""
+        return d.accelerations(self, self.scalar_derivatives, t, q, qd, params, tau)
+
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Accelerations ``q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)``.
+
+        For ``n <= 6`` (or as ``scalar_derivatives`` says), ``M`` and
+        ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` come from scalar forward-over-forward directional
+        derivatives of ``L`` (straight-line code that XLA fuses into one kernel); above, from
+        one vmapped forward-over-reverse pass. The
+        solve is a Cholesky factorization (unrolled for ``n <= 8``), never an inverse.
+
+        **Raises:** ``ShapeError`` for mismatched shapes; ``NonFiniteError`` for NaN/inf
+        inputs; ``MassMatrixError`` when ``M(q)`` is singular or not positive-definite.
+        Under ``jit`` the last two are raised at run time by ``equinox.error_if``.
+        """
+        q, qd, tau = self._state(q, qd, tau=tau)
+        if not is_traced(q, qd, tau, params, t):
+            # eager: precise messages with the offending values
+            finite(q, "q")
+            finite(qd, "qd")
+            if tau is not None:
+                finite(tau, "tau")
+            qdd = self.accelerations(t, q, qd, params, tau)
+            if not bool(jnp.all(jnp.isfinite(qdd))):
+                self.check_state(q, qd, params)  # raises if M(q) or the energies are bad
+                applied = d.applied(self, t, q, qd, params, tau)
+                raise NonFiniteError(
+                    f"forward_dynamics of {self.name} is not finite at q={np.asarray(q)}, "
+                    f"qd={np.asarray(qd)} although the mass matrix and energies are: the "
+                    f"applied force tau + force - dD/dqd = {np.asarray(applied)}; check the "
+                    "force, dissipation and tau, and the derivatives of T and V there"
+                )
+            return qdd
+        # traced: one check on the output (NaN inputs and a non-PD mass matrix both make
+        # it non-finite); checking the output keeps XLA from splitting the fused kernel.
+        qdd = self.accelerations(t, q, qd, params, tau)
+        return eqx.error_if(
+            qdd,
+            ~jnp.all(jnp.isfinite(qdd)),
+            f"forward_dynamics of {self.name} produced non-finite accelerations: q, qd, "
+            "tau or params contain NaN/inf, or the mass matrix M(q) = d2T/dqd2 is "
+            "singular or not positive-definite at this state (check that T is quadratic "
+            "in qd with positive masses and inertias, or change coordinates if q is a "
+            "singular configuration). Outside jit the message names which.",
+        )
+
+    def _mass_message(self, q, params_eigs) -> str:
+        return (
+            f"mass matrix M(q) = d2T/dqd2 of {self.name} is singular or not "
+            f"positive-definite at q={np.asarray(q)}"
+            + (f" (eigenvalues {params_eigs})" if params_eigs is not None else "")
+            + ": check that T is quadratic in qd with positive masses and inertias, or "
+            "change coordinates if q is a singular configuration of them"
+        )
+
+    def inverse_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        qdd: Velocities,
+        params: Params,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Input forces ``τ = M q̈ + C q̇ + G + ∂D/∂q̇ − F`` that produce ``q̈``.
+
+        Computed without forming ``M``: one JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, q̈)``
+        gives ``d/dt ∂T/∂q̇ = M q̈ + (∂²T/∂q̇∂q) q̇``. ``F`` is the system's own applied
+        force, so ``τ`` is what must be added to it.
+        """
+        q, qd, qdd = self._state(q, qd, qdd=qdd)
+        (t_q, _), (_, dp) = jax.jvp(
+            lambda a, b: d.grad_kinetic(self, a, b, params), (q, qd), (qd, qdd)
+        )
+        applied = d.applied(self, t, q, qd, params, None)
+        return dp - t_q + d.gravity(self, q, params) - applied
+
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params) -> None:
+        """Validate a state eagerly (outside ``jit``) with the values in the messages.
+
+        Checks shapes, finiteness of ``q``, ``q̇``, ``params`` and the energies, that every
+        parameter the energies read is present, and that ``M(q)`` is symmetric
+        positive-definite (reporting its eigenvalues if not).
+
+        **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``,
+        ``MassMatrixError``.
+        """
+        q, qd = self._state(q, qd)
+        finite(q, "q")
+        finite(qd, "qd")
+        finite_params(params)
+        e, mass = _energy_and_mass(self, q, qd, params)  # one compiled call
+        if not bool(jnp.isfinite(e)):
+            raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
+        mass = np.asarray(mass)
+        if not np.all(np.isfinite(mass)):
+            raise MassMatrixError(f"mass matrix is not finite at q={np.asarray(q)}: {mass}")
+        asym = np.max(np.abs(mass - mass.T))
+        if asym > 1e3 * np.finfo(mass.dtype).eps * max(np.max(np.abs(mass)), 1e-300):
+            raise MassMatrixError(f"mass matrix is not symmetric at q={np.asarray(q)}")
+        eigs = np.linalg.eigvalsh(mass)
+        if not eigs[0] > pivot_threshold(mass.dtype) * max(np.max(np.abs(eigs)), 0.0):
+            raise MassMatrixError(self._mass_message(q, eigs))
+
+    # ------------------------------------------------------------------ linearization
+    def linearize(
+        self,
+        q_eq: Coordinates,
+        qd_eq: Velocities,
+        params: Params,
+        tau_eq: Velocities | None = None,
+        *,
+        t: Time = 0.0,
+    ) -> tuple[jax.Array, jax.Array]:
+        r"""Continuous-time linearization ``δẋ = A δx + B δτ`` of the state equations.
+
+        With the state ``x = (q, q̇)`` (shape ``2n``), the equations of motion as a first-order
+        system are ``ẋ = f(x, τ) = (q̇, q̈(q, q̇, τ))`` with
+        ``q̈ = M(q)⁻¹ (τ + F − C(q, q̇) q̇ − G(q) − ∂D/∂q̇)`` (:meth:`forward_dynamics`).
+        About ``(x_eq, τ_eq)``:
+
+        .. math::
+
+            A = \frac{∂f}{∂x} = \begin{pmatrix} 0 & I \\ ∂q̈/∂q & ∂q̈/∂q̇ \end{pmatrix},
+            \qquad
+            B = \frac{∂f}{∂τ} = \begin{pmatrix} 0 \\ M(q_{eq})^{-1} \end{pmatrix}.
+
+        At an equilibrium (``q̇_eq = 0`` and ``q̈(q_eq, 0, τ_eq) = 0``, e.g. ``τ_eq =
+        G(q_eq)`` to hold a pose against gravity) the derivative of ``M⁻¹`` multiplies a
+        zero force and ``C q̇`` is quadratic in ``q̇``, so both drop out:
+        ``∂q̈/∂q = M⁻¹ (∂F/∂q − ∂²V/∂q²)`` (the stiffness) and
+        ``∂q̈/∂q̇ = M⁻¹ (∂F/∂q̇ − ∂²D/∂q̇²)`` (the damping). Away from an equilibrium the same
+        call gives the Jacobian of the vector field along a trajectory; no check is made
+        that ``x_eq`` is an equilibrium (compare ``forward_dynamics(q_eq, qd_eq, params,
+        tau_eq)`` with zero).
+
+        Both Jacobians come from one ``jax.jacfwd`` of the forward dynamics with respect to
+        ``(x, τ)``: ``3n`` forward-mode tangents, the right choice at the sizes of
+        mechanisms (a few to a few dozen coordinates), where forward mode costs a small
+        multiple of one evaluation per tangent and needs no stored intermediate values.
+
+        Works under ``jax.jit``, ``jax.vmap`` and ``jax.grad`` (e.g. to differentiate an
+        LQR design with respect to ``params``).
+
+        **Arguments:**
+
+        - ``q_eq``, ``qd_eq``: the state to linearize about, shape ``(n,)`` each.
+        - ``params``: the parameters (any pytree).
+        - ``tau_eq``: the input there, shape ``(n,)`` (default zero).
+        - ``t``: the time, for a system with a time-dependent ``force`` (default 0).
+
+        **Returns:** ``(A, B)`` with ``A`` of shape ``(2n, 2n)`` and ``B`` of shape
+        ``(2n, n)``, both in the state ordering ``x = (q_1…q_n, q̇_1…q̇_n)``.
+
+        **Raises:** ``ShapeError`` for mismatched shapes; ``NonFiniteError`` for NaN/inf
+        inputs or Jacobians; ``MassMatrixError`` when ``M(q_eq)`` is not positive-definite
+        (eagerly; under ``jit`` a non-finite result fails through ``equinox.error_if``).
+
+        **Example:**
+
+        ```python
+        system, params = lagrax.models.planar_2r()
+        q_up = jnp.array([jnp.pi / 2, 0.0])              # both links straight up
+        A, B = system.linearize(q_up, jnp.zeros(2), params)
+        jnp.linalg.eigvals(A)                              # a positive real pair: unstable
+        ```
+        """
+        q, qd = self._state(q_eq, qd_eq)
+        if tau_eq is None:
+            tau = jnp.zeros_like(q)
+        else:
+            (tau,) = self._state(q, tau=tau_eq)[1:]
+        dtype = jnp.result_type(q, qd, tau)
+        q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
+        n = q.shape[0]
+        eager = not is_traced(q, qd, tau, params, t)
+        if eager:
+            finite(q, "q_eq")
+            finite(qd, "qd_eq")
+            finite(tau, "tau_eq")
+            self.check_state(q, qd, params)  # shapes, parameters, M positive-definite
+
+        def field(x, u):
+            return jnp.concatenate([x[n:], self.accelerations(t, x[:n], x[n:], params, u)])
+
+        a_mat, b_mat = jax.jacfwd(field, argnums=(0, 1))(jnp.concatenate([q, qd]), tau)
+        if eager:
+            finite(a_mat, "the linearization A")
+            finite(b_mat, "the linearization B")
+            return a_mat, b_mat
+        ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
+        a_mat = eqx.error_if(
+            a_mat,
+            ~ok,
+            f"linearize of {self.name} produced non-finite Jacobians: the state, tau_eq or "
+            "params contain NaN/inf, or M(q_eq) is singular. Outside jit the message names "
+            "which.",
+        )
+        return a_mat, b_mat
+
+
+@eqx.filter_jit
+def _energy_and_mass(system: LagrangianSystem, q, qd, params):
+    """``(T + V, M)`` at one state: one compiled call for ``check_state``."""
+    return system.energy(q, qd, params), system.mass_matrix(q, params, qd)
