@@ -261,7 +261,11 @@ class LagrangianSystem(AbstractSystem):
         finite(q, "q")
         finite(qd, "qd")
         finite_params(params)
-        e, mass = _energy_and_mass(self, q, qd, params)  # one compiled call
+        # one compiled call; Python floats as arrays, so a new value does not recompile
+        as_arrays = jax.tree_util.tree_map(
+            lambda x: np.asarray(x) if isinstance(x, float) else x, params
+        )
+        e, mass = _energy_and_mass(self, q, qd, as_arrays)
         if not bool(jnp.isfinite(e)):
             raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
         mass = np.asarray(mass)
