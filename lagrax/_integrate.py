@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 import numpy as np
 
-from ._results import RESULTS
+from ._results import RESULTS, code_of
 
 DEFAULT_DT0 = 0.01
 
@@ -99,10 +99,10 @@ def step(term, solver, controller, t, tnext, y, args, sstate, cstate, t1):
 
 def _known_success(result) -> bool:
     """Whether ``result`` is the constant ``RESULTS.successful`` (known at trace time)."""
-    value = result._value
+    value = code_of(result)
     if isinstance(value, jax.core.Tracer):
         return False
-    return bool(np.all(np.asarray(value) == np.asarray(RESULTS.successful._value)))
+    return bool(np.all(np.asarray(value) == np.asarray(code_of(RESULTS.successful))))
 
 
 def _promote(result):

@@ -246,6 +246,7 @@ def spatial_twin(n, planar_p):
     return chain, p
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n", (2, 7))
 def test_planar_bodies_equal_spatial_bodies(n):
     """'No more than the scene needs': the planar arm from planar bodies, from spatial

@@ -42,6 +42,7 @@ def problem():
     return trajectory, residuals, fit
 
 
+@pytest.mark.slow
 def test_noise_free_recovers_parameters(problem):
     trajectory, _, fit = problem
     value, steps = fit(trajectory(TRUE))

@@ -19,6 +19,7 @@ def test_there_are_notebooks():
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # jupyter_client / zmq internals
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_executes(path, monkeypatch):
     nbformat = pytest.importorskip("nbformat")

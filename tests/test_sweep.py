@@ -292,6 +292,7 @@ CHECKPOINTED = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
     system, params = arm
     batch = lx.grid(params, m2=np.linspace(0.5, 2, 6), l1=np.linspace(0.5, 1.5, 4))
@@ -337,6 +338,7 @@ def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
         lx.sweep(system, [0.3, 0.8], [0.0, 0.0], other, checkpoint=ckpt, **kw)
 
 
+@pytest.mark.slow
 def test_multihost_example_matches_single_process(arm, tmp_path):
     """examples/multihost_sweep.py with two CPU processes == one process."""
     import socket
