@@ -183,6 +183,4 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
             f_applied = applied(e, t, q, qd, params, tau)
             rhs = [r + f_applied[i] for i, r in enumerate(rhs)]
         return solve_spd_unrolled(rows, rhs)
-    t_q, _, mass, dp_q = mass_columns(e, q, qd, params, extra_q_tangent=qd)
-    rhs = t_q - dp_q - gravity(e, q, params)
-    return cholesky_solve(mass, rhs + applied(e, t, q, qd, params, tau))
+    return cholesky_solve(*mass_and_force(e, scalar, t, q, qd, params, tau))

@@ -13,8 +13,10 @@ one ``diffeqsolve`` would take. The loops are ``equinox.internal.while_loop`` wi
 works through them with recursive checkpointing, and the saved outputs are written in
 place (``buffers``).
 
-``step`` is shared with the sweep's lane queue (``_lanes.run_lanes``), which runs it
-under ``vmap``.
+The engine is ``StepState`` with ``init_state`` / ``advance`` (one attempted step, its
+counts and result) and ``interpolate`` / ``save_due`` (dense saving). ``integrate`` is the
+single-trajectory scheduler over it; the sweep's lane queue (``_lanes.run_lanes``) is the
+other, running ``advance`` under ``vmap``.
 """
 
 from typing import Any

@@ -12,7 +12,7 @@ compiled ``lax.while_loop``. Lanes sit idle only at the end of the queue, and wh
 waiting for a batch of refills (refilling costs about one step, so it is done when a
 sixteenth of the lanes are free).
 
-The stepping is diffrax's own, through ``_integrate.step`` (shared with ``simulate``'s
+The stepping is diffrax's own, through ``_integrate.advance`` (shared with ``simulate``'s
 single-trajectory loop): ``solver.step``, ``stepsize_controller.adapt_step_size``, the
 same clipping to ``t1`` and the same dense output at the save times, so each member takes
 the steps ``diffeqsolve`` would take for it (up to round-off in the controller).
