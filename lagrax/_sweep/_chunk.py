@@ -12,7 +12,7 @@ import numpy as np
 from .._checks import pivot_threshold
 from .._lanes import LaneOutput, run_lanes
 from .._results import RESULTS, code_of, from_code
-from .._simulate import SolveConfig, SolveInputs, observables, solve
+from .._simulate import SolveConfig, SolveInputs, observables, solve_from
 from .._solution import Solution
 from .._vector_field import LagrangianVectorField
 from ._devices import to_device, to_host
@@ -38,7 +38,10 @@ def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOut
     save_ts = ts if ts.shape[0] else t1[None]
 
     def one(p, y0):
-        return solve(setup.config, SolveInputs(y0, p, tau_const, t0, t1, save_ts, rtol, atol, dt0))
+        # y0 is already the system's initial state (solve_chunk formed it and flags the
+        # members where it could not be): integrate from it, as the lane queue does
+        inputs = SolveInputs(y0, p, tau_const, t0, t1, save_ts, rtol, atol, dt0)
+        return solve_from(setup.config, inputs, y0, jnp.asarray(True))
 
     sol = jax.vmap(one)(members, y0s)
     steps = sol.stats["num_steps"]
