@@ -5,6 +5,8 @@ traced inputs by ``equinox.error_if``, which survives ``jit``, ``vmap`` and ``sc
 costs nothing when its output is unused. Every error raised here is a ``LagraxError``.
 """
 
+import math
+import numbers
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -13,7 +15,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._errors import ConfigurationError, NonFiniteError, ParameterError, ShapeError
+from ._errors import (
+    ArgumentTypeError,
+    ConfigurationError,
+    NonFiniteError,
+    ParameterError,
+    ShapeError,
+)
 from ._linalg import PIVOT_RTOL
 from ._typing import Params
 
@@ -113,17 +121,189 @@ def finite_params(params: Params) -> None:
 
 
 # --------------------------------------------------------------------------- options
+#
+# Small validators for the options of every entry point (simulate, sweep, the system's
+# methods). A concrete value (a Python number, a NumPy or concrete JAX scalar) is checked
+# in Python and refused with a ``ConfigurationError`` that names the option, the value and
+# the fix; a wrong kind of object (a string, a list, a complex number) is an
+# ``ArgumentTypeError``. A traced value (inside ``jit``/``vmap``) comes back wrapped in
+# ``equinox.error_if``, so the check runs once where the option enters the program, never
+# per step. Each returns the value to use in place of its argument.
+
+
+def _real_scalar(name: str, value: Any, fix: str) -> Any:
+    """``value`` as a Python float when concrete, else the tracer; refuses other kinds."""
+    if isinstance(value, jax.core.Tracer):
+        if jnp.ndim(value) != 0:
+            raise ConfigurationError(
+                f"{name} must be a scalar, got an array of shape {jnp.shape(value)}; {fix}"
+            )
+        if not jnp.issubdtype(value.dtype, jnp.floating) and not jnp.issubdtype(
+            value.dtype, jnp.integer
+        ):
+            raise ArgumentTypeError(f"{name} must be a real number, got dtype {value.dtype}")
+        return value
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (numbers.Real, np.ndarray, np.generic, jax.Array)
+    ):
+        raise ArgumentTypeError(
+            f"{name} must be a real number, got {value!r} ({type(value).__name__}); {fix}"
+        )
+    arr = np.asarray(value)
+    if arr.ndim != 0:
+        raise ConfigurationError(f"{name} must be a scalar, got an array of shape {arr.shape}")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ArgumentTypeError(f"{name} must be a real number, got {value!r} ({arr.dtype})")
+    return float(arr)
+
+
+def finite_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar option (e.g. ``t0``)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not math.isfinite(x):
+            raise ConfigurationError(f"{name} must be finite, got {name}={value!r}. {fix}")
+        return value
+    return eqx.error_if(x, ~jnp.isfinite(x), f"{name} must be finite (got NaN or inf). {fix}")
+
+
+def positive_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar ``> 0`` (a step, a time span)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not (math.isfinite(x) and x > 0):
+            raise ConfigurationError(
+                f"{name} must be a positive finite number, got {name}={value!r}. {fix}"
+            )
+        return value
+    return eqx.error_if(
+        x, ~(jnp.isfinite(x) & (x > 0)), f"{name} must be a positive finite number. {fix}"
+    )
+
+
+def non_negative_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar ``>= 0`` (a tolerance, a gain)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not (math.isfinite(x) and x >= 0):
+            raise ConfigurationError(
+                f"{name} must be a non-negative finite number, got {name}={value!r}. {fix}"
+            )
+        return value
+    return eqx.error_if(
+        x, ~(jnp.isfinite(x) & (x >= 0)), f"{name} must be a non-negative finite number. {fix}"
+    )
+
+
+def positive_int(name: str, value: Any, fix: str = "") -> int:
+    """A positive whole number (a count: ``max_steps``, ``n_save``, a chunk size).
+
+    Whole-valued floats (``1e5``) are accepted; counts fix the shape of the compiled
+    program, so a traced value is refused with an ``ArgumentTypeError``.
+    """
+    if isinstance(value, jax.core.Tracer):
+        raise ArgumentTypeError(
+            f"{name} must be a Python int (it fixes the size of the compiled program), "
+            f"got a traced value; pass it as a static argument. {fix}"
+        )
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (numbers.Real, np.integer, np.floating)
+    ):
+        raise ArgumentTypeError(
+            f"{name} must be a positive integer, got {value!r} ({type(value).__name__}). {fix}"
+        )
+    x = float(value)
+    if not (math.isfinite(x) and x == math.floor(x) and x >= 1):
+        raise ConfigurationError(f"{name} must be a positive integer, got {name}={value!r}. {fix}")
+    return int(x)
+
+
+def time_interval(t0: Any, t1: Any) -> tuple[Any, Any]:
+    """``(t0, t1)``: finite, with ``t1 > t0`` (eagerly, or by ``error_if`` on ``t1``)."""
+    fix = "Integrate over a finite interval t0 < t1, e.g. t0=0.0, t1=10.0"
+    t0 = finite_real("t0", t0, fix)
+    t1 = finite_real("t1", t1, fix)
+    if not is_traced(t0, t1):
+        if not float(t1) > float(t0):
+            raise ConfigurationError(
+                f"t1 must be greater than t0, got t0={t0}, t1={t1} (lagrax integrates "
+                "forward in time; to go backwards, negate the velocities)"
+            )
+        return t0, t1
+    t1 = eqx.error_if(jnp.asarray(t1), ~(jnp.asarray(t1) > t0), "t1 must be greater than t0")
+    return t0, t1
+
+
+def tolerances(rtol: Any, atol: Any) -> tuple[Any, Any]:
+    """``(rtol, atol)``: finite, ``>= 0`` and not both zero."""
+    fix = "Use e.g. rtol=1e-8, atol=1e-8"
+    rtol = non_negative_real("rtol", rtol, fix)
+    atol = non_negative_real("atol", atol, fix)
+    if not is_traced(rtol, atol):
+        if float(rtol) == 0.0 and float(atol) == 0.0:
+            raise ConfigurationError(
+                f"rtol and atol are both 0 (rtol={rtol}, atol={atol}): no step can meet a "
+                f"zero error tolerance. Give at least one a positive value. {fix}"
+            )
+        return rtol, atol
+    atol = eqx.error_if(
+        jnp.asarray(atol),
+        (jnp.asarray(rtol) == 0) & (jnp.asarray(atol) == 0),
+        f"rtol and atol are both 0: no step can meet a zero error tolerance. {fix}",
+    )
+    return rtol, atol
+
+
+def fixed_step(dt: Any, t0: Any, t1: Any) -> Any:
+    """A fixed step ``0 < dt <= t1 - t0``.
+
+    A step longer than the interval would silently be cut to ``t1 - t0`` (one step of
+    another size than asked for), which is nearly always a slip (``dt`` and ``t1``
+    swapped, or wrong units), so it is refused.
+    """
+    fix = "Pass the step of a fixed-step solve as dt > 0, e.g. dt=0.01"
+    dt = positive_real("dt", dt, fix)
+    if not is_traced(dt, t0, t1):
+        span = float(t1) - float(t0)
+        if float(dt) > span * (1 + 1e-9):
+            raise ConfigurationError(
+                f"the fixed step dt={dt} is longer than the whole interval t1 - t0 = "
+                f"{span:.6g}: the solve would take one step of {span:.6g}, not of dt. Pass "
+                "dt <= t1 - t0 (or t1 = t0 + dt for a single step)"
+            )
+        return dt
+    span = jnp.asarray(t1) - jnp.asarray(t0)
+    return eqx.error_if(
+        jnp.asarray(dt),
+        jnp.asarray(dt) > span * (1 + 1e-9),
+        "the fixed step dt is longer than the whole interval t1 - t0",
+    )
+
+
+def first_step(dt0: Any) -> Any:
+    """The first step ``dt0`` of an adaptive solve: ``None`` (automatic) or ``> 0``."""
+    if dt0 is None:
+        return None
+    return positive_real(
+        "dt0",
+        dt0,
+        "dt0 is the first step of an adaptive solve (forward in time); leave it None to "
+        "let the controller choose it",
+    )
 
 
 def interval(t0: Any, t1: Any) -> None:
-    """Eagerly require ``t0 < t1``."""
-    if not float(t1) > float(t0):
-        raise ConfigurationError(f"t1 must be greater than t0, got t0={t0}, t1={t1}")
+    """Eagerly require finite ``t0 < t1`` (see :func:`time_interval`)."""
+    time_interval(t0, t1)
 
 
 def save_times(ts: Any, t0: Any, t1: Any, name: str = "ts") -> None:
-    """Eagerly require sorted save times inside ``[t0, t1]``."""
+    """Eagerly require finite, sorted save times inside ``[t0, t1]``."""
     ts = np.asarray(ts)
+    if not np.issubdtype(ts.dtype, np.number) or np.iscomplexobj(ts):
+        raise ArgumentTypeError(f"{name} must be an array of real times, got {ts!r}")
+    if not np.all(np.isfinite(ts)):
+        raise ConfigurationError(f"{name} must be finite times, got {ts}")
     if ts.size and (np.any(np.diff(ts) < 0) or ts[0] < float(t0) or ts[-1] > float(t1)):
         raise ConfigurationError(
             f"{name} must be non-decreasing and inside [t0, t1] = [{t0}, {t1}]; got {ts}"
@@ -136,6 +316,6 @@ def traced_save_times(ts: jax.Array, t0: jax.Array, t1: jax.Array) -> jax.Array:
         return ts
     return eqx.error_if(
         ts,
-        jnp.any(ts[1:] < ts[:-1]) | (ts[0] < t0) | (ts[-1] > t1),
-        "ts must be non-decreasing and inside [t0, t1]",
+        jnp.any(ts[1:] < ts[:-1]) | (ts[0] < t0) | (ts[-1] > t1) | ~jnp.all(jnp.isfinite(ts)),
+        "ts must be finite, non-decreasing and inside [t0, t1]",
     )

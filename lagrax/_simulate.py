@@ -366,8 +366,11 @@ def simulate(
     if tau is not None and not callable(tau):
         (tau_const,) = system._state(q0, tau=tau)[1:]
         tau_const = _checks.finite(tau_const.astype(dtype), "tau")
-    if eager:
-        _checks.interval(t0, t1)
+    t0, t1 = _checks.time_interval(t0, t1)
+    rtol, atol = _checks.tolerances(rtol, atol)
+    n_save = _checks.positive_int(
+        "n_save", n_save, "It is the number of evenly spaced save times (or pass ts=)"
+    )
     if saveat is None and ts is not None:
         ts = (np.asarray if eager else jnp.asarray)(ts, dtype)
         if ts.ndim != 1:
@@ -379,7 +382,7 @@ def simulate(
     )
     asarray = np.asarray if eager else jnp.asarray
     config = SolveConfig(
-        system, solver, tau_fn, stepsize_controller, saveat, adjoint, int(n_save), int(max_steps)
+        system, solver, tau_fn, stepsize_controller, saveat, adjoint, n_save, int(max_steps)
     )
     inputs = SolveInputs(
         y0=(q0, qd0),
