@@ -16,8 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import call_user
-from ._errors import ShapeError
+from ._checks import call_user, clamped_reads, energy_value, force_value
 from ._linalg import cholesky_solve, solve_spd_unrolled
 
 # Up to this many coordinates, the equations use scalar forward-over-forward derivatives.
@@ -38,16 +37,26 @@ def use_scalar(n: int, scalar_derivatives: bool | None) -> bool:
     return n <= FOF_MAX if scalar_derivatives is None else scalar_derivatives
 
 
+# What the messages call each user function.
+KINETIC = "kinetic energy function T(q, qd, params)"
+POTENTIAL = "potential energy function V(q, params)"
+DISSIPATION = "dissipation function D(q, qd, params)"
+FORCE = "force function F(t, q, qd, params)"
+
+
 def kinetic(e: Energies, q, qd, params):
-    """``T(q, q̇)``."""
-    return call_user(e.kinetic, "kinetic energy", params, q, qd)
+    """``T(q, q̇)``, checked (at trace time) to be a real scalar reading ``q``, ``q̇`` in
+    range."""
+    clamped_reads(e.kinetic, KINETIC, params, q, qd)
+    return energy_value(call_user(e.kinetic, "kinetic energy", params, q, qd), KINETIC, q)
 
 
 def potential(e: Energies, q, params):
     """``V(q)`` (zero when the system has no potential)."""
     if e.potential is None:
         return jnp.zeros((), q.dtype)
-    return jnp.asarray(call_user(e.potential, "potential energy", params, q))
+    clamped_reads(e.potential, POTENTIAL, params, q)
+    return energy_value(call_user(e.potential, "potential energy", params, q), POTENTIAL, q)
 
 
 def lagrangian(e: Energies, q, qd, params):
@@ -105,7 +114,12 @@ def damping(e: Energies, q, qd, params):
     """``∂D/∂q̇`` (the force acting is its negative)."""
     if e.dissipation is None:
         return jnp.zeros_like(q)
-    return jax.grad(lambda b: call_user(e.dissipation, "dissipation", params, q, b))(qd)
+    clamped_reads(e.dissipation, DISSIPATION, params, q, qd)
+
+    def dissipation(b):
+        return energy_value(call_user(e.dissipation, "dissipation", params, q, b), DISSIPATION, q)
+
+    return jax.grad(dissipation)(qd)
 
 
 def applied(e: Energies, t, q, qd, params, tau):
@@ -114,10 +128,9 @@ def applied(e: Energies, t, q, qd, params, tau):
     if tau is not None:
         f = f + tau
     if e.force is not None:
-        out = jnp.asarray(call_user(e.force, "force", params, t, q, qd))
-        if out.shape != q.shape:
-            raise ShapeError(f"the force function returned shape {out.shape}, expected {q.shape}")
-        f = f + out
+        clamped_reads(e.force, FORCE, params, t, q, qd)
+        out = call_user(e.force, "force", params, t, q, qd)
+        f = f + force_value(out, f"the {FORCE}", q)
     return f
 
 

@@ -9,8 +9,8 @@ import numpy as np
 
 from . import _derivatives as d
 from ._abstract_system import AbstractSystem
-from ._checks import finite, finite_params, is_traced, pivot_threshold
-from ._errors import MassMatrixError, NonFiniteError
+from ._checks import finite, finite_params, is_traced, pivot_threshold, positive_int
+from ._errors import ArgumentTypeError, MassMatrixError, NonFiniteError
 from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
 KineticFn = Callable[[Vector, Vector, Params], Scalar]
@@ -81,6 +81,26 @@ class LagrangianSystem(AbstractSystem):
     n_dof: int | None = eqx.field(default=None, static=True)
     name: str = eqx.field(default="system", static=True)
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
+
+    def __check_init__(self):
+        if isinstance(self.kinetic, AbstractSystem):
+            raise ArgumentTypeError(
+                f"LagrangianSystem got a system ({self.kinetic.name!r}) where its kinetic "
+                "energy function goes; pass the system itself where a system is expected"
+            )
+        for role, fn, signature in (
+            ("kinetic", self.kinetic, "T(q, qd, params) -> scalar"),
+            ("potential", self.potential, "V(q, params) -> scalar"),
+            ("dissipation", self.dissipation, "D(q, qd, params) -> scalar"),
+            ("force", self.force, "F(t, q, qd, params) -> (n,)"),
+        ):
+            if not (fn is None and role != "kinetic") and not callable(fn):
+                raise ArgumentTypeError(
+                    f"LagrangianSystem's {role} must be a function {signature}, got "
+                    f"{fn!r} ({type(fn).__name__})"
+                )
+        if self.n_dof is not None:
+            positive_int("n_dof", self.n_dof, "It is the number of generalized coordinates.")
 
     # ------------------------------------------------------------------ energies
     def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:

@@ -8,11 +8,11 @@ from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
-import jax.numpy as jnp
 from jaxtyping import Array
 
 from ._abstract_system import AbstractSystem
-from ._errors import ArgumentTypeError, ShapeError
+from ._checks import force_value
+from ._errors import ArgumentTypeError
 
 TauFn = Callable[[Any, Array, Array], Array]
 
@@ -27,9 +27,7 @@ class LagrangianVectorField(eqx.Module):
         """The input generalized force at ``(t, q, q̇)`` (``None`` when there is none)."""
         tau = tau_const
         if self.tau_fn is not None:
-            tau = jnp.asarray(self.tau_fn(t, q, qd), q.dtype)
-            if tau.shape != q.shape:
-                raise ShapeError(f"tau(t, q, qd) returned shape {tau.shape}; expected {q.shape}")
+            tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", q).astype(q.dtype)
             if tau_const is not None:
                 tau = tau + tau_const
         return tau
