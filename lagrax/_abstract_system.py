@@ -35,7 +35,7 @@ class AbstractSystem(eqx.Module):
     inside a solver loop), :meth:`check_state`.
 
     **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
-    :meth:`failure_hint` (none).
+    :meth:`components` (none), :meth:`failure_hint` (none).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -87,6 +87,13 @@ class AbstractSystem(eqx.Module):
     ) -> dict[str, Any]:
         """Extra quantities this kind reports at one state of a solution, by
         :class:`lagrax.Solution` field name (default none). Never raises."""
+        return {}
+
+    def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
+        """The pieces the accelerations are made of at one state, by a readable name
+        (applied forces first, then the energies' derivatives, the mass matrix, …), for
+        a failure diagnosis to say which one is non-finite. Default: none. Never raises
+        on non-finite values."""
         return {}
 
     def failure_hint(self, q: Any, params: Params) -> str | None:

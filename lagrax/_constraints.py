@@ -250,6 +250,13 @@ class ConstrainedSystem(AbstractSystem):
             multipliers=self._kkt(t, q, qd, params, tau)[1],
         )
 
+    def components(self, t, q, qd, params):
+        """The system's components plus ``φ(q)`` and ``J(q)``."""
+        out = self.system.components(t, q, qd, params)
+        out["the constraint values phi(q)"] = self._phi(q, params)
+        out["the constraint Jacobian J = dphi/dq"] = self._jacobian(q, params)
+        return out
+
     def failure_hint(self, q, params):
         """The rank deficiency of ``J(q)``, if any (see :meth:`check_state`)."""
         return self._rank_message(q, params)

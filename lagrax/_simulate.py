@@ -407,7 +407,19 @@ def simulate(
         system.check_state(q0, qd0, params)  # raises with the values in the message
     if not throw or solved_ok:
         return sol
-    raise SimulationError(diagnose(system, sol, params, max_steps, rtol, atol))
+    why = diagnose(
+        system,
+        sol,
+        params,
+        max_steps,
+        rtol,
+        atol,
+        tau_fn=tau_fn,
+        tau_const=tau_const,
+        y0=(q0, qd0),
+        t1=t1,
+    )
+    raise SimulationError(why)
 
 
 _JIT_MESSAGES = [

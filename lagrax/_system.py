@@ -9,7 +9,7 @@ import numpy as np
 
 from . import _derivatives as d
 from ._abstract_system import AbstractSystem
-from ._checks import finite, finite_params, is_traced, pivot_threshold, positive_int
+from ._checks import call_user, finite, finite_params, is_traced, pivot_threshold, positive_int
 from ._errors import ArgumentTypeError, MassMatrixError, NonFiniteError
 from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
@@ -236,6 +236,26 @@ class LagrangianSystem(AbstractSystem):
             "in qd with positive masses and inertias, or change coordinates if q is a "
             "singular configuration). Outside jit the message names which.",
         )
+
+    def components(self, t, q, qd, params):
+        """``F(t, q, q̇)``, ``T``, ``∂T/∂q``, ``∂T/∂q̇``, ``M``, ``V``, ``∂V/∂q``, ``∂D/∂q̇``
+        at one state (see :meth:`AbstractSystem.components`)."""
+        out = {}
+        if self.force is not None:
+            out["the force function F(t, q, qd, params)"] = call_user(
+                self.force, "force", params, t, q, qd
+            )
+        out["the kinetic energy T"] = d.kinetic(self, q, qd, params)
+        t_q, t_qd = d.grad_kinetic(self, q, qd, params)
+        out["dT/dq (the derivative of T)"] = t_q
+        out["dT/dqd (the momenta)"] = t_qd
+        out["the mass matrix M = d2T/dqd2"] = d.mass_matrix(self, q, qd, params)
+        if self.potential is not None:
+            out["the potential energy V"] = d.potential(self, q, params)
+            out["dV/dq (gravity and springs)"] = d.gravity(self, q, params)
+        if self.dissipation is not None:
+            out["dD/dqd (the damping force)"] = d.damping(self, q, qd, params)
+        return out
 
     def _mass_message(self, q, params_eigs) -> str:
         return (
