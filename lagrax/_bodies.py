@@ -14,7 +14,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._checks import is_traced, physical
 from ._errors import ShapeError
+from ._inertia import check_inertia
 from ._system import DissipationFn, ForceFn, KineticFn, LagrangianSystem, PotentialFn
 from ._typing import Params, Point, Rotation, Scalar, Vector
 
@@ -162,6 +164,21 @@ def _gravity_energy(mass, x, gravity, who: str) -> Scalar:
 
 
 # ---------------------------------------------------------------------------------- bodies
+def _check_body(body: Any, kind: str) -> None:
+    """Constant masses and inertias of a body, checked when it is built: masses ``> 0``,
+    inertias physical (:func:`lagrax.bodies.check_inertia`; semidefinite, so slender rods
+    and point-like bodies pass). Parameter-valued ones (callables such as :class:`Param`)
+    are read from ``params`` later and are not checked here."""
+    if not callable(body.mass) and not is_traced(body.mass):
+        physical(body.mass, f"{kind} mass", positive=True, item="body")
+    inertia = getattr(body, "inertia", None)
+    if inertia is not None and not callable(inertia) and not is_traced(inertia):
+        arr = np.asarray(inertia, dtype=float)
+        if kind == "PlanarBody" and arr.ndim > 1:
+            raise ShapeError(f"PlanarBody inertia must be a scalar or (k,), got shape {arr.shape}")
+        check_inertia(arr, name=f"{kind} inertia", semidefinite=True)
+
+
 class AbstractBody(eqx.Module):
     """A massive body: a kinetic energy and a gravity potential of its centre of mass.
 
@@ -217,6 +234,9 @@ class PointMass(AbstractBody):
     mass: ParamLike
     position: PointFn
 
+    def __check_init__(self):
+        _check_body(self, "PointMass")
+
     def com_position(self, q: Vector, params: Params) -> Any:
         if callable(self.position):
             return self.position(q, params)
@@ -254,6 +274,9 @@ class PlanarBody(AbstractBody):
     inertia: ParamLike
     position: PointFn
     angle: Callable[[Vector, Params], Any] | None
+
+    def __check_init__(self):
+        _check_body(self, "PlanarBody")
 
     def _pose(self, q, params):
         if self.angle is None:
@@ -333,6 +356,9 @@ class SpatialBody(AbstractBody):
     inertia: ParamLike
     position: PointFn
     rotation: Callable[[Vector, Params], Rotation] | None
+
+    def __check_init__(self):
+        _check_body(self, "SpatialBody")
 
     def _pose(self, q, params):
         if self.rotation is None:

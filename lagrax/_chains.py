@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._bodies import Param, PlanarBody, Scene, SpatialBody
+from ._checks import physical
 from ._errors import ShapeError
 from ._inertia import check_inertia
 from ._system import LagrangianSystem
@@ -103,14 +104,15 @@ class PlanarChain(eqx.Module):
         **Returns:** ``{"m", "l", "r", "I": (n,), "g": ()}``.
 
         **Raises:** ``ShapeError`` if a value does not broadcast to ``(n,)``;
-        ``ParameterError`` for a negative inertia.
+        ``ParameterError`` for a negative mass or inertia (naming the link).
         """
         dtype = _float_dtype(dtype)
         shape = (self.n,)
         m_, l_ = _broadcast("m", m, shape, dtype), _broadcast("l", l, shape, dtype)
         r_ = 0.5 * l_ if r is None else _broadcast("r", r, shape, dtype)
+        m_ = physical(m_, "PlanarChain.params m", item="link")
         i_ = m_ * l_**2 / 12 if I is None else _broadcast("I", I, shape, dtype)
-        check_inertia(i_, name="I", semidefinite=True)
+        i_ = check_inertia(i_, name="PlanarChain.params I", semidefinite=True)
         return {"m": m_, "l": l_, "r": r_, "I": i_, "g": jnp.asarray(g, dtype=dtype)}
 
     def _check_q(self, q: Vector) -> None:
@@ -390,6 +392,7 @@ class SpatialChain(eqx.Module):
         """
         n, dtype = self.n, _float_dtype(dtype)
         m_ = _broadcast("m", m, (n,), dtype)
+        m_ = physical(m_, "SpatialChain.params m", item="link")
         if offset is None:
             offset = np.zeros((n, 3))
             offset[1:, 0] = 1.0
@@ -399,7 +402,7 @@ class SpatialChain(eqx.Module):
             one = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1.0) / 12, (3 * 0.05**2 + 1.0) / 12])
             inertia = m_[:, None, None] * jnp.asarray(one, dtype)[None]
         inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
-        check_inertia(inertia, name="inertia", semidefinite=True)
+        inertia = check_inertia(inertia, name="SpatialChain.params inertia", semidefinite=True)
         return {
             "m": m_,
             "offset": _broadcast("offset", offset, (n, 3), dtype),

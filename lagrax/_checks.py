@@ -314,20 +314,22 @@ def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
         hash(key)
     except TypeError:  # an unhashable static leaf: check without caching
         key = None
-    if key is not None and key in _READS_CHECKED:
-        return
-    dyn, static = eqx.partition(params, eqx.is_array)
-    try:
-        closed = jax.make_jaxpr(lambda d, *a: fn(*a, eqx.combine(d, static)))(
-            jax.tree_util.tree_map(_abstract, dyn), *(_abstract(a) for a in args)
-        )
-        found = _clamped(closed.jaxpr, {})
-    except Exception:  # noqa: BLE001 - the real call reports its own errors
-        found = []
-    if key is not None:
-        if len(_READS_CHECKED) > 1024:
-            _READS_CHECKED.clear()
-        _READS_CHECKED[key] = fn  # holding fn keeps its id from being reused
+    cached = _READS_CHECKED.get(key) if key is not None else None
+    if cached is not None:
+        found = cached[1]
+    else:
+        dyn, static = eqx.partition(params, eqx.is_array)
+        try:
+            closed = jax.make_jaxpr(lambda d, *a: fn(*a, eqx.combine(d, static)))(
+                jax.tree_util.tree_map(_abstract, dyn), *(_abstract(a) for a in args)
+            )
+            found = _clamped(closed.jaxpr, {})
+        except Exception:  # noqa: BLE001 - the real call reports its own errors
+            found = []
+        if key is not None:
+            if len(_READS_CHECKED) > 1024:
+                _READS_CHECKED.clear()
+            _READS_CHECKED[key] = (fn, found)  # holding fn keeps its id from being reused
     if found:
         length, index = found[0]
         sizes = sorted({jnp.shape(a)[0] for a in args if jnp.ndim(a) == 1})
@@ -338,6 +340,38 @@ def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
             "another entry: pass q and qd of the length the energies use, and give the "
             "system n_dof= so that a wrong length is refused up front"
         )
+
+
+# --------------------------------------------------------------------------- physics
+
+
+def physical(
+    value: Any, label: str, *, what: str = "mass", positive: bool = False, item: str = ""
+) -> Any:
+    """A mass (or another physical amount) that must be ``>= 0`` (``> 0`` with
+    ``positive``) and finite, entry by entry; a ``ParameterError`` names ``label``, the
+    entry (``item`` and its 1-based number, e.g. "link 2") and the value. A traced
+    value comes back wrapped in ``equinox.error_if``. A callable (a parameter looked up
+    later) is returned unchecked."""
+    if callable(value):
+        return value
+    if is_traced(value):
+        x = jnp.asarray(value)
+        bad = ~jnp.isfinite(x) | ((x <= 0) if positive else (x < 0))
+        return eqx.error_if(x, jnp.any(bad), f"{label}: every {what} must be finite and >= 0")
+    arr = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(arr) | ((arr <= 0) if positive else (arr < 0))
+    if np.any(bad):
+        flat = arr.reshape(-1)
+        k = int(np.argmax(bad.reshape(-1)))
+        where = f"[{k}]" if arr.ndim else ""
+        whose = f" ({item} {k + 1})" if item and arr.ndim else ""
+        sign = "positive" if positive else "non-negative"
+        raise ParameterError(
+            f"{label}{where} = {flat[k]:.6g}{whose} is not a {sign} finite {what}: "
+            f"every {what} must be {'> 0' if positive else '>= 0'}; check its sign and units"
+        )
+    return value
 
 
 # --------------------------------------------------------------------------- options

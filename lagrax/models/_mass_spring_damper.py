@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._checks import physical
 from .._system import LagrangianSystem
 
 
@@ -35,6 +36,7 @@ def mass_spring_damper(**overrides):
         raise TypeError(f"mass_spring_damper() got unknown parameters {sorted(unknown)}")
     params.update(overrides)
     params = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
+    physical(params["m"], "mass_spring_damper m")
     system = LagrangianSystem(
         _kinetic,
         _potential,

@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._checks import physical
 from .._system import LagrangianSystem
 
 PARAM_NAMES = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "g")
@@ -69,5 +70,7 @@ def planar_2r(**overrides):
             f"planar_2r() got unknown parameters {sorted(unknown)}; known: {PARAM_NAMES}"
         )
     params.update({k: jnp.asarray(v, dtype=float) for k, v in overrides.items()})
+    for key, what in (("m1", "mass"), ("m2", "mass"), ("I1", "inertia"), ("I2", "inertia")):
+        physical(params[key], f"planar_2r {key}", what=what)
     system = LagrangianSystem(kinetic, potential, n_dof=2, name="planar 2R arm")
     return system, params
