@@ -320,7 +320,12 @@ def simulate(
 
     **Returns:** a :class:`Solution`.
 
-    **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
+    **Raises:** ``ConfigurationError`` for a bad option (``t0``/``t1`` not finite or
+    ``t1 <= t0``; ``dt`` or ``dt0`` not positive and finite, ``dt`` longer than
+    ``t1 - t0`` or given with ``dt0``; ``rtol``/``atol`` negative, non-finite or both zero;
+    ``max_steps``/``n_save`` not a positive integer; under ``jit`` a traced option fails at
+    run time), ``ArgumentTypeError`` for the wrong kind of object;
+    ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
     for bad input (checked at the initial state), ``ConstraintError`` for a constrained
     system whose initial state cannot be projected onto its constraints or whose
     constraint Jacobian is rank-deficient there, and ``SimulationError`` when the solve

@@ -47,8 +47,17 @@ class LagrangianSystem(AbstractSystem):
       ``−∂D/∂q̇``. Optional.
     - ``force``: ``F(t, q, qd, params) -> (n,)`` applied generalized force (controllers,
       prescribed torques, non-conservative loads). Optional.
-    - ``n_dof``: number of generalized coordinates, if known; inputs of another length are
-      refused with a ``ShapeError`` (without it, ``q`` of any length is passed to ``T``).
+    - ``n_dof``: number of generalized coordinates (recommended); inputs of another length
+      are refused with a ``ShapeError``. Without it, ``q`` of any length is passed to the
+      energies, and what can be detected is refused instead: an energy or force that
+      indexes past the end of ``q`` (JAX would clamp ``q[1]`` of a length-1 ``q`` to
+      ``q[0]``) is found once per function and shape while JAX traces it, and raises a
+      ``ShapeError``. A slice past the end (``q[1:3]``) or a vectorized energy
+      (``jnp.sum(qd**2)``) cannot be told from a shorter system that way.
+
+    ``T``, ``V`` and ``D`` must return real scalars and ``force`` a real ``(n,)`` array:
+    checked on shape and dtype while tracing (``ShapeError`` / ``ArgumentTypeError``
+    naming the function), so these checks cost nothing when the compiled code runs.
     - ``name``: a label used in messages and plots.
     - ``scalar_derivatives``: how :meth:`forward_dynamics` differentiates ``L``: ``True``
       by scalar forward-over-forward directional derivatives (fastest to run for small,
