@@ -571,5 +571,5 @@ def traced_save_times(ts: jax.Array, t0: jax.Array, t1: jax.Array) -> jax.Array:
     return eqx.error_if(
         ts,
         jnp.any(ts[1:] < ts[:-1]) | (ts[0] < t0) | (ts[-1] > t1) | ~jnp.all(jnp.isfinite(ts)),
-        "ts must be finite, non-decreasing and inside [t0, t1]",
+        "ts must be non-decreasing and inside [t0, t1], and finite",
     )
