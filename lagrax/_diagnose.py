@@ -24,6 +24,7 @@ from ._solution import Solution
 from ._vector_field import LagrangianVectorField
 
 TAU = "the input tau"
+FORCE = "the force function F(t, q, qd, params)"  # as LagrangianSystem.components names it
 
 
 @eqx.filter_jit
@@ -114,7 +115,9 @@ def diagnose(
                 params,
                 tau_const,
             )
-            if found is not None:
+            # after a blow-up only an input (tau, the force) can be blamed: the energies'
+            # derivatives overflow at any state that has grown far enough
+            if found is not None and found[0] in (TAU, FORCE):
                 input_cause = True
                 lines.append(
                     f"  the state became non-finite between the saves at t={ta:.6g} and "

@@ -251,7 +251,7 @@ class LagrangianSystem(AbstractSystem):
         at one state (see :meth:`AbstractSystem.components`)."""
         out = {}
         if self.force is not None:
-            out["the force function F(t, q, qd, params)"] = call_user(
+            out["the force function F(t, q, qd, params)"] = call_user(  # as _diagnose.FORCE
                 self.force, "force", params, t, q, qd
             )
         out["the kinetic energy T"] = d.kinetic(self, q, qd, params)
