@@ -43,3 +43,15 @@ class ConfigurationError(LagraxError, ValueError):
 class ArgumentTypeError(ConfigurationError, TypeError):
     """An argument is the wrong kind of object (an energy function where a system goes,
     a solver that is neither a method name nor a diffrax solver, ...)."""
+
+
+class CheckpointError(LagraxError, ValueError):
+    """A sweep's checkpoint directory or a saved sweep file cannot be used: it holds
+    another sweep's results, was written in an older format, cannot be written, or is
+    damaged or not a lagrax file. The message names the path, what is wrong and the fix."""
+
+
+class CheckpointWarning(UserWarning):
+    """A chunk file in a checkpoint directory cannot be trusted (unreadable, truncated,
+    its checksum or fingerprint does not match, an older format): it is not loaded, and
+    its members are computed again. The message names the file and the reason."""

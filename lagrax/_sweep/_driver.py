@@ -1,6 +1,5 @@
 """``sweep``: many trajectories, chunk by chunk, with checkpoints and progress."""
 
-import json
 import math
 import os
 import warnings
@@ -19,29 +18,13 @@ from .._errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._methods import configure
 from .._simulate import SolveConfig
 from .._solution import Solution
-from ._checkpoint import FORMAT_VERSION, atomic_write, fingerprint
+from ._checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from ._chunk import Setup, solve_chunk
 from ._dataset import dataset
 from ._devices import mesh_of
 from ._grid import Grid
 from ._progress import progress_bar, progress_default
-
-
-def _batch_size(params: Any) -> int:
-    leaves = jtu.tree_leaves_with_path(params)
-    if not leaves:
-        raise ShapeError("params has no array leaves to sweep over")
-    sizes = {jtu.keystr(path): np.shape(x)[0] if np.ndim(x) else None for path, x in leaves}
-    bad = [k for k, v in sizes.items() if v is None]
-    if bad:
-        raise ShapeError(
-            f"sweep() params must carry a leading batch axis on every leaf; {bad} are "
-            "scalars. Use lagrax.grid(params, name=values) or lagrax.samples(...) for a mix "
-            "of fixed and swept parameters."
-        )
-    if len(set(sizes.values())) != 1:
-        raise ShapeError(f"params leaves have different batch sizes: {sizes}")
-    return next(iter(sizes.values()))
+from ._unused import read_params
 
 
 def _states(x: Any, name: str, n_members: int) -> np.ndarray:
@@ -80,6 +63,7 @@ def sweep(
     devices: Any = None,
     checkpoint: str | os.PathLike | None = None,
     progress: bool | None = None,
+    allow_unused: bool = False,
 ):
     """Simulate ``system`` for many parameter sets (and initial states) at once.
 
@@ -123,11 +107,20 @@ def sweep(
     - ``devices``: devices to shard the batch over: ``None`` (all of ``jax.devices()``),
       a count, or a list. On a multi-host run (after ``jax.distributed.initialize()``)
       every process makes the same call; each gets the whole result.
-    - ``checkpoint``: a directory. Each finished chunk is written there atomically; the
-      same call again resumes, computing only what is missing. A different sweep
-      definition (model, parameters, states, solver settings, ``keep``) is refused.
+    - ``checkpoint``: a directory. Each finished chunk is written there atomically, with
+      the sweep's fingerprint (a SHA-256 of the model, parameters, states, solver
+      settings and ``keep``) and a SHA-256 checksum of its arrays; the same call again
+      resumes, computing only what is missing. A chunk file that cannot be trusted
+      (unreadable, truncated, empty, a checksum or index that does not match, an older
+      format) is never loaded: a :class:`lagrax.CheckpointWarning` names it and why, and
+      its members are computed again. A directory of a different sweep definition
+      (by its ``manifest.json``, or without one by its chunk files) is refused.
     - ``progress``: show a progress bar (tqdm; members/s). Default: on in a terminal or
       notebook, off otherwise.
+    - ``allow_unused``: sweep parameters that nothing the solve evaluates reads (energies,
+      force, ``tau``, constraints, initial-state projection); by default that is an error,
+      since a misspelt grid name would otherwise sweep nothing. The test is structural
+      (the traced data flow, whichever branch a member takes).
 
     **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
     ``"time"`` (when kept) and ``"dof"``; variables ``q``, ``qd``, ``energy`` (at the kept
@@ -137,6 +130,21 @@ def sweep(
     ``num_rejected_steps`` (or the outputs of ``reduce``); swept parameters as
     coordinates; ``attrs`` with the failure count and the share of lane-steps that were
     idle (``lane_idle_fraction``). Save it with :func:`save_sweep`.
+
+    **Raises:**
+
+    - ``ConfigurationError``: an option with an unusable value (``t1 <= t0``, a
+      non-finite time, ``dt``/``dt0 <= 0``, negative tolerances or both zero with an
+      adaptive step, ``chunk_size``/``n_lanes``/``max_steps``/``n_save`` not a positive
+      integer, ``n_lanes`` above the members of a chunk per device, an unknown ``keep``
+      or ``schedule`` name, a device count JAX does not have), or a swept parameter that
+      nothing reads (see ``allow_unused``).
+    - ``ArgumentTypeError``: an option or argument of the wrong kind (a string where a
+      number goes, a non-numeric parameter, ...).
+    - ``ShapeError``: batched ``params`` without members, with scalar leaves or leading
+      axes that disagree; states of the wrong shape.
+    - ``CheckpointError``: ``checkpoint`` is a file, cannot be written (raised before any
+      chunk is computed), or holds another sweep's results or an older format's.
 
     **Example:**
 
@@ -150,12 +158,30 @@ def sweep(
     import xarray as xr
 
     system, q0, qd0, params = _argument_order(system, q0, qd0, params)
+    # every scalar option, on the host, before anything is traced or written
+    t0, t1, chunk_size = _checks.sweep_options(
+        t0=t0,
+        t1=t1,
+        keep=keep,
+        n_save=n_save,
+        rtol=rtol,
+        atol=atol,
+        dt=dt,
+        dt0=dt0,
+        max_steps=max_steps,
+        stepsize_controller=stepsize_controller,
+        chunk_size=chunk_size,
+        schedule=schedule,
+        devices=devices,
+        checkpoint=checkpoint,
+        progress=progress,
+    )
     # --- the batch
     if isinstance(params, Grid):
         batch, n_members = params, params.size
         get_params = params.params
     else:
-        n_members = _batch_size(params)
+        n_members = _checks.batch_size(params)
         batch = None
         params = jtu.tree_map(jnp.asarray, params)
 
@@ -180,26 +206,17 @@ def sweep(
     if tau is not None and not callable(tau):
         (tau_const,) = system._state(q_probe, tau=tau)[1:]
         tau_const = system._finite(jnp.asarray(tau_const, dtype), "tau")
-    _checks.interval(t0, t1)
+    if not allow_unused:
+        _refuse_unused(system, tau_fn, q0s[0], qd0s[0], tau_const, batch, params)
 
-    # --- what to keep
+    # --- what to keep (keep= and n_save were checked above)
     reduce = None
     if callable(keep):
         reduce, ts = keep, np.linspace(t0, t1, int(n_save))
     elif isinstance(keep, str):
-        if keep == "final":
-            ts = np.zeros(0)
-        elif keep == "trajectory":
-            ts = np.linspace(t0, t1, int(n_save))
-        else:
-            raise ConfigurationError(
-                f"keep must be 'final', 'trajectory', times or a function; got {keep!r}"
-            )
+        ts = np.zeros(0) if keep == "final" else np.linspace(t0, t1, int(n_save))
     else:
         ts = np.asarray(keep, dtype=float)
-        if ts.ndim != 1 or ts.size == 0:
-            raise ShapeError(f"keep= times must be a non-empty 1-D array, got shape {ts.shape}")
-        _checks.save_times(ts, t0, t1, "keep= times")
     ts_dev = jnp.asarray(ts, tdt)
 
     solver_, controller, dt0_, max_steps_ = configure(
@@ -207,23 +224,23 @@ def sweep(
     )
     if controller is None:
         controller = dfx.PIDController(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt))
-    if schedule not in ("queue", "lockstep"):
-        raise ConfigurationError(f"schedule must be 'queue' or 'lockstep', got {schedule!r}")
 
     # --- chunks and devices
     mesh = mesh_of(devices)
     n_dev = 1 if mesh is None else mesh.size
+    lanes_given = _checks.lanes_option(n_lanes, chunk_size, n_dev)
     per_member = 8 * (2 * n * max(len(ts), 1) + max(len(ts), 1) + 4 * n + 8)
-    manifest_chunk = None
     ckpt = Path(checkpoint) if checkpoint is not None else None
-    if ckpt is not None and (ckpt / "manifest.json").exists():
-        manifest_chunk = json.loads((ckpt / "manifest.json").read_text()).get("chunk_size")
     if chunk_size is None:
-        chunk_size = manifest_chunk or int(min(8192, max(64, (64 << 20) // per_member)))
+        stored = stored_chunk_size(ckpt) if ckpt is not None else None
+        chunk_size = stored or int(min(8192, max(64, (64 << 20) // per_member)))
     chunk_size = int(min(chunk_size, n_members))
     chunk_size = -(-chunk_size // n_dev) * n_dev  # a whole number of members per device
-    # about eight members per lane: enough to refill lanes, few enough to keep the tail short
-    lanes = int(n_lanes) if n_lanes is not None else max(1, min(1024, chunk_size // n_dev // 8))
+    # about eight members per lane: enough to refill lanes, few enough to keep the tail
+    # short; never more lanes than members per device (they would idle)
+    per_device = chunk_size // n_dev
+    lanes = lanes_given if lanes_given is not None else max(1, min(1024, per_device // 8))
+    lanes = min(lanes, per_device)
     config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_)
     setup = Setup(config, reduce, lanes, schedule)
     n_chunks = -(-n_members // chunk_size)
@@ -240,29 +257,12 @@ def sweep(
         dtype=str(dtype),
         tau=None if tau_const is None else np.asarray(tau_const).tolist(),
     )
+    loaded: dict[int, dict[str, np.ndarray]] = {}
+    fp = None
     if ckpt is not None:
         swept = batch.params() if batch is not None else params
         fp = fingerprint(setup, [swept, q0s, qd0s], settings)
-        ckpt.mkdir(parents=True, exist_ok=True)
-        manifest = ckpt / "manifest.json"
-        if manifest.exists():
-            old = json.loads(manifest.read_text())
-            if old.get("fingerprint") != fp or old.get("chunk_size") != chunk_size:
-                raise ConfigurationError(
-                    f"the checkpoint at {ckpt} belongs to a different sweep definition "
-                    "(model, parameters, initial states, solver settings, keep= or "
-                    "chunk_size differ); refusing to mix results. Use another checkpoint "
-                    "directory, or delete this one to start over."
-                )
-        else:
-            info = dict(
-                fingerprint=fp,
-                chunk_size=chunk_size,
-                n_members=n_members,
-                n_chunks=n_chunks,
-                version=FORMAT_VERSION,
-            )
-            atomic_write(manifest, lambda f: f.write(json.dumps(info, indent=1).encode()))
+        loaded = prepare(ckpt, fp, chunk_size, n_members, n_chunks)
 
     if progress is None:
         progress = progress_default()
@@ -271,10 +271,8 @@ def sweep(
     try:
         for c in range(n_chunks):
             a, b = c * chunk_size, min((c + 1) * chunk_size, n_members)
-            path = ckpt / f"chunk_{c:06d}.npz" if ckpt is not None else None
-            if path is not None and path.exists():
-                with np.load(path, allow_pickle=False) as z:
-                    results.append({k: np.asarray(z[k]) for k in z.files})
+            if c in loaded:
+                results.append(loaded.pop(c))
                 bar.update(b - a)
                 continue
             chunk = solve_chunk(
@@ -292,8 +290,16 @@ def sweep(
                 chunk_size,
                 tdt,
             )
-            if path is not None:
-                atomic_write(path, lambda f, c=chunk: np.savez(f, **c))
+            if ckpt is not None:
+                write_chunk(
+                    chunk_path(ckpt, c),
+                    chunk,
+                    fingerprint=fp,
+                    chunk_size=chunk_size,
+                    chunk=c,
+                    start=a,
+                    stop=b,
+                )
             results.append(chunk)
             bar.update(b - a)
     finally:
@@ -313,6 +319,52 @@ def sweep(
         atol,
         schedule,
         n_dev,
+    )
+
+
+def _top_name(path: tuple) -> str:
+    """The top-level entry of ``params`` a leaf lies under (a dict key or a field)."""
+    key = path[0] if path else None
+    for attr in ("key", "name", "idx"):
+        if hasattr(key, attr):
+            return str(getattr(key, attr))
+    return jtu.keystr(path)
+
+
+def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
+    """A ``ConfigurationError`` when a swept parameter is read by nothing the solve
+    evaluates (see ``_unused``): for a :class:`Grid`, its swept names; for batched
+    ``params``, the leaves whose values differ between members."""
+    if batch is not None:
+        member = jtu.tree_map(lambda x: x[0], batch.params(0, 1))
+    else:
+        member = jtu.tree_map(lambda x: x[0], params)
+    read = read_params(system, tau_fn, jnp.asarray(q), jnp.asarray(qd), member, tau_const)
+    if read is None:
+        return
+    paths = [path for path, _ in jtu.tree_flatten_with_path(member)[0]]
+    if batch is not None:
+        # a swept name is read when any leaf under it is
+        names = [_top_name(p) for p in paths]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        unused = [k for k in batch.axes if k not in names_read]
+        all_names = list(dict.fromkeys(names))
+    else:
+        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in jtu.tree_leaves(params)]
+        names = ["params" + jtu.keystr(p) for p in paths]
+        unused = [k for k, r, v in zip(names, read, varies, strict=True) if v and not r]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        all_names = names
+    if not unused:
+        return
+    read_list = [k for k in all_names if k in names_read]
+    it = "it" if len(unused) == 1 else "them"
+    raise ConfigurationError(
+        f"the sweep varies {', '.join(unused)} but no energy, force, tau or constraint of "
+        f"the system reads {it}, so every member would give the same result (the system "
+        f"reads {', '.join(read_list) or 'no parameter'}). A misspelt name? Sweep a "
+        f"parameter the model reads, or pass allow_unused=True to sweep {it} anyway (e.g. "
+        "as a label)."
     )
 
 
