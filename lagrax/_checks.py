@@ -584,76 +584,15 @@ def traced_save_times(ts: jax.Array, t0: jax.Array, t1: jax.Array) -> jax.Array:
 
 import os  # noqa: E402
 
-from ._errors import ArgumentTypeError  # noqa: E402
-
 
 def _kind(value: Any) -> str:
     return f"{value!r} ({type(value).__name__})"
 
 
-def positive_int(value: Any, name: str, fix: str = "") -> int:
-    """``value`` as an ``int >= 1``; an integral float (``64.0``) is accepted."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(
-        value, (int, float, np.integer, np.floating)
-    ):
-        raise ArgumentTypeError(f"{name} must be a positive integer, got {_kind(value)}. {fix}")
-    if not np.isfinite(value) or value != int(value) or value < 1:
-        raise ConfigurationError(f"{name} must be a positive integer, got {value!r}. {fix}")
-    return int(value)
-
-
-def real_number(value: Any, name: str) -> float:
-    """``value`` as a finite Python float, or a ``LagraxError`` naming ``name``."""
-    if isinstance(value, (bool, np.bool_)) or (
-        not isinstance(value, (int, float, np.integer, np.floating))
-        and not (isinstance(value, (np.ndarray, jax.Array)) and np.ndim(value) == 0)
-    ):
-        raise ArgumentTypeError(f"{name} must be a real number, got {_kind(value)}")
-    if np.iscomplexobj(value):
-        raise ArgumentTypeError(f"{name} must be a real number, got {_kind(value)}")
-    x = float(value)
-    if not np.isfinite(x):
-        raise ConfigurationError(
-            f"{name} must be finite, got {x!r}: integrate over a finite interval, with a "
-            "finite step and tolerances"
-        )
-    return x
-
-
 def sweep_times(t0: Any, t1: Any) -> tuple[float, float]:
-    """Finite ``t0 < t1``."""
-    t0, t1 = real_number(t0, "t0"), real_number(t1, "t1")
-    interval(t0, t1)
-    return t0, t1
-
-
-def positive_step(value: Any, name: str, t0: float, t1: float) -> float | None:
-    """A step (``dt``, ``dt0``): ``None``, or finite and ``> 0`` (the solve runs forward
-    from ``t0`` to ``t1 > t0``; a negative step would integrate away from ``t1``)."""
-    if value is None:
-        return None
-    x = real_number(value, name)
-    if x <= 0:
-        raise ConfigurationError(
-            f"{name} must be positive, got {name}={x!r}: sweep integrates forward from "
-            f"t0={t0} to t1={t1}; pass a step such as {name}={(t1 - t0) / 1000:.3g}"
-        )
-    return x
-
-
-def tolerances(rtol: Any, atol: Any, adaptive: bool) -> None:
-    """``rtol``, ``atol`` finite and ``>= 0``, and not both zero for an adaptive step."""
-    r, a = real_number(rtol, "rtol"), real_number(atol, "atol")
-    for name, x in (("rtol", r), ("atol", a)):
-        if x < 0:
-            raise ConfigurationError(
-                f"{name} must be >= 0, got {name}={x!r}: a tolerance is a size, e.g. {name}=1e-8"
-            )
-    if adaptive and r == 0 and a == 0:
-        raise ConfigurationError(
-            f"rtol and atol are both 0 (rtol={rtol!r}, atol={atol!r}): no adaptive step "
-            "can meet a zero error bound. Pass a positive rtol or atol, e.g. 1e-8."
-        )
+    """Finite ``t0 < t1`` as Python floats (see :func:`time_interval`)."""
+    t0, t1 = time_interval(t0, t1)
+    return float(t0), float(t1)
 
 
 _KEEP_NAMES = ("final", "trajectory")
@@ -698,7 +637,7 @@ def lanes_option(n_lanes: Any, chunk_size: int | None, n_devices: int) -> int | 
     if n_lanes is None:
         return None
     lanes = positive_int(
-        n_lanes, "n_lanes", "It is the number of members integrated at once per device."
+        "n_lanes", n_lanes, "It is the number of members integrated at once per device."
     )
     if chunk_size is not None:
         per_device = -(-chunk_size // n_devices)
@@ -755,9 +694,10 @@ def sweep_options(
 
     t0, t1 = sweep_times(t0, t1)
     keep_option(keep, t0, t1)
-    positive_int(n_save, "n_save", "It is the number of saved times per member.")
-    positive_step(dt, "dt", t0, t1)
-    positive_step(dt0, "dt0", t0, t1)
+    positive_int("n_save", n_save, "It is the number of saved times per member.")
+    if dt is not None:
+        fixed_step(dt, t0, t1)
+    first_step(dt0)
     if stepsize_controller is not None and not isinstance(
         stepsize_controller, dfx.AbstractStepSizeController
     ):
@@ -765,12 +705,16 @@ def sweep_options(
             "stepsize_controller must be a diffrax.AbstractStepSizeController (e.g. "
             f"diffrax.PIDController(rtol=1e-8, atol=1e-8)); got {_kind(stepsize_controller)}"
         )
-    tolerances(rtol, atol, adaptive=dt is None and stepsize_controller is None)
+    if dt is None and stepsize_controller is None:
+        tolerances(rtol, atol)
+    else:
+        non_negative_real("rtol", rtol)
+        non_negative_real("atol", atol)
     if max_steps is not None:
-        positive_int(max_steps, "max_steps", "It is each member's step budget.")
+        positive_int("max_steps", max_steps, "It is each member's step budget.")
     size = None
     if chunk_size is not None:
-        size = positive_int(chunk_size, "chunk_size", "It is the number of members per chunk.")
+        size = positive_int("chunk_size", chunk_size, "It is the number of members per chunk.")
     if not isinstance(schedule, str) or schedule not in ("queue", "lockstep"):
         raise ConfigurationError(f"schedule must be 'queue' or 'lockstep', got {schedule!r}")
     devices_option(devices)

@@ -205,7 +205,7 @@ def sweep(
     tau_const = None
     if tau is not None and not callable(tau):
         (tau_const,) = system._state(q_probe, tau=tau)[1:]
-        tau_const = system._finite(jnp.asarray(tau_const, dtype), "tau")
+        tau_const = _checks.finite(jnp.asarray(tau_const, dtype), "tau")
     if not allow_unused:
         _refuse_unused(system, tau_fn, q0s[0], qd0s[0], tau_const, batch, params)
 
