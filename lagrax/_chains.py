@@ -7,6 +7,7 @@ of :mod:`lagrax.bodies` (one batched body for all links) and its structure is wh
 :func:`lagrax.newton_euler.rnea` reads for the independent recursive Newton–Euler oracle.
 """
 
+import dataclasses
 from typing import Any, Literal
 
 import equinox as eqx
@@ -15,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._bodies import Param, PlanarBody, Scene, SpatialBody
+from ._chain_dynamics import ChainEquations
 from ._checks import physical
 from ._errors import ShapeError
 from ._inertia import check_inertia
@@ -210,8 +212,16 @@ class PlanarChain(eqx.Module):
         return Scene([body], gravity=gravity, n_dof=self.n, name=f"planar {self.n}-link chain")
 
     def system(self, *, bodies: BodyKind = "planar") -> LagrangianSystem:
-        """The chain's :class:`lagrax.LagrangianSystem` (see :meth:`scene`)."""
-        return self.scene(bodies=bodies).system()
+        """The chain's :class:`lagrax.LagrangianSystem` (see :meth:`scene`).
+
+        With ``bodies="planar"`` its equations are evaluated by Featherstone's recursions
+        (``q̈`` by the articulated-body algorithm, O(n)); ``bodies="spatial"`` keeps the
+        autodiff of the spatial embedding's energies, for comparison.
+        """
+        system = self.scene(bodies=bodies).system()
+        if bodies == "planar":
+            system = dataclasses.replace(system, equations=ChainEquations(self))
+        return system
 
     def to_spatial(self, params: Params) -> tuple["SpatialChain", dict]:
         """The same chain as a :class:`SpatialChain` and its parameters.
@@ -508,8 +518,11 @@ class SpatialChain(eqx.Module):
         return Scene([body], gravity=self._gravity, n_dof=self.n, name=f"{types} chain")
 
     def system(self) -> LagrangianSystem:
-        """The chain's :class:`lagrax.LagrangianSystem`."""
-        return self.scene().system()
+        """The chain's :class:`lagrax.LagrangianSystem`, its equations evaluated by
+        Featherstone's recursions (``q̈`` by the articulated-body algorithm, O(n); ``M`` by
+        the composite-rigid-body algorithm). ``dataclasses.replace(system,
+        equations=None)`` differentiates the energies instead (the definition)."""
+        return dataclasses.replace(self.scene().system(), equations=ChainEquations(self))
 
 
 def spatial_chain(

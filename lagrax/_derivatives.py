@@ -23,13 +23,24 @@ from ._linalg import cholesky_solve, solve_spd_unrolled
 FOF_MAX = 6
 
 
+class Equations(Protocol):
+    """A structure-aware evaluation of the equations of the same ``T`` and ``V`` (a chain's
+    recursions): ``M``, ``q̈`` for a generalized force, and ``M q̈ + C q̇ + G``."""
+
+    def mass_matrix(self, q: Any, params: Any) -> Any: ...
+    def accelerations(self, q: Any, qd: Any, params: Any, force: Any) -> Any: ...
+    def inverse_dynamics(self, q: Any, qd: Any, qdd: Any, params: Any) -> Any: ...
+
+
 class Energies(Protocol):
-    """What the kernels read: the user's energy and force functions (or ``None``)."""
+    """What the kernels read: the user's energy and force functions (or ``None``), and
+    optionally structure-aware ``equations`` of the same energies."""
 
     kinetic: Callable[..., Any]
     potential: Callable[..., Any] | None
     dissipation: Callable[..., Any] | None
     force: Callable[..., Any] | None
+    equations: Equations | None
 
 
 def use_scalar(n: int, scalar_derivatives: bool | None) -> bool:
@@ -93,7 +104,9 @@ def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None):
 
 
 def mass_matrix(e: Energies, q, qd, params):
-    """``M(q) = ∂²T/∂q̇²`` (``n`` JVPs of ``∂T/∂q̇``)."""
+    """``M(q) = ∂²T/∂q̇²`` (``n`` JVPs of ``∂T/∂q̇``, or the structure-aware ``equations``)."""
+    if e.equations is not None:
+        return e.equations.mass_matrix(q, params)
     return mass_columns(e, q, qd, params)[2]
 
 
@@ -173,9 +186,13 @@ def _has_applied(e: Energies, tau) -> bool:
 def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     """``M(q)`` and ``f = τ + F − C q̇ − G − ∂D/∂q̇``: the equations ``M q̈ = f``.
 
-    ``scalar`` chooses the derivatives as :func:`use_scalar` does.
+    ``scalar`` chooses the derivatives as :func:`use_scalar` does; structure-aware
+    ``equations`` take precedence.
     """
     f_applied = applied(e, t, q, qd, params, tau)
+    if e.equations is not None:
+        bias = e.equations.inverse_dynamics(q, qd, None, params)
+        return e.equations.mass_matrix(q, params), f_applied - bias
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params)
         mass = jnp.stack([jnp.stack(row) for row in rows])
@@ -189,7 +206,11 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
 
     The scalar path solves with a Cholesky factorization unrolled over the scalars (no
     matrix is stacked); the vector path with a Cholesky factorization of ``M``.
+    Structure-aware ``equations`` (a chain's articulated-body algorithm) take precedence.
     """
+    if e.equations is not None:
+        f = applied(e, t, q, qd, params, tau) if _has_applied(e, tau) else None
+        return e.equations.accelerations(q, qd, params, f)
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params)
         if _has_applied(e, tau):

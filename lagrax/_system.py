@@ -64,6 +64,10 @@ class LagrangianSystem(AbstractSystem):
       cheap energies), ``False`` by one vmapped forward-over-reverse pass (much faster to
       compile when ``L`` is large, e.g. spatial rigid bodies). Default ``None``: scalar for
       ``n <= 6``.
+    - ``equations``: structure-aware equations of the *same* ``T`` and ``V``, used in place
+      of differentiating them (chains' ``system()`` sets this to Featherstone's recursions,
+      O(n) per evaluation). ``None`` (default): autodiff of the energies, the definition.
+      ``dataclasses.replace(system, equations=None)`` gives the autodiff path of a chain.
 
     **Example:**
 
@@ -90,6 +94,7 @@ class LagrangianSystem(AbstractSystem):
     n_dof: int | None = eqx.field(default=None, static=True)
     name: str = eqx.field(default="system", static=True)
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
+    equations: d.Equations | None = None
 
     def __check_init__(self):
         if isinstance(self.kinetic, AbstractSystem):
@@ -290,6 +295,9 @@ class LagrangianSystem(AbstractSystem):
         force, so ``τ`` is what must be added to it.
         """
         q, qd, qdd = self._state(q, qd, qdd=qdd)
+        if self.equations is not None:
+            applied = d.applied(self, t, q, qd, params, None)
+            return self.equations.inverse_dynamics(q, qd, qdd, params) - applied
         (t_q, _), (_, dp) = jax.jvp(
             lambda a, b: d.grad_kinetic(self, a, b, params), (q, qd), (qd, qdd)
         )

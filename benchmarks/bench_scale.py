@@ -1,0 +1,215 @@
+"""Cost against mechanism size: chains of n links, and the 7-DOF arm against MuJoCo.
+
+Measured in one run, on this machine:
+
+1. Per-state forward dynamics under ``jax.vmap`` over 4,096 random states, for planar and
+   spatial revolute chains of n = 2, 4, 7, 10, 20 links: lagrax's chain systems
+   (Featherstone's articulated-body algorithm) and, for n <= 7, the same chains by
+   autodiff of their energies (``equations=None``, the definition), with compile times.
+   Pinocchio's ABA per call from Python when ``pinocchio`` is installed.
+2. One trajectory of the scale issue's 7-DOF arm (``SpatialChain``, axes z, y, z, y, z, y,
+   z; 1 kg, 1 m links; q0 = 0.3, at rest; 2 s): lagrax Tsit5 over a tolerance ladder
+   against ``mujoco.rollout`` RK4 over a step ladder, errors against lagrax Dopri8 at
+   rtol = atol = 1e-13, and the ratio at matched final-state error. MuJoCo is optional
+   (``pip install -e ".[bench]"``).
+
+Writes a log-log chart of cost against n with ``--chart PATH``.
+
+    python benchmarks/bench_scale.py [--quick] [--chart scale.png]
+"""
+
+import argparse
+import dataclasses
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import lagrax as lx
+from lagrax.chains import PlanarChain, SpatialChain
+
+B = 4096
+ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
+ARM_INERTIA = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1) / 12, (3 * 0.05**2 + 1) / 12])
+T1 = 2.0
+
+
+def chain_of(kind, n):
+    if kind == "planar":
+        chain = PlanarChain(n)
+        return chain, chain.params()
+    axes = [ARM_AXES[i % 2] for i in range(n)]
+    chain = SpatialChain("R" * n, axes=axes)
+    return chain, chain.params(inertia=ARM_INERTIA)
+
+
+def per_state(system, params, n, repeats):
+    """(compile seconds, microseconds per state) of vmapped forward dynamics."""
+    fn = jax.jit(jax.vmap(lambda q, qd: system.accelerations(0.0, q, qd, params, None)))
+    rng = np.random.default_rng(0)
+    q, qd = jnp.asarray(rng.normal(size=(B, n))), jnp.asarray(rng.normal(size=(B, n)))
+    t0 = time.perf_counter()
+    fn(q, qd).block_until_ready()
+    compile_s = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn(q, qd).block_until_ready()
+        times.append(time.perf_counter() - t0)
+    return compile_s, min(times) / B * 1e6
+
+
+def pinocchio_aba(n, repeats):
+    """Pinocchio ABA per call (µs) on the same spatial chain, or None."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    model = pin.Model()
+    parent = 0
+    for i in range(n):
+        placement = pin.SE3(np.eye(3), np.array([0.0 if i == 0 else 1.0, 0, 0]))
+        joint = pin.JointModelRZ() if ARM_AXES[i % 2][2] else pin.JointModelRY()
+        parent = model.addJoint(parent, joint, placement, f"j{i}")
+        model.appendBodyToJoint(
+            parent, pin.Inertia(1.0, np.array([0.5, 0, 0]), ARM_INERTIA), pin.SE3.Identity()
+        )
+    data = model.createData()
+    q, v, tau = np.full(n, 0.3), np.full(n, 0.1), np.zeros(n)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(1000):
+            pin.aba(model, data, q, v, tau)
+        times.append((time.perf_counter() - t0) / 1000)
+    return min(times) * 1e6
+
+
+def arm_mjcf():
+    d = np.diag(ARM_INERTIA)
+    body, close = "", ""
+    for i, axis in enumerate(ARM_AXES):
+        pos = "0 0 0" if i == 0 else "1 0 0"
+        body += (
+            f'<body pos="{pos}"><joint type="hinge" axis="{axis[0]} {axis[1]} {axis[2]}"/>'
+            f'<inertial pos="0.5 0 0" mass="1" diaginertia="{d[0]} {d[1]} {d[2]}"/>'
+        )
+        close += "</body>"
+    return (
+        '<mujoco><option gravity="0 0 -9.81" integrator="RK4">'
+        '<flag contact="disable" constraint="disable"/></option>'
+        f"<worldbody>{body}{close}</worldbody></mujoco>"
+    )
+
+
+def timed(fn, repeats):
+    out = fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return out, statistics.median(times)
+
+
+def arm_trajectory(repeats):
+    chain, params = chain_of("spatial", 7)
+    system = chain.system()
+    q0, qd0 = np.full(7, 0.3), np.zeros(7)
+    t0 = time.perf_counter()
+    lx.simulate(system, q0, qd0, params, t1=T1, rtol=1e-8, atol=1e-8)
+    first = time.perf_counter() - t0
+    ref = lx.simulate(system, q0, qd0, params, t1=T1, solver="dopri8", rtol=1e-13, atol=1e-13)
+    y_ref = np.concatenate([np.asarray(ref.q_end), np.asarray(ref.qd_end)])
+
+    def err(y):
+        return float(np.max(np.abs(y - y_ref)))
+
+    print(f"\n2. the 7-DOF arm, one 2 s trajectory (first simulate call {first:.2f} s)")
+    runs = []
+    for tol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+        sol, t = timed(
+            lambda tol=tol: lx.simulate(system, q0, qd0, params, t1=T1, rtol=tol, atol=tol),
+            repeats,
+        )
+        y = np.concatenate([np.asarray(sol.q_end), np.asarray(sol.qd_end)])
+        runs.append((err(y), t))
+        steps = int(sol.stats["num_steps"])
+        print(
+            f"   lagrax Tsit5 rtol {tol:.0e}: {t * 1e3:8.3f} ms  error {err(y):.1e}  {steps} steps"
+        )
+    try:
+        import mujoco
+        from mujoco import rollout
+    except ImportError:
+        print("   MuJoCo not installed (pip install -e '.[bench]'): comparison skipped")
+        return
+    model = mujoco.MjModel.from_xml_string(arm_mjcf())
+    data = mujoco.MjData(model)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.zeros((1, mujoco.mj_stateSize(model, spec)))
+    data.qpos[:] = q0
+    mujoco.mj_forward(model, data)
+    mujoco.mj_getState(model, data, state0[0], spec)
+    for dt in (4e-3, 2e-3, 1e-3):
+        model.opt.timestep = dt
+        nstep = round(T1 / dt)
+        (state, _), t = timed(
+            lambda nstep=nstep: rollout.rollout(model, data, state0, nstep=nstep), repeats
+        )
+        y = state[0, -1, 1 : 1 + 14]
+        e = err(y)
+        match = [tl for el, tl in runs if el <= e]
+        ratio = f"  lagrax/MuJoCo at matched error: {min(match) / t:.2f}x" if match else ""
+        print(f"   mujoco.rollout RK4 dt {dt:.0e}: {t * 1e3:8.3f} ms  error {e:.1e}{ratio}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="n = 2, 7, 20 only (default: all)")
+    ap.add_argument("--repeats", type=int, default=5, help="timing repeats (default: 5)")
+    ap.add_argument("--chart", default=None, help="write a log-log chart here (default: none)")
+    args = ap.parse_args(argv)
+    sizes = (2, 7, 20) if args.quick else (2, 4, 7, 10, 20)
+    print(f"1. forward dynamics per state, vmap over {B} states ({jax.default_backend()})")
+    print("   kind     n   recursions µs (compile s)   autodiff µs (compile s)   pinocchio µs")
+    table = {}
+    for kind in ("planar", "spatial"):
+        for n in sizes:
+            chain, params = chain_of(kind, n)
+            system = chain.system()
+            c_fast, fast = per_state(system, params, n, args.repeats)
+            auto = "—"
+            if n <= 7:
+                generic = dataclasses.replace(system, equations=None)
+                c_auto, t_auto = per_state(generic, params, n, args.repeats)
+                auto = f"{t_auto:8.3f} ({c_auto:5.1f})"
+                table.setdefault((kind, "autodiff"), []).append((n, t_auto))
+            pin = pinocchio_aba(n, args.repeats) if kind == "spatial" else None
+            pin_s = f"{pin:.2f}" if pin is not None else "not installed"
+            table.setdefault((kind, "recursions"), []).append((n, fast))
+            print(f"   {kind:8s} {n:2d}   {fast:8.3f} ({c_fast:5.1f})          {auto:24s}  {pin_s}")
+    arm_trajectory(args.repeats)
+    if args.chart:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for (kind, path), points in table.items():
+            ns, ts = zip(*points, strict=True)
+            ax.loglog(ns, ts, "o-" if path == "recursions" else "s--", label=f"{kind}, {path}")
+        ax.set_xlabel("links n")
+        ax.set_ylabel("forward dynamics per state (µs)")
+        ax.set_title(f"cost against size (vmap over {B} states)")
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(args.chart, dpi=120)
+        print(f"\nchart written to {args.chart}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,132 @@
+"""Chains' structure-aware equations: their kinematics as a :class:`~._articulated.Tree`,
+and :class:`ChainEquations`, which a chain's ``LagrangianSystem`` evaluates instead of
+differentiating its energies (see :mod:`lagrax._articulated`)."""
+
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from . import _articulated as a
+from ._errors import ShapeError
+from ._typing import Params
+
+
+def _check(n: int, q) -> None:
+    if q.shape != (n,):
+        raise ShapeError(f"q has shape {q.shape}, expected ({n},) for this chain")
+
+
+# Chains up to these lengths are written out link by link (straight-line code that skips
+# structural zeros: fastest to run); longer ones loop over the links with ``lax.scan``,
+# whose compile time does not grow with n.
+UNROLL_MAX_PLANAR = 3
+UNROLL_MAX_SPATIAL = 2
+
+
+def _planar_link(carry, x):
+    phi, px, py = carry
+    q, m, length, r, inertia = x
+    phi = a.add(phi, q)
+    c, sn = jnp.cos(phi), jnp.sin(phi)
+    s = (1.0, py, -px)
+    com = (a.add(px, r * c), a.add(py, r * sn))
+    inertia = a.planar_inertia(m, inertia, com)
+    return (phi, a.add(px, length * c), a.add(py, length * sn)), (s, inertia)
+
+
+def planar_chain(n: int, q, params: Params, scan: bool | None = None) -> a.Chain:
+    """A planar chain (joint ``i`` at ``p_i``, link angle ``φ_i = q_1 + … + q_i``): motion
+    subspaces ``S_i = (1, p_iy, −p_ix)`` and link inertias at the origin."""
+    _check(n, q)
+    scan = n > UNROLL_MAX_PLANAR if scan is None else scan
+    passes = a.Passes(n, scan, q.dtype)
+    per_link = (q, *(jnp.asarray(params[k], q.dtype) for k in ("m", "l", "r", "I")))
+    _, ys = passes.run(_planar_link, (0.0, 0.0, 0.0), passes.links(per_link))
+    s, inertia = passes.split(ys)
+    g = jnp.asarray(params["g"], q.dtype)
+    return a.Chain(passes, a.PLANAR, s, inertia, (0.0, 0.0, g))
+
+
+def _spatial_link(carry, x):
+    rot, origin = carry
+    q, big_a, big_b, big_c, slide, axis, rev, offset, com, inertia, m = x
+    origin = a.vadd(origin, a.matvec(rot, a.vadd(offset, a.vscale(slide, q))))
+    sn, cs = jnp.sin(q), 1 - jnp.cos(q)
+    joint = tuple(
+        tuple(
+            a.add(big_a[r][k], a.add(a.mul(sn, big_b[r][k]), a.mul(cs, big_c[r][k])))
+            for k in range(3)
+        )
+        for r in range(3)
+    )
+    cols = tuple(zip(*joint, strict=True))
+    rot = tuple(tuple(a.dot(row, col) for col in cols) for row in rot)
+    z = a.matvec(rot, axis)
+    prismatic = a.sub(1.0, rev)
+    s = a.vscale(z, rev) + a.vadd(a.vscale(a.cross(origin, z), rev), a.vscale(z, prismatic))
+    centre = a.vadd(origin, a.matvec(rot, com))
+    r_bar = [a.matvec(inertia, row) for row in rot]  # rows of R Ī (Ī symmetric)
+    world = [[None] * 3 for _ in range(3)]
+    for r_ in range(3):
+        for k in range(r_, 3):
+            world[r_][k] = world[k][r_] = a.dot(r_bar[r_], rot[k])
+    return (rot, origin), (s, a.spatial_inertia(m, tuple(map(tuple, world)), centre))
+
+
+def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.Chain:
+    """A spatial chain: world joint axes ``z_i = R_i axis_i`` through the joint origins
+    ``o_i``, ``S_i = (z_i, o_i × z_i)`` (revolute) or ``(0, z_i)`` (prismatic), and link
+    inertias at the origin, ``R_i Ī_i R_iᵀ`` about the centre of mass ``o_i + R_i com_i``."""
+    n = chain.n
+    _check(n, q)
+    scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
+    passes = a.Passes(n, scan, q.dtype)
+    big_a, big_b, big_c, slide = chain._joint_constants()
+    axes = np.asarray(chain.axes, float)
+    rev = np.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types])
+    values = (jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m"))
+    per_link = (q, big_a, big_b, big_c, slide, axes, rev, *values)
+    eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(3)) for i in range(3))
+    _, ys = passes.run(_spatial_link, (eye, (0.0, 0.0, 0.0)), passes.links(per_link))
+    s, inertia = passes.split(ys)
+    g = jnp.asarray(params["g"], q.dtype)
+    a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in chain.up)
+    return a.Chain(passes, a.SPATIAL, s, inertia, a0)
+
+
+class ChainEquations(eqx.Module):
+    """The equations of a chain's ``LagrangianSystem`` from Featherstone's recursions:
+    ``q̈`` by the articulated-body algorithm (O(n)), ``M`` by the composite-rigid-body
+    algorithm, ``M q̈ + C q̇ + G`` by recursive Newton–Euler. They equal the autodiff
+    Lagrangian of the chain's energies to round-off (tested against it and against
+    :func:`lagrax.newton_euler.rnea`)."""
+
+    chain: Any  # PlanarChain | SpatialChain: structure only (static fields)
+
+    scan: bool | None = eqx.field(default=None, static=True)
+
+    def at(self, q, params: Params) -> a.Chain:
+        """The chain's motion subspaces and inertias at ``q``."""
+        if hasattr(self.chain, "joint_types"):
+            return spatial_chain(self.chain, q, params, self.scan)
+        return planar_chain(self.chain.n, q, params, self.scan)
+
+    def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
+        """``q̈`` solving ``M q̈ + C q̇ + G = force`` (``force`` ``None`` means zero); NaN
+        where the chain's articulated inertias are not positive."""
+        chain = self.at(q, params)
+        links = chain.passes.links
+        f = None if force is None else links(jnp.asarray(force, q.dtype))
+        return a.stack(a.aba(chain, links(qd.astype(q.dtype)), f), q)
+
+    def mass_matrix(self, q, params: Params) -> jnp.ndarray:
+        return a.crba(self.at(q, params))
+
+    def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
+        """``M q̈ + C q̇ + G`` (``qdd=None``: the bias ``C q̇ + G``)."""
+        chain = self.at(q, params)
+        links = chain.passes.links
+        qdd = None if qdd is None else links(qdd.astype(q.dtype))
+        return a.stack(a.rnea(chain, links(qd.astype(q.dtype)), qdd), q)
