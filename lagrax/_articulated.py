@@ -249,16 +249,11 @@ class Passes:
             return tuple(ys)
         return tuple(list(c) for c in zip(*ys, strict=True))
 
-    def column(self, ys: Any, k: int | None = None) -> Any:
-        """The per-link outputs (one entry ``k`` of each, if given) as an ``(n, …)`` array."""
-        pick = (lambda y: y) if k is None else (lambda y: y[k])
+    def column(self, ys: Any) -> Any:
+        """Per-link vector outputs as an ``(n, k)`` array."""
         if self.scan:
-            return jnp.stack(jax.tree_util.tree_leaves(pick(ys)), axis=-1).reshape(self.n, -1)
-        rows = [
-            jnp.stack([jnp.asarray(v, self.dtype) for v in jax.tree_util.tree_leaves(pick(y))])
-            for y in ys
-        ]
-        return jnp.stack(rows)
+            return jnp.stack(jax.tree_util.tree_leaves(ys), axis=-1).reshape(self.n, -1)
+        return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
 
 
 class Chain:
@@ -270,6 +265,9 @@ class Chain:
 
     def _zero(self) -> Vec:
         return tuple(0.0 for _ in self.a0)
+
+    def _zero_matrix(self) -> Mat:
+        return tuple(self._zero() for _ in self.a0)
 
     def velocities(self, qd: Any) -> Any:
         """Outward: ``v_i = v_{i−1} + S_i q̇_i``, the velocity-product acceleration
@@ -296,9 +294,6 @@ def aba(chain: Chain, qd: Any, force: Any) -> Any:
     """
     passes = chain.passes
     vel = chain.velocities(qd)
-    zero = chain._zero()
-    k = len(zero)
-    zero_mat = tuple(zero for _ in range(k))
 
     def inward(carry, x):
         art_child, p_child = carry
@@ -315,7 +310,7 @@ def aba(chain: Chain, qd: Any, force: Any) -> Any:
 
     taus = force if force is not None else passes.links(jnp.zeros(passes.n, passes.dtype))
     xs = passes.zip(chain.s, chain.inertia, vel, taus)
-    _, factors = passes.run(inward, (zero_mat, zero), xs, reverse=True)
+    _, factors = passes.run(inward, (chain._zero_matrix(), chain._zero()), xs, reverse=True)
 
     def outward(a, x):
         s, (c, _), (u, d_inv, u_sc) = x
@@ -331,15 +326,14 @@ def crba(chain: Chain) -> jax.Array:
     """The composite-rigid-body algorithm: ``M_ji = S_jᵀ I^c_i S_i`` for ``j ≤ i``, with
     ``I^c_i`` the inertia of links ``i…n`` together (an inward sum)."""
     passes = chain.passes
-    zero = chain._zero()
 
     def inward(comp, x):
         s, inertia = x
         comp = madd(inertia, comp)
         return comp, matvec(comp, s)
 
-    zero_mat = tuple(zero for _ in zero)
-    _, f = passes.run(inward, zero_mat, passes.zip(chain.s, chain.inertia), reverse=True)
+    xs = passes.zip(chain.s, chain.inertia)
+    _, f = passes.run(inward, chain._zero_matrix(), xs, reverse=True)
     s_arr, f_arr = passes.column(chain.s), passes.column(f)
     g = s_arr @ f_arr.T  # g[j, i] = S_j · I^c_i S_i
     upper = jnp.triu(jnp.ones(g.shape, bool))

@@ -1,4 +1,4 @@
-"""Chains' structure-aware equations: their kinematics as a :class:`~._articulated.Tree`,
+"""Chains' structure-aware equations: their kinematics as a :class:`~._articulated.Chain`,
 and :class:`ChainEquations`, which a chain's ``LagrangianSystem`` evaluates instead of
 differentiating its energies (see :mod:`lagrax._articulated`)."""
 
@@ -123,6 +123,12 @@ class ChainEquations(eqx.Module):
 
     def mass_matrix(self, q, params: Params) -> jnp.ndarray:
         return a.crba(self.at(q, params))
+
+    def mass_and_bias(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """``M`` and the bias ``C q̇ + G`` from one evaluation of the kinematics."""
+        chain = self.at(q, params)
+        bias = a.rnea(chain, chain.passes.links(qd.astype(q.dtype)), None)
+        return a.crba(chain), a.stack(bias, q)
 
     def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
         """``M q̈ + C q̇ + G`` (``qdd=None``: the bias ``C q̇ + G``)."""

@@ -28,6 +28,7 @@ class Equations(Protocol):
     recursions): ``M``, ``q̈`` for a generalized force, and ``M q̈ + C q̇ + G``."""
 
     def mass_matrix(self, q: Any, params: Any) -> Any: ...
+    def mass_and_bias(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any]: ...
     def accelerations(self, q: Any, qd: Any, params: Any, force: Any) -> Any: ...
     def inverse_dynamics(self, q: Any, qd: Any, qdd: Any, params: Any) -> Any: ...
 
@@ -191,8 +192,8 @@ def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     """
     f_applied = applied(e, t, q, qd, params, tau)
     if e.equations is not None:
-        bias = e.equations.inverse_dynamics(q, qd, None, params)
-        return e.equations.mass_matrix(q, params), f_applied - bias
+        mass, bias = e.equations.mass_and_bias(q, qd, params)
+        return mass, f_applied - bias
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params)
         mass = jnp.stack([jnp.stack(row) for row in rows])
