@@ -35,7 +35,8 @@ class AbstractSystem(eqx.Module):
     inside a solver loop), :meth:`check_state`.
 
     **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
-    :meth:`components` (none), :meth:`failure_hint` (none).
+    :meth:`components` (none), :meth:`failure_hint` (none), :meth:`jacobi_integral`
+    (:meth:`energy`), :meth:`explicit_power` (none).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -44,7 +45,7 @@ class AbstractSystem(eqx.Module):
     # ------------------------------------------------------------------ the interface
     @abc.abstractmethod
     def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
-        """The energy reported along a solution (``T + V`` for a mechanical system)."""
+        """The mechanical energy ``T + V``."""
 
     @abc.abstractmethod
     def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
@@ -69,9 +70,9 @@ class AbstractSystem(eqx.Module):
         ``tau`` is the input generalized force or ``None``."""
 
     @abc.abstractmethod
-    def check_state(self, q: Coordinates, qd: Velocities, params: Params) -> None:
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
         """Validate a state eagerly (outside ``jit``), raising a ``LagraxError`` that names
-        the problem and the values."""
+        the problem and the values (at time ``t`` for a time-dependent system)."""
 
     # ------------------------------------------------------------------ hooks
     def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
@@ -81,6 +82,18 @@ class AbstractSystem(eqx.Module):
         it onto its constraints (``ok`` false where that fails). Never raises.
         """
         return q, qd, jnp.asarray(True)
+
+    def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """The energy reported along a solution (``Solution.energy``): the Jacobi integral
+        ``h = q̇·∂L/∂q̇ − L`` at time ``t`` (``T + V`` when ``T`` is quadratic in ``q̇``).
+        Default: :meth:`energy`. Never raises."""
+        return self.energy(q, qd, params)
+
+    def explicit_power(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """``−∂L/∂t`` at one state, the rate at which an explicit time dependence changes
+        :meth:`jacobi_integral`; ``None`` (the default) for an autonomous system, whose
+        ``h`` only inputs and dissipation change. Never raises."""
+        return None
 
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any

@@ -5,6 +5,7 @@ traced inputs by ``equinox.error_if``, which survives ``jit``, ``vmap`` and ``sc
 costs nothing when its output is unused. Every error raised here is a ``LagraxError``.
 """
 
+import inspect
 import math
 import numbers
 from collections.abc import Callable, Mapping
@@ -85,6 +86,65 @@ def call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
             f"the {role} function looked up {missing!r} in params, which is not there; "
             f"{describe_params(params)}. Add the missing entry to params."
         ) from err
+
+
+def binds(fn: Callable, n: int) -> bool | None:
+    """Whether ``fn`` accepts ``n`` positional arguments (``None``: cannot tell)."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return None
+    try:
+        sig.bind(*range(n))
+    except TypeError:
+        return False
+    return True
+
+
+def time_signature_message(label: str, n_args: int, fn: Callable, time_dependent: bool) -> str:
+    """Why a user energy with ``n_args`` arguments (``params`` included) does not fit."""
+    if time_dependent:
+        return (
+            f"the system was built with time_dependent=True, so lagrax calls its {label}"
+            f" with the time first, but {_name(fn)} does not accept {n_args} arguments: "
+            "add t as the first argument (T(t, q, qd, params), V(t, q, params), "
+            "D(t, q, qd, params)), or drop time_dependent=True if the energies do not "
+            "depend on time"
+        )
+    return (
+        f"lagrax calls the {label} with {n_args} arguments, but {_name(fn)} does not accept "
+        f"them{' (it takes one more: the time?)' if binds(fn, n_args + 1) else ''}: an "
+        "energy that depends on time explicitly needs LagrangianSystem(..., "
+        "time_dependent=True), which calls T(t, q, qd, params), V(t, q, params) and "
+        "D(t, q, qd, params)"
+    )
+
+
+def _name(fn: Callable) -> str:
+    return f"{getattr(fn, '__name__', type(fn).__name__)}{_signature_text(fn)}"
+
+
+def _signature_text(fn: Callable) -> str:
+    try:
+        return str(inspect.signature(fn))
+    except (TypeError, ValueError):
+        return ""
+
+
+def call_energy(fn: Callable, role: str, label: str, params: Params, *args: Any) -> Any:
+    """:func:`call_user` for an energy (``T``, ``V``, ``D``): a call that fails because the
+    function takes another number of arguments (a ``T(q, qd, params)`` given to a
+    time-dependent system, or the reverse) becomes an ``ArgumentTypeError`` naming it, at
+    trace time."""
+    try:
+        return call_user(fn, role, params, *args)
+    except TypeError as err:
+        if binds(fn, len(args) + 1) is False:
+            # the label says "(t, q, ...)" exactly when the system is time-dependent
+            raise ArgumentTypeError(
+                time_signature_message(label, len(args) + 1, fn, label.count("(t,") > 0)
+            ) from err
+        raise
 
 
 # --------------------------------------------------------------------------- arrays

@@ -170,21 +170,39 @@ class ConstrainedSystem(AbstractSystem):
         """Number of (redundant) generalized coordinates ``n``, if the system states it."""
         return self.system.n_dof
 
-    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+    def energy(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Scalar:
         """Total mechanical energy ``E = T + V`` (constraint forces do no work)."""
-        return self.system.energy(q, qd, params)
+        return self.system.energy(q, qd, params, t=t)
 
-    def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+    def jacobi_integral(self, t, q, qd, params):
+        """The system's Jacobi integral ``h`` (the constraints, ``φ(q) = 0`` without
+        explicit time, do no work, so ``h`` balances as for the free system)."""
+        return self.system.jacobi_integral(t, q, qd, params)
+
+    def explicit_power(self, t, q, qd, params):
+        """The system's ``−∂L/∂t`` (``None`` when autonomous)."""
+        return self.system.explicit_power(t, q, qd, params)
+
+    def kinetic_energy(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Scalar:
         """``T(q, q̇)`` of the underlying system."""
-        return self.system.kinetic_energy(q, qd, params)
+        return self.system.kinetic_energy(q, qd, params, t=t)
 
-    def potential_energy(self, q: Coordinates, params: Params) -> Scalar:
+    def potential_energy(self, q: Coordinates, params: Params, *, t: Time = 0.0) -> Scalar:
         """``V(q)`` of the underlying system."""
-        return self.system.potential_energy(q, params)
+        return self.system.potential_energy(q, params, t=t)
 
-    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
+    def mass_matrix(
+        self,
+        q: Coordinates,
+        params: Params,
+        qd: Velocities | None = None,
+        *,
+        t: Time = 0.0,
+    ) -> Matrix:
         """Mass matrix ``M(q)`` of the unconstrained system, shape ``(n, n)``."""
-        return self.system.mass_matrix(q, params, qd)
+        return self.system.mass_matrix(q, params, qd, t=t)
 
     # ------------------------------------------------------------ constraint functions
     def _phi(self, q, params):
@@ -270,7 +288,7 @@ class ConstrainedSystem(AbstractSystem):
                 finite(tau, "tau")
             qdd, lam = self._kkt(t, q, qd, params, tau)
             if not bool(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam))):
-                self.check_state(q, qd, params, project=False)  # raises with the cause
+                self.check_state(q, qd, params, project=False, t=t)  # raises: the cause
                 raise NonFiniteError(
                     f"{what} of {self.name} is not finite at q={np.asarray(q)}, "
                     f"qd={np.asarray(qd)} although M(q) is positive-definite and J(q) has "
@@ -355,7 +373,10 @@ class ConstrainedSystem(AbstractSystem):
         dtype = q.dtype
         eps = float(jnp.finfo(dtype).eps)
         zero = jnp.zeros_like(q)
-        metric = d.mass_matrix(self.system, q0, zero, params)  # M(q0): a fixed SPD metric
+        # M(q0): a fixed SPD metric (the projection has no time: a time-dependent system's
+        # M(t, q) is taken at t = 0, which changes the metric, not the manifold)
+        t0 = jnp.zeros((), dtype)
+        metric = d.mass_matrix(self.system, q0, zero, params, t0)
 
         def newton_step(a):
             phi = self._phi(a, params)
@@ -376,7 +397,7 @@ class ConstrainedSystem(AbstractSystem):
         # velocities: the M(q)-orthogonal projection onto J q̇ = 0 (what an impulsive
         # constraint would do: the admissible velocity of least kinetic-energy change)
         q1_safe = jnp.where(q_ok, q1, q0)
-        mass = d.mass_matrix(self.system, q1_safe, zero, params)
+        mass = d.mass_matrix(self.system, q1_safe, zero, params, t0)
         jac = self._jacobian(q1_safe, params)
         qd1 = qd0 + solve_kkt(mass, jac, zero, -(jac @ qd0))[0]
         ok = q_ok & jnp.all(jnp.isfinite(qd1))
@@ -458,7 +479,13 @@ class ConstrainedSystem(AbstractSystem):
         )
 
     def check_state(
-        self, q: Coordinates, qd: Velocities, params: Params, *, project: bool | None = None
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        *,
+        project: bool | None = None,
+        t: Time = 0.0,
     ) -> None:
         """Validate a state eagerly (outside ``jit``), with the values in the messages.
 
@@ -470,7 +497,7 @@ class ConstrainedSystem(AbstractSystem):
         **Raises:** ``ConstraintError``, ``ShapeError``, ``NonFiniteError``,
         ``ParameterError``, ``MassMatrixError``.
         """
-        self.system.check_state(q, qd, params)
+        self.system.check_state(q, qd, params, t=t)
         q, qd = self._state(q, qd)
         phi = self._phi(q, params)
         finite(phi, "the constraint values phi(q)")

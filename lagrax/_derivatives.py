@@ -7,6 +7,11 @@ so that every system module can call them without importing another.
 With ``L = T − V``, generalized inputs ``τ``, an applied force ``F(t, q, q̇)`` and a
 Rayleigh dissipation ``D(q, q̇)``, the equations of motion are ``M(q) q̈ = f`` with
 ``M = ∂²T/∂q̇²`` and ``f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ + τ + F − ∂D/∂q̇``.
+
+A time-dependent system (``e.time_dependent``) has ``T(t, q, q̇)``, ``V(t, q)``,
+``D(t, q, q̇)``: every kernel then takes the time ``t`` and ``f`` gains ``−∂²L/∂q̇∂t``.
+For an autonomous system ``t`` is ignored and the kernels trace exactly the code they
+traced before time-dependent systems existed.
 """
 
 from collections.abc import Callable
@@ -16,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._checks import call_user, clamped_reads, energy_value, force_value
+from ._checks import call_energy, call_user, clamped_reads, energy_value, force_value
 from ._linalg import cholesky_solve, solve_spd_unrolled
 
 # Up to this many coordinates, the equations use scalar forward-over-forward derivatives.
@@ -42,6 +47,24 @@ class Energies(Protocol):
     dissipation: Callable[..., Any] | None
     force: Callable[..., Any] | None
     equations: Equations | None
+    time_dependent: bool
+
+
+def timed(e: Energies) -> bool:
+    """Whether the energies take the time first: ``T(t, q, q̇)``, ``V(t, q)``, ``D(t, q, q̇)``."""
+    return getattr(e, "time_dependent", False)
+
+
+def time_of(t, q):
+    """The time as a scalar array of ``q``'s dtype (what a time-dependent energy receives)."""
+    if t is None:
+        raise TypeError("internal error: a time-dependent system's kernel needs the time t")
+    return jnp.asarray(t, q.dtype)
+
+
+def _with_time(e: Energies, t, q, *args):
+    """The arguments of a user energy before ``params``: ``(t, q, …)`` when time-dependent."""
+    return (time_of(t, q), q, *args) if timed(e) else (q, *args)
 
 
 def use_scalar(n: int, scalar_derivatives: bool | None) -> bool:
@@ -54,38 +77,65 @@ KINETIC = "kinetic energy function T(q, qd, params)"
 POTENTIAL = "potential energy function V(q, params)"
 DISSIPATION = "dissipation function D(q, qd, params)"
 FORCE = "force function F(t, q, qd, params)"
+# ... and of a time-dependent system
+KINETIC_T = "kinetic energy function T(t, q, qd, params)"
+POTENTIAL_T = "potential energy function V(t, q, params)"
+DISSIPATION_T = "dissipation function D(t, q, qd, params)"
 
 
-def kinetic(e: Energies, q, qd, params):
-    """``T(q, q̇)``, checked (at trace time) to be a real scalar reading ``q``, ``q̇`` in
-    range."""
-    clamped_reads(e.kinetic, KINETIC, params, q, qd)
-    return energy_value(call_user(e.kinetic, "kinetic energy", params, q, qd), KINETIC, q)
+def kinetic(e: Energies, q, qd, params, t=None):
+    """``T(q, q̇)`` (``T(t, q, q̇)``), checked (at trace time) to be a real scalar reading
+    ``q``, ``q̇`` in range."""
+    label = KINETIC_T if timed(e) else KINETIC
+    args = _with_time(e, t, q, qd)
+    clamped_reads(e.kinetic, label, params, *args)
+    return energy_value(call_energy(e.kinetic, "kinetic energy", label, params, *args), label, q)
 
 
-def potential(e: Energies, q, params):
-    """``V(q)`` (zero when the system has no potential)."""
+def potential(e: Energies, q, params, t=None):
+    """``V(q)`` (``V(t, q)``; zero when the system has no potential)."""
     if e.potential is None:
         return jnp.zeros((), q.dtype)
-    clamped_reads(e.potential, POTENTIAL, params, q)
-    return energy_value(call_user(e.potential, "potential energy", params, q), POTENTIAL, q)
+    label = POTENTIAL_T if timed(e) else POTENTIAL
+    args = _with_time(e, t, q)
+    clamped_reads(e.potential, label, params, *args)
+    return energy_value(
+        call_energy(e.potential, "potential energy", label, params, *args), label, q
+    )
 
 
-def lagrangian(e: Energies, q, qd, params):
+def lagrangian(e: Energies, q, qd, params, t=None):
     """``L = T − V``."""
-    return kinetic(e, q, qd, params) - potential(e, q, params)
+    return kinetic(e, q, qd, params, t) - potential(e, q, params, t)
 
 
-def grad_kinetic(e: Energies, q, qd, params):
+def grad_kinetic(e: Energies, q, qd, params, t=None):
     """``(∂T/∂q, ∂T/∂q̇)`` in one reverse pass."""
-    return jax.grad(lambda a, b: kinetic(e, a, b, params), argnums=(0, 1))(q, qd)
+    return jax.grad(lambda a, b: kinetic(e, a, b, params, t), argnums=(0, 1))(q, qd)
 
 
-def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None):
+def jacobi(e: Energies, q, qd, params, t=None):
+    """The Jacobi integral ``h = q̇·∂L/∂q̇ − L = q̇·∂T/∂q̇ − T + V``: one JVP of ``T`` along
+    ``q̇`` in ``q̇`` gives ``T`` and ``q̇·∂T/∂q̇`` together (``h = T + V`` for a ``T``
+    quadratic in ``q̇``, up to round-off)."""
+    t_val, t_dot = jax.jvp(lambda b: kinetic(e, q, b, params, t), (qd,), (qd,))
+    return t_dot - t_val + potential(e, q, params, t)
+
+
+def explicit_power(e: Energies, q, qd, params, t):
+    """``−∂L/∂t`` (``∂V/∂t − ∂T/∂t``): the rate at which an explicit time dependence
+    changes the Jacobi integral, ``dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)``."""
+    t = time_of(t, q)
+    return -jax.jvp(lambda s: lagrangian(e, q, qd, params, s), (t,), (jnp.ones_like(t),))[1]
+
+
+def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None, t=None):
     """Forward-over-reverse: ``M = ∂p/∂q̇`` column by column, plus optionally
     ``(∂p/∂q) v`` for a tangent ``v`` in ``q``; returns ``(∂T/∂q, p, M, (∂p/∂q) v)``.
 
-    All tangents go through one vmapped JVP of the gradient of ``T``.
+    All tangents go through one vmapped JVP of the gradient of ``T``. For a time-dependent
+    system the extra tangent also moves the time at unit rate: it returns
+    ``(∂p/∂q) v + ∂p/∂t``.
     """
     n = q.shape[0]
     eye = jnp.eye(n, dtype=q.dtype)
@@ -94,51 +144,74 @@ def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None):
         tq = jnp.concatenate([tq, extra_q_tangent[None]], axis=0)
         eye = jnp.concatenate([eye, jnp.zeros((1, n), q.dtype)], axis=0)
 
-    def along(dq, dqd):
-        return jax.jvp(lambda a, b: grad_kinetic(e, a, b, params), (q, qd), (dq, dqd))
+    if timed(e):
+        s = time_of(t, q)
+        tt = jnp.zeros((n,), q.dtype)  # M's columns at fixed t; the extra tangent moves t
+        if extra_q_tangent is not None:
+            tt = jnp.concatenate([tt, jnp.ones((1,), q.dtype)])
 
-    (tq_grad, p), (_, dp) = jax.vmap(along)(tq, eye)
+        def along_timed(dq, dqd, dt):
+            return jax.jvp(
+                lambda a, b, c: grad_kinetic(e, a, b, params, c), (q, qd, s), (dq, dqd, dt)
+            )
+
+        (tq_grad, p), (_, dp) = jax.vmap(along_timed)(tq, eye, tt)
+    else:
+
+        def along(dq, dqd):
+            return jax.jvp(lambda a, b: grad_kinetic(e, a, b, params), (q, qd), (dq, dqd))
+
+        (tq_grad, p), (_, dp) = jax.vmap(along)(tq, eye)
     tq_grad, p = tq_grad[0], p[0]
     mass = dp[:n].T
     extra = dp[n] if extra_q_tangent is not None else None
     return tq_grad, p, mass, extra
 
 
-def mass_matrix(e: Energies, q, qd, params):
+def mass_matrix(e: Energies, q, qd, params, t=None):
     """``M(q) = ∂²T/∂q̇²`` (``n`` JVPs of ``∂T/∂q̇``, or the structure-aware ``equations``)."""
     if e.equations is not None:
         return e.equations.mass_matrix(q, params)
-    return mass_columns(e, q, qd, params)[2]
+    return mass_columns(e, q, qd, params, t=t)[2]
 
 
-def coriolis(e: Energies, q, qd, params):
+def coriolis(e: Energies, q, qd, params, t=None):
     """``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``: one JVP along ``(q̇, 0)``."""
-    (t_q, _), (_, dp) = jax.jvp(lambda a: grad_kinetic(e, a, qd, params), (q,), (qd,))
+    (t_q, _), (_, dp) = jax.jvp(lambda a: grad_kinetic(e, a, qd, params, t), (q,), (qd,))
     return dp - t_q
 
 
-def gravity(e: Energies, q, params):
+def time_rate_of_momentum(e: Energies, q, qd, params, t):
+    """``∂²T/∂q̇∂t = ∂p/∂t`` at fixed ``(q, q̇)`` (one JVP along the time)."""
+    s = time_of(t, q)
+    return jax.jvp(lambda c: grad_kinetic(e, q, qd, params, c)[1], (s,), (jnp.ones_like(s),))[1]
+
+
+def gravity(e: Energies, q, params, t=None):
     """``G(q) = ∂V/∂q``."""
     if e.potential is None:
         return jnp.zeros_like(q)
-    return jax.grad(lambda a: potential(e, a, params))(q)
+    return jax.grad(lambda a: potential(e, a, params, t))(q)
 
 
-def damping(e: Energies, q, qd, params):
+def damping(e: Energies, q, qd, params, t=None):
     """``∂D/∂q̇`` (the force acting is its negative)."""
     if e.dissipation is None:
         return jnp.zeros_like(q)
-    clamped_reads(e.dissipation, DISSIPATION, params, q, qd)
+    label = DISSIPATION_T if timed(e) else DISSIPATION
+    args = _with_time(e, t, q, qd)
+    clamped_reads(e.dissipation, label, params, *args)
 
     def dissipation(b):
-        return energy_value(call_user(e.dissipation, "dissipation", params, q, b), DISSIPATION, q)
+        out = call_energy(e.dissipation, "dissipation", label, params, *args[:-1], b)
+        return energy_value(out, label, q)
 
     return jax.grad(dissipation)(qd)
 
 
 def applied(e: Energies, t, q, qd, params, tau):
     """Right-hand generalized force ``τ + F(t, q, q̇) − ∂D/∂q̇`` (without potential)."""
-    f = -damping(e, q, qd, params)
+    f = -damping(e, q, qd, params, t)
     if tau is not None:
         f = f + tau
     if e.force is not None:
@@ -148,9 +221,9 @@ def applied(e: Energies, t, q, qd, params, tau):
     return f
 
 
-def eom_small(e: Energies, q, qd, params):
-    """``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` as lists of scalars, by scalar
-    forward-over-forward derivatives.
+def eom_small(e: Energies, q, qd, params, t=None):
+    """``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` (``− ∂²L/∂q̇∂t`` when time-dependent) as lists
+    of scalars, by scalar forward-over-forward derivatives.
 
     For small ``n`` this beats forward-over-reverse: every derivative is a straight
     line of scalar arithmetic on the primal values, which XLA fuses into one loop with
@@ -162,11 +235,15 @@ def eom_small(e: Energies, q, qd, params):
     basis = [jnp.asarray(np.eye(n)[i], q.dtype) for i in range(n)]
     zero = jnp.zeros_like(q)
 
-    def lag(a, b):
-        return lagrangian(e, a, b, params)
+    if timed(e):
+        s = time_of(t, q)
+        one = jnp.ones_like(s)
 
-    def p_i(i):  # q, q̇ -> ∂L/∂q̇_i
-        return lambda a, b: jax.jvp(lag, (a, b), (zero, basis[i]))[1]
+    def lag(a, b, c=t):
+        return lagrangian(e, a, b, params, c)
+
+    def p_i(i):  # q, q̇ (, t) -> ∂L/∂q̇_i
+        return lambda a, b, c=t: jax.jvp(lambda x, y: lag(x, y, c), (a, b), (zero, basis[i]))[1]
 
     rows = [[None] * n for _ in range(n)]
     rhs = []
@@ -175,7 +252,10 @@ def eom_small(e: Energies, q, qd, params):
             mij = jax.jvp(lambda b, i=i: p_i(i)(q, b), (qd,), (basis[j],))[1]
             rows[i][j] = rows[j][i] = mij
         l_q = jax.jvp(lag, (q, qd), (basis[i], zero))[1]
-        mixed = jax.jvp(lambda a, i=i: p_i(i)(a, qd), (q,), (qd,))[1]
+        if timed(e):  # (∂²L/∂q̇∂q) q̇ + ∂²L/∂q̇∂t: one JVP along (q̇, 1)
+            mixed = jax.jvp(lambda a, c, i=i: p_i(i)(a, qd, c), (q, s), (qd, one))[1]
+        else:
+            mixed = jax.jvp(lambda a, i=i: p_i(i)(a, qd), (q,), (qd,))[1]
         rhs.append(l_q - mixed)
     return rows, rhs
 
@@ -195,11 +275,11 @@ def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
         mass, bias = e.equations.mass_and_bias(q, qd, params)
         return mass, f_applied - bias
     if use_scalar(q.shape[0], scalar):
-        rows, rhs = eom_small(e, q, qd, params)
+        rows, rhs = eom_small(e, q, qd, params, t)
         mass = jnp.stack([jnp.stack(row) for row in rows])
         return mass, jnp.stack(rhs) + f_applied
-    t_q, _, mass, dp_q = mass_columns(e, q, qd, params, extra_q_tangent=qd)
-    return mass, t_q - dp_q - gravity(e, q, params) + f_applied
+    t_q, _, mass, dp_q = mass_columns(e, q, qd, params, extra_q_tangent=qd, t=t)
+    return mass, t_q - dp_q - gravity(e, q, params, t) + f_applied
 
 
 def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
@@ -213,7 +293,7 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
         f = applied(e, t, q, qd, params, tau) if _has_applied(e, tau) else None
         return e.equations.accelerations(q, qd, params, f)
     if use_scalar(q.shape[0], scalar):
-        rows, rhs = eom_small(e, q, qd, params)
+        rows, rhs = eom_small(e, q, qd, params, t)
         if _has_applied(e, tau):
             f_applied = applied(e, t, q, qd, params, tau)
             rhs = [r + f_applied[i] for i, r in enumerate(rhs)]

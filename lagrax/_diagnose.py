@@ -175,14 +175,16 @@ def _mass_or_accelerations(system: AbstractSystem, sol: Solution, params, y0) ->
     """At the (finite, reached) final state: a singular mass matrix, or non-finite
     accelerations with every component finite."""
     q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
-    eigs = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q_end, params, qd_end)))
+    t_end = np.asarray(sol.t_end)
+    eigs = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q_end, params, qd_end, t=t_end)))
     if not np.all(np.isfinite(eigs)):
         return []
     tiny = 1e3 * pivot_threshold(eigs.dtype)
     singular = not eigs[0] > tiny * max(abs(eigs[-1]), 1e-300)
     if y0 is not None:  # collapsed since the start (the initial state was checked)
         q0, qd0 = (np.asarray(v) for v in y0)
-        eigs0 = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q0, params, qd0)))
+        t0 = np.asarray(sol.ts[0])  # the start (a time-dependent M(t, q) is read there)
+        eigs0 = np.linalg.eigvalsh(np.asarray(system.mass_matrix(q0, params, qd0, t=t0)))
         if np.all(np.isfinite(eigs0)) and eigs0[0] > 0:
             singular = singular or not eigs[0] > 1e-6 * eigs0[0]
     if singular:

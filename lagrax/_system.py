@@ -9,13 +9,23 @@ import numpy as np
 
 from . import _derivatives as d
 from ._abstract_system import AbstractSystem
-from ._checks import call_user, finite, finite_params, is_traced, pivot_threshold, positive_int
-from ._errors import ArgumentTypeError, MassMatrixError, NonFiniteError
+from ._checks import (
+    binds,
+    call_user,
+    finite,
+    finite_params,
+    is_traced,
+    pivot_threshold,
+    positive_int,
+    time_signature_message,
+)
+from ._errors import ArgumentTypeError, ConfigurationError, MassMatrixError, NonFiniteError
 from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
-KineticFn = Callable[[Vector, Vector, Params], Scalar]
-PotentialFn = Callable[[Vector, Params], Scalar]
-DissipationFn = Callable[[Vector, Vector, Params], Scalar]
+# autonomous energies, or with the time first (time_dependent=True)
+KineticFn = Callable[[Vector, Vector, Params], Scalar] | Callable[..., Scalar]
+PotentialFn = Callable[[Vector, Params], Scalar] | Callable[..., Scalar]
+DissipationFn = Callable[[Vector, Vector, Params], Scalar] | Callable[..., Scalar]
 ForceFn = Callable[[Scalar, Vector, Vector, Params], Vector]
 
 
@@ -34,6 +44,26 @@ class LagrangianSystem(AbstractSystem):
     - ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q`` (``coriolis``), one forward-over-reverse
       product, no Jacobian formed;
     - ``G = ∂V/∂q`` (``gravity``).
+
+    **Time-dependent (rheonomic) systems.** With ``time_dependent=True`` the energies
+    take the time first, ``T(t, q, q̇)``, ``V(t, q)``, ``D(t, q, q̇)`` (a moving support,
+    a prescribed rotation, a pendulum reeled in, a time-varying spring), and
+    ``d/dt ∂L/∂q̇`` gains the explicit time derivative of the momenta:
+
+    .. math::  M(t, q) q̈ = ∂L/∂q − (∂²L/∂q̇∂q) q̇ − ∂²L/∂q̇∂t + τ + F − ∂D/∂q̇.
+
+    Every method then takes ``t=`` (default ``0.0``) and evaluates at that time; for an
+    autonomous system (the default) ``t`` is ignored and the code is exactly that of a
+    system without the option. The energy a solution reports is the Jacobi integral
+    ``h = q̇·∂L/∂q̇ − L`` (:meth:`jacobi_integral`), which changes at the rate
+    ``dh/dt = −∂L/∂t`` (without inputs and dissipation): ``Solution.work`` integrates that
+    rate, and ``Solution.energy_error`` is the balance ``h(t) − h(t0) − W(t)``, relative.
+    The structure-aware ``equations`` of chains are for autonomous energies only.
+
+    **Terms linear in q̇.** ``T`` may contain terms linear in ``q̇`` (``T ⊃ a(q)·q̇``, a
+    charge in a magnetic field with ``a = e A(q)``, or a rotating frame): the equations are
+    right as they stand, the conserved energy is ``h`` (not ``T + V``), and
+    :meth:`coriolis_matrix` includes the gyroscopic skew term of ``a``.
 
     Every method is a pure function of its array arguments and works under ``jax.jit``,
     ``jax.vmap`` (over states and over ``params``) and ``jax.grad``.
@@ -58,6 +88,10 @@ class LagrangianSystem(AbstractSystem):
     ``T``, ``V`` and ``D`` must return real scalars and ``force`` a real ``(n,)`` array:
     checked on shape and dtype while tracing (``ShapeError`` / ``ArgumentTypeError``
     naming the function), so these checks cost nothing when the compiled code runs.
+    - ``time_dependent``: ``True`` for energies with an explicit time argument first,
+      ``T(t, q, qd, params)``, ``V(t, q, params)``, ``D(t, q, qd, params)`` (see above);
+      energies of another arity are refused with an ``ArgumentTypeError`` naming them.
+      Default ``False``.
     - ``name``: a label used in messages and plots.
     - ``scalar_derivatives``: how :meth:`forward_dynamics` differentiates ``L``: ``True``
       by scalar forward-over-forward directional derivatives (fastest to run for small,
@@ -95,6 +129,7 @@ class LagrangianSystem(AbstractSystem):
     name: str = eqx.field(default="system", static=True)
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
     equations: d.Equations | None = None
+    time_dependent: bool = eqx.field(default=False, static=True)
 
     def __check_init__(self):
         if isinstance(self.kinetic, AbstractSystem):
@@ -115,84 +150,171 @@ class LagrangianSystem(AbstractSystem):
                 )
         if self.n_dof is not None:
             positive_int("n_dof", self.n_dof, "It is the number of generalized coordinates.")
+        if not isinstance(self.time_dependent, bool):
+            raise ArgumentTypeError(
+                f"time_dependent must be True or False, got {self.time_dependent!r}"
+            )
+        if self.time_dependent:
+            if self.equations is not None:
+                raise ConfigurationError(
+                    "a time-dependent system cannot use structure-aware equations (a "
+                    "chain's recursions assume energies without explicit time): pass "
+                    "equations=None"
+                )
+            for fn, label, n_args in (
+                (self.kinetic, d.KINETIC_T, 4),
+                (self.potential, d.POTENTIAL_T, 3),
+                (self.dissipation, d.DISSIPATION_T, 4),
+            ):
+                if fn is not None and binds(fn, n_args) is False:
+                    raise ArgumentTypeError(time_signature_message(label, n_args, fn, True))
 
     # ------------------------------------------------------------------ energies
-    def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
-        """``T(q, q̇)``."""
+    # Every method takes the time t= (default 0.0); only a time_dependent system reads it.
+    def kinetic_energy(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Scalar:
+        """``T(q, q̇)`` (``T(t, q, q̇)`` for a time-dependent system)."""
         q, qd = self._state(q, qd)
-        return jnp.asarray(d.kinetic(self, q, qd, params))
+        return jnp.asarray(d.kinetic(self, q, qd, params, t))
 
-    def potential_energy(self, q: Coordinates, params: Params) -> Scalar:
-        """``V(q)`` (zero when the system has no potential)."""
+    def potential_energy(self, q: Coordinates, params: Params, *, t: Time = 0.0) -> Scalar:
+        """``V(q)`` (``V(t, q)``; zero when the system has no potential)."""
         (q,) = self._state(q)
-        return d.potential(self, q, params)
+        return d.potential(self, q, params, t)
 
-    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
-        """Total mechanical energy ``E = T + V``."""
+    def energy(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Scalar:
+        """Total mechanical energy ``E = T + V`` (see :meth:`jacobi_integral` for the
+        conserved quantity when ``T`` has terms linear in ``q̇``)."""
         q, qd = self._state(q, qd)
-        return d.kinetic(self, q, qd, params) + d.potential(self, q, params)
+        return d.kinetic(self, q, qd, params, t) + d.potential(self, q, params, t)
 
-    def lagrangian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+    def lagrangian(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Scalar:
         """``L = T − V``."""
         q, qd = self._state(q, qd)
-        return d.kinetic(self, q, qd, params) - d.potential(self, q, params)
+        return d.lagrangian(self, q, qd, params, t)
 
-    def momentum(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+    def momentum(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Vector:
         """Generalized momenta ``p = ∂L/∂q̇`` (one reverse pass of ``T``)."""
         q, qd = self._state(q, qd)
-        return d.grad_kinetic(self, q, qd, params)[1]
+        return d.grad_kinetic(self, q, qd, params, t)[1]
 
-    def hamiltonian(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
-        """``H = p·q̇ − L``; equals ``T + V`` when ``T`` is quadratic in ``q̇``."""
+    def hamiltonian(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Scalar:
+        """``H = p·q̇ − L`` in the velocities: the Jacobi integral, see
+        :meth:`jacobi_integral` (the same value)."""
         q, qd = self._state(q, qd)
-        p = d.grad_kinetic(self, q, qd, params)[1]
-        t = d.kinetic(self, q, qd, params)
-        return jnp.dot(p, qd) - (t - d.potential(self, q, params))
+        return d.jacobi(self, q, qd, params, t)
+
+    def jacobi_integral(self, t: Time, q: Vector, qd: Vector, params: Params) -> Scalar:
+        r"""The energy a solution reports: the Jacobi integral (the Hamiltonian in the
+        velocities)
+
+        .. math::  h = q̇·∂L/∂q̇ − L = q̇·∂T/∂q̇ − T + V.
+
+        For ``T`` quadratic in ``q̇`` (``T = ½ q̇ᵀM q̇``) ``q̇·∂T/∂q̇ = 2T`` and ``h = T + V``;
+        with terms linear in ``q̇`` (``T ⊃ a(q)·q̇``: a magnetic vector potential, a
+        rotating frame) ``h`` drops them, and it is ``h``, not ``T + V``, that an
+        autonomous, undamped, unforced motion conserves. Along any motion
+        ``dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)``. One JVP of ``T`` along ``q̇``.
+
+        **Arguments:** the time ``t`` (read by a time-dependent system only), ``q``,
+        ``qd`` (shape ``(n,)``), ``params``. **Returns:** ``h``, a scalar.
+        """
+        q, qd = self._state(q, qd)
+        return d.jacobi(self, q, qd, params, t)
+
+    def explicit_power(self, t: Time, q: Vector, qd: Vector, params: Params) -> Scalar | None:
+        """``−∂L/∂t = ∂V/∂t − ∂T/∂t`` at one state of a time-dependent system, the rate at
+        which the explicit time dependence changes :meth:`jacobi_integral`; ``None`` for
+        an autonomous system."""
+        if not self.time_dependent:
+            return None
+        q, qd = self._state(q, qd)
+        return d.explicit_power(self, q, qd, params, t)
 
     # ------------------------------------------------------------------ derivatives
-    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
-        """Mass (inertia) matrix ``M(q) = ∂²T/∂q̇²``, shape ``(n, n)``.
+    def mass_matrix(
+        self,
+        q: Coordinates,
+        params: Params,
+        qd: Velocities | None = None,
+        *,
+        t: Time = 0.0,
+    ) -> Matrix:
+        """Mass (inertia) matrix ``M(q) = ∂²T/∂q̇²`` (``M(t, q)`` for a time-dependent
+        system), shape ``(n, n)``.
 
         Formed by ``n`` JVPs of ``∂T/∂q̇`` (forward-over-reverse). For a ``T`` quadratic in
         ``q̇`` the result does not depend on ``qd`` (default: zero velocities).
         """
         q, qd = self._state(q, jnp.zeros_like(jnp.asarray(q)) if qd is None else qd)
-        return d.mass_matrix(self, q, qd, params)
+        return d.mass_matrix(self, q, qd, params, t)
 
-    def coriolis(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
-        """Coriolis and centrifugal forces ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``.
+    def coriolis(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Vector:
+        """Coriolis, centrifugal and gyroscopic forces
+        ``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``.
 
-        One JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, 0)``; no matrix is formed.
+        One JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, 0)``; no matrix is formed. For a
+        time-dependent system this is at the fixed time ``t``; the explicit-time term
+        ``∂²T/∂q̇∂t`` of the equations is not part of it.
         """
         q, qd = self._state(q, qd)
-        return d.coriolis(self, q, qd, params)
+        return d.coriolis(self, q, qd, params, t)
 
-    def coriolis_matrix(self, q: Coordinates, qd: Velocities, params: Params) -> Matrix:
-        r"""Coriolis matrix ``C(q, q̇)`` in Christoffel form.
+    def coriolis_matrix(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Matrix:
+        r"""Coriolis matrix ``C(q, q̇)`` with ``C(q, q̇) q̇ =`` :meth:`coriolis` for any ``T``.
 
-        ``C_ij = Σ_k Γ_ijk q̇_k`` with ``Γ_ijk = ½(∂M_ij/∂q_k + ∂M_ik/∂q_j − ∂M_jk/∂q_i)``,
-        computed as ``C = ½(Ṁ + A − Aᵀ)`` with ``Ṁ = (∂M/∂q)·q̇`` (one JVP of ``M``) and
-        ``A = ∂(M(q) q̇)/∂q``. With this choice ``Ṁ − 2C = Aᵀ − A`` is skew-symmetric and,
-        for ``T = ½ q̇ᵀ M(q) q̇``, ``C q̇`` equals :meth:`coriolis`.
+        Write ``T = ½ q̇ᵀM(q)q̇ + a(q)·q̇ + T₀(q)`` (quadratic, linear and velocity-free
+        parts; ``M = ∂²T/∂q̇²``). The quadratic part gives the Christoffel form
+        ``C_M,ij = Σ_k Γ_ijk q̇_k`` with ``Γ_ijk = ½(∂M_ij/∂q_k + ∂M_ik/∂q_j − ∂M_jk/∂q_i)``,
+        computed as ``½(Ṁ + A − Aᵀ)`` with ``Ṁ = (∂M/∂q)·q̇`` (one JVP of ``M``) and
+        ``A = ∂(M(q) q̇)/∂q``; ``Ṁ − 2C_M`` is skew-symmetric. The linear part gives the
+        gyroscopic force ``(∂a/∂q − (∂a/∂q)ᵀ) q̇`` (a magnetic field's Lorentz force, a
+        rotating frame's Coriolis force), a skew-symmetric matrix ``S`` that does no work;
+        ``C = C_M + S``, so ``Ṁ − 2C`` stays skew-symmetric. ``a(q) = ∂T/∂q̇`` at ``q̇ = 0``
+        (one more reverse pass; ``S = 0`` for a ``T`` quadratic in ``q̇``).
+
+        The velocity-free part ``T₀(q) = T(q, 0)`` (the centrifugal potential of a rotating
+        frame, ``½ m ω² r²``) adds ``−∂T₀/∂q`` to :meth:`coriolis`, a force that is not a
+        product with ``q̇`` and so has no place in ``C``: for ``T`` at most quadratic in
+        ``q̇`` (every mechanical ``T``)
+
+        .. math::  C(q, q̇) q̇ = \text{coriolis}(q, q̇) − \text{coriolis}(q, 0),
+
+        which is ``coriolis(q, q̇)`` itself when ``T₀`` does not depend on ``q`` (any
+        ``T = ½ q̇ᵀM q̇ + a(q)·q̇``). For a ``T`` of higher degree in ``q̇`` (relativistic,
+        or an ``M`` that depends on ``q̇``) no such split exists and this matrix, formed
+        with ``M(q, q̇)`` at the given ``q̇``, is only an approximation: use
+        :meth:`coriolis`. For a time-dependent system everything is at the fixed time
+        ``t``.
         """
         q, qd = self._state(q, qd)
 
         def m_of(a):
-            return d.mass_matrix(self, a, qd, params)
+            return d.mass_matrix(self, a, qd, params, t)
 
         m_dot = jax.jvp(m_of, (q,), (qd,))[1]
         a_mat = jax.jacfwd(lambda a: m_of(a) @ qd)(q)
-        return 0.5 * (m_dot + a_mat - a_mat.T)
+        c_mat = 0.5 * (m_dot + a_mat - a_mat.T)
+        zero = jnp.zeros_like(qd)
+        da = jax.jacfwd(lambda a: d.grad_kinetic(self, a, zero, params, t)[1])(q)
+        return c_mat + (da - da.T)
 
-    def gravity(self, q: Coordinates, params: Params) -> Vector:
+    def gravity(self, q: Coordinates, params: Params, *, t: Time = 0.0) -> Vector:
         """Potential forces ``G(q) = ∂V/∂q`` (gravity, springs), shape ``(n,)``."""
         (q,) = self._state(q)
-        return d.gravity(self, q, params)
+        return d.gravity(self, q, params, t)
 
-    def damping(self, q: Coordinates, qd: Velocities, params: Params) -> Vector:
+    def damping(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Vector:
         """Dissipative force magnitude ``∂D/∂q̇`` (the force acting is its negative)."""
         q, qd = self._state(q, qd)
-        return d.damping(self, q, qd, params)
+        return d.damping(self, q, qd, params, t)
 
     # ------------------------------------------------------------------ dynamics
     def accelerations(self, t, q, qd, params, tau):
@@ -229,7 +351,7 @@ class LagrangianSystem(AbstractSystem):
                 finite(tau, "tau")
             qdd = self.accelerations(t, q, qd, params, tau)
             if not bool(jnp.all(jnp.isfinite(qdd))):
-                self.check_state(q, qd, params)  # raises if M(q) or the energies are bad
+                self.check_state(q, qd, params, t=t)  # raises if M(q) or the energies are bad
                 applied = d.applied(self, t, q, qd, params, tau)
                 raise NonFiniteError(
                     f"forward_dynamics of {self.name} is not finite at q={np.asarray(q)}, "
@@ -259,16 +381,20 @@ class LagrangianSystem(AbstractSystem):
             out["the force function F(t, q, qd, params)"] = call_user(  # as _diagnose.FORCE
                 self.force, "force", params, t, q, qd
             )
-        out["the kinetic energy T"] = d.kinetic(self, q, qd, params)
-        t_q, t_qd = d.grad_kinetic(self, q, qd, params)
+        out["the kinetic energy T"] = d.kinetic(self, q, qd, params, t)
+        t_q, t_qd = d.grad_kinetic(self, q, qd, params, t)
         out["dT/dq (the derivative of T)"] = t_q
         out["dT/dqd (the momenta)"] = t_qd
-        out["the mass matrix M = d2T/dqd2"] = d.mass_matrix(self, q, qd, params)
+        if self.time_dependent:
+            out["d2T/dqd dt (the explicit time rate of the momenta)"] = d.time_rate_of_momentum(
+                self, q, qd, params, t
+            )
+        out["the mass matrix M = d2T/dqd2"] = d.mass_matrix(self, q, qd, params, t)
         if self.potential is not None:
-            out["the potential energy V"] = d.potential(self, q, params)
-            out["dV/dq (gravity and springs)"] = d.gravity(self, q, params)
+            out["the potential energy V"] = d.potential(self, q, params, t)
+            out["dV/dq (gravity and springs)"] = d.gravity(self, q, params, t)
         if self.dissipation is not None:
-            out["dD/dqd (the damping force)"] = d.damping(self, q, qd, params)
+            out["dD/dqd (the damping force)"] = d.damping(self, q, qd, params, t)
         return out
 
     def _mass_message(self, q, params_eigs) -> str:
@@ -292,24 +418,34 @@ class LagrangianSystem(AbstractSystem):
 
         Computed without forming ``M``: one JVP of ``(∂T/∂q, ∂T/∂q̇)`` along ``(q̇, q̈)``
         gives ``d/dt ∂T/∂q̇ = M q̈ + (∂²T/∂q̇∂q) q̇``. ``F`` is the system's own applied
-        force, so ``τ`` is what must be added to it.
+        force, so ``τ`` is what must be added to it. For a time-dependent system the JVP
+        also moves ``t`` at unit rate, adding ``∂²T/∂q̇∂t``; all terms are at time ``t``.
         """
         q, qd, qdd = self._state(q, qd, qdd=qdd)
         if self.equations is not None:
             applied = d.applied(self, t, q, qd, params, None)
             return self.equations.inverse_dynamics(q, qd, qdd, params) - applied
-        (t_q, _), (_, dp) = jax.jvp(
-            lambda a, b: d.grad_kinetic(self, a, b, params), (q, qd), (qd, qdd)
-        )
+        if self.time_dependent:
+            s = d.time_of(t, q)
+            (t_q, _), (_, dp) = jax.jvp(
+                lambda a, b, c: d.grad_kinetic(self, a, b, params, c),
+                (q, qd, s),
+                (qd, qdd, jnp.ones_like(s)),
+            )
+        else:
+            (t_q, _), (_, dp) = jax.jvp(
+                lambda a, b: d.grad_kinetic(self, a, b, params), (q, qd), (qd, qdd)
+            )
         applied = d.applied(self, t, q, qd, params, None)
-        return dp - t_q + d.gravity(self, q, params) - applied
+        return dp - t_q + d.gravity(self, q, params, t) - applied
 
-    def check_state(self, q: Coordinates, qd: Velocities, params: Params) -> None:
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
         """Validate a state eagerly (outside ``jit``) with the values in the messages.
 
         Checks shapes, finiteness of ``q``, ``q̇``, ``params`` and the energies, that every
         parameter the energies read is present, and that ``M(q)`` is symmetric
-        positive-definite (reporting its eigenvalues if not).
+        positive-definite (reporting its eigenvalues if not); at time ``t`` for a
+        time-dependent system.
 
         **Raises:** ``ShapeError``, ``NonFiniteError``, ``ParameterError``,
         ``MassMatrixError``.
@@ -322,7 +458,7 @@ class LagrangianSystem(AbstractSystem):
         as_arrays = jax.tree_util.tree_map(
             lambda x: np.asarray(x) if isinstance(x, float) else x, params
         )
-        e, mass = _energy_and_mass(self, q, qd, as_arrays)
+        e, mass = _energy_and_mass(self, q, qd, as_arrays, np.asarray(t, q.dtype))
         if not bool(jnp.isfinite(e)):
             raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
         mass = np.asarray(mass)
@@ -380,7 +516,8 @@ class LagrangianSystem(AbstractSystem):
         - ``q_eq``, ``qd_eq``: the state to linearize about, shape ``(n,)`` each.
         - ``params``: the parameters (any pytree).
         - ``tau_eq``: the input there, shape ``(n,)`` (default zero).
-        - ``t``: the time, for a system with a time-dependent ``force`` (default 0).
+        - ``t``: the time, for a time-dependent system or ``force`` (default 0): the
+          Jacobians of the field frozen at that time.
 
         **Returns:** ``(A, B)`` with ``A`` of shape ``(2n, 2n)`` and ``B`` of shape
         ``(2n, n)``, both in the state ordering ``x = (q_1…q_n, q̇_1…q̇_n)``.
@@ -411,7 +548,7 @@ class LagrangianSystem(AbstractSystem):
             finite(q, "q_eq")
             finite(qd, "qd_eq")
             finite(tau, "tau_eq")
-            self.check_state(q, qd, params)  # shapes, parameters, M positive-definite
+            self.check_state(q, qd, params, t=t)  # shapes, parameters, M positive-definite
 
         def field(x, u):
             return jnp.concatenate([x[n:], self.accelerations(t, x[:n], x[n:], params, u)])
@@ -433,6 +570,6 @@ class LagrangianSystem(AbstractSystem):
 
 
 @eqx.filter_jit
-def _energy_and_mass(system: LagrangianSystem, q, qd, params):
+def _energy_and_mass(system: LagrangianSystem, q, qd, params, t):
     """``(T + V, M)`` at one state: one compiled call for ``check_state``."""
-    return system.energy(q, qd, params), system.mass_matrix(q, params, qd)
+    return system.energy(q, qd, params, t=t), system.mass_matrix(q, params, qd, t=t)

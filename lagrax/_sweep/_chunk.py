@@ -12,7 +12,7 @@ import numpy as np
 from .._checks import pivot_threshold
 from .._lanes import LaneOutput, run_lanes
 from .._results import RESULTS, code_of, from_code
-from .._simulate import SolveConfig, SolveInputs, observables, solve_from
+from .._simulate import SolveConfig, SolveInputs, observables, solve_from, work_along
 from .._solution import Solution
 from .._vector_field import LagrangianVectorField
 from ._devices import to_device, to_host
@@ -104,14 +104,23 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
         out = fn(members, y0s)
     system = setup.config.system
     field = LagrangianVectorField(system, setup.config.tau_fn)
-    energy = jax.vmap(jax.vmap(system.energy, in_axes=(0, 0, None)))
+    # the Jacobi integral h at the saves, the start and the end (see Solution.energy)
+    energy = jax.vmap(
+        jax.vmap(system.jacobi_integral, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
+    )
     q, qd = out.ys
-    e = energy(q, qd, members) if q.shape[1] else q[..., 0]
+    e = energy(ts, q, qd, members) if q.shape[1] else q[..., 0]
     e = jnp.where(jnp.isfinite(e), e, jnp.inf)
     q0, qd0 = y0s
-    e0 = jax.vmap(system.energy)(q0, qd0, members)
+    e0 = jax.vmap(system.jacobi_integral, in_axes=(None, 0, 0, 0))(t0, q0, qd0, members)
+    first = jtu.tree_map(lambda x: x[0], members)
+    if system.explicit_power(t0, q0[0], qd0[0], first) is not None:
+        # h changes by the work of the explicit time dependence, which needs the path:
+        # the sweep's energy_error is NaN (use simulate's Solution.energy_error, or a
+        # keep= reduction of it)
+        e0 = jnp.full_like(e0, jnp.nan)
     q_end, qd_end = out.y_end
-    e_end = jax.vmap(system.energy)(q_end, qd_end, members)
+    e_end = jax.vmap(system.jacobi_integral)(out.t_end, q_end, qd_end, members)
     # the system's observables at the end state (a constrained system: max |φ(q)| there)
     at_end = jax.vmap(
         lambda t, a, b, p: system.observables(t, a, b, p, field.tau(t, a, b, tau_const))
@@ -132,7 +141,10 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
             reached = jnp.all(jnp.isfinite(i_q), axis=1)
             i_ts = jnp.where(reached, ts, jnp.inf)
             extras = observables(system, field, p, tau_const, i_ts, i_q, i_qd)
-            sol = Solution(i_ts, i_q, i_qd, i_e, from_code(res), stats, t_end, qe, qde, **extras)
+            work = work_along(system, field, p, tau_const, i_ts, i_q, i_qd)
+            sol = Solution(
+                i_ts, i_q, i_qd, i_e, from_code(res), stats, t_end, qe, qde, **extras, work=work
+            )
             return setup.reduce(sol)
 
         reduced = jax.vmap(reduce_one)(
@@ -159,9 +171,9 @@ def _initial_states(system, q0s, qd0s, members):
 
 
 @eqx.filter_jit
-def _mass_check(system, q0s, qd0s, members):
+def _mass_check(system, q0s, qd0s, members, t0):
     """Per member: the mass matrix at the initial state (for a positive-definiteness check)."""
-    return jax.vmap(lambda q, qd, p: system.mass_matrix(q, p, qd))(q0s, qd0s, members)
+    return jax.vmap(lambda q, qd, p: system.mass_matrix(q, p, qd, t=t0))(q0s, qd0s, members)
 
 
 def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt):
@@ -181,7 +193,11 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
     if fin.any():
         mm = np.asarray(
             _mass_check(
-                system, jnp.asarray(q0s), jnp.asarray(qd0s), jtu.tree_map(jnp.asarray, members)
+                system,
+                jnp.asarray(q0s),
+                jnp.asarray(qd0s),
+                jtu.tree_map(jnp.asarray, members),
+                jnp.asarray(t0, tdt),
             )
         )
         with np.errstate(invalid="ignore"):

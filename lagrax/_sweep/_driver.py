@@ -124,12 +124,14 @@ def sweep(
 
     **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
     ``"time"`` (when kept) and ``"dof"``; variables ``q``, ``qd``, ``energy`` (at the kept
-    times, or at ``t1`` for ``keep="final"``), ``energy_error`` (relative change of
-    ``T + V`` from ``t0`` to the end), ``ok``, ``result`` (code of ``lagrax.RESULTS``),
-    ``status`` (its message), ``t_end``, ``num_steps``, ``num_accepted_steps``,
-    ``num_rejected_steps`` (or the outputs of ``reduce``); swept parameters as
-    coordinates; ``attrs`` with the failure count and the share of lane-steps that were
-    idle (``lane_idle_fraction``). Save it with :func:`save_sweep`.
+    times, or at ``t1`` for ``keep="final"``; the Jacobi integral ``h``, see
+    ``Solution.energy``), ``energy_error`` (relative change of ``h`` from ``t0`` to the end;
+    NaN for a time-dependent system, whose ``h`` changes by the work of ``−∂L/∂t`` along the
+    path: reduce each member's ``Solution.energy_error`` with ``keep=``), ``ok``, ``result``
+    (code of ``lagrax.RESULTS``), ``status`` (its message), ``t_end``, ``num_steps``,
+    ``num_accepted_steps``, ``num_rejected_steps`` (or the outputs of ``reduce``); swept
+    parameters as coordinates; ``attrs`` with the failure count and the share of lane-steps
+    that were idle (``lane_idle_fraction``). Save it with :func:`save_sweep`.
 
     **Raises:**
 

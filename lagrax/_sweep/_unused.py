@@ -90,7 +90,7 @@ def read_params(system: Any, tau_fn: Any, q: Any, qd: Any, params: Any, tau: Any
         q0, qd0, _ = system.initial_state(q, qd, p)
         return (
             field(t, (q0, qd0), (p, tau)),
-            system.energy(q, qd, p),
+            system.jacobi_integral(t, q, qd, p),
             system.observables(t, q, qd, p, field.tau(t, q, qd, tau)),
         )
 

@@ -78,7 +78,8 @@ class Variational(dfx.AbstractSolver):
         ``p_{k+1} = p_k + h (∂L/∂q + F)``
 
     with ``∂L/∂q``, ``∂L/∂q̇`` and ``F`` evaluated at the midpoint
-    ``((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)``. It does not need ``L`` to be separable,
+    ``((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)`` (and, for a time-dependent system, at the
+    midpoint time ``t_k + h/2``). It does not need ``L`` to be separable,
     so it applies to configuration-dependent mass matrices (diffrax's
     ``SemiImplicitEuler`` does not). Without forcing the map is symplectic and conserves
     the discrete momentum map of every symmetry of ``L_d`` (e.g. ``p_i`` for a cyclic
@@ -134,19 +135,23 @@ class Variational(dfx.AbstractSolver):
         q0, qd0 = y0
         # solver state: the momentum p_k, and an estimate of q̈_k for the predictor
         # (zero to start)
-        return _lagrangian_system(field).momentum(q0, qd0, args[0]), jnp.zeros_like(qd0)
+        momentum = _lagrangian_system(field).momentum(q0, qd0, args[0], t=t0)
+        return momentum, jnp.zeros_like(qd0)
 
     def _substep(self, field, args, t0, h, q0, qd0, p0, acc):
         system = _lagrangian_system(field)
         params, tau_const = args
 
+        tm = t0 + 0.5 * h  # the discrete Lagrangian h L(t_m, q_m, v), at the midpoint time
+
         def grads(qm, v):
-            return jax.grad(lambda a, b: _d.lagrangian(system, a, b, params), argnums=(0, 1))(qm, v)
+            return jax.grad(lambda a, b: _d.lagrangian(system, a, b, params, tm), argnums=(0, 1))(
+                qm, v
+            )
 
         def residual(q1):
             qm, v = 0.5 * (q0 + q1), (q1 - q0) / h
             l_q, l_v = grads(qm, v)
-            tm = t0 + 0.5 * h
             lq_f = l_q + _d.applied(system, tm, qm, v, params, field.tau(tm, qm, v, tau_const))
             return p0 + 0.5 * h * lq_f - l_v, lq_f
 
@@ -156,8 +161,8 @@ class Variational(dfx.AbstractSolver):
         p1 = p0 + h * lq_f
         # velocity from the momentum: M(q1) q̇1 = p1 − ∂T/∂q̇(q1, 0)
         zero = jnp.zeros_like(q1)
-        p_offset = system.momentum(q1, zero, params)
-        mass = system.mass_matrix(q1, params)
+        p_offset = system.momentum(q1, zero, params, t=t0 + h)
+        mass = system.mass_matrix(q1, params, t=t0 + h)
         qd1 = cholesky_solve(mass, p1 - p_offset)
         # the step's mean velocity (q1 − q0)/h ≈ q̇1 − (h/2) q̈1 gives the next q̈ estimate
         acc1 = 2.0 * (qd1 - (q1 - q0) / h) / h
