@@ -10,7 +10,7 @@ import numpy as np
 from . import _derivatives as d
 from ._abstract_system import AbstractSystem
 from ._checks import call_user, finite, finite_params, is_traced, pivot_threshold, positive_int
-from ._errors import ArgumentTypeError, MassMatrixError, NonFiniteError
+from ._errors import ArgumentTypeError, ConfigurationError, MassMatrixError, NonFiniteError
 from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
 KineticFn = Callable[[Vector, Vector, Params], Scalar]
@@ -68,6 +68,8 @@ class LagrangianSystem(AbstractSystem):
       of differentiating them (chains' ``system()`` sets this to Featherstone's recursions,
       O(n) per evaluation). ``None`` (default): autodiff of the energies, the definition.
       ``dataclasses.replace(system, equations=None)`` gives the autodiff path of a chain.
+    - ``coordinate_names``: a label for each coordinate (a tree's joint names), used to
+      label the ``dof`` coordinate of :func:`lagrax.sweep` results. Optional.
 
     **Example:**
 
@@ -95,6 +97,7 @@ class LagrangianSystem(AbstractSystem):
     name: str = eqx.field(default="system", static=True)
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
     equations: d.Equations | None = None
+    coordinate_names: tuple[str, ...] | None = eqx.field(default=None, static=True)
 
     def __check_init__(self):
         if isinstance(self.kinetic, AbstractSystem):
@@ -115,6 +118,12 @@ class LagrangianSystem(AbstractSystem):
                 )
         if self.n_dof is not None:
             positive_int("n_dof", self.n_dof, "It is the number of generalized coordinates.")
+        names = self.coordinate_names
+        if names is not None and self.n_dof is not None and len(names) != self.n_dof:
+            raise ConfigurationError(
+                f"LagrangianSystem has n_dof={self.n_dof} but {len(names)} coordinate_names "
+                f"{names!r}: give one name per coordinate"
+            )
 
     # ------------------------------------------------------------------ energies
     def kinetic_energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:

@@ -35,12 +35,16 @@ from ._chains import SpatialChain as SpatialChain
 from ._chains import axis_angle_rotation as axis_angle_rotation
 from ._chains import planar_chain as planar_chain
 from ._chains import spatial_chain as spatial_chain
+from ._trees import Tree as Tree
+from ._urdf import from_urdf as from_urdf
 
 __all__ = [
     "PlanarChain",
     "SpatialChain",
     "planar_chain",
     "spatial_chain",
+    "Tree",
+    "from_urdf",
     "axis_angle_rotation",
     "BodyKind",
 ]
