@@ -334,3 +334,20 @@ def test_massless_frames_and_missing_meshes_are_fine():
     massless = _robot(_joint("j", "revolute", "base", "a"), '<link name="a"/>')
     _, params = from_urdf(massless, massless_links=True)
     np.testing.assert_allclose(params["m"], [0.0])
+
+
+def test_sweep_labels_dof_by_joint_name():
+    """A sweep of a URDF robot labels its ``dof`` axis with the joint names."""
+    text = _robot(
+        _joint("shoulder", "revolute", "base", "a", axis="0 1 0"),
+        _link("a", 1.0, xyz="0 0 -0.3"),
+        _joint("elbow", "continuous", "a", "b", xyz="0 0 -0.6", axis="0 1 0"),
+        _link("b", 0.5, xyz="0 0 -0.2"),
+    )
+    tree, params = from_urdf(text)
+    batch = {k: jnp.stack([v, v]) for k, v in params.items()}
+    batch["m"] = jnp.stack([params["m"], 2 * params["m"]])
+    ds = lx.sweep(tree.system(), [0.3, 0.1], [0.0, 0.0], batch, t1=0.05, progress=False)
+    assert list(ds["dof"].values) == ["shoulder", "elbow"]
+    assert bool(ds["ok"].all())
+    assert ds["q"].sel(dof="elbow").shape == (2,)

@@ -123,8 +123,10 @@ def sweep(
       (the traced data flow, whichever branch a member takes).
 
     **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
-    ``"time"`` (when kept) and ``"dof"``; variables ``q``, ``qd``, ``energy`` (at the kept
-    times, or at ``t1`` for ``keep="final"``), ``energy_error`` (relative change of
+    ``"time"`` (when kept) and ``"dof"`` (labelled by the system's ``coordinate_names``
+    where it has them, e.g. a URDF robot's joint names; else ``0 … n−1``); variables
+    ``q``, ``qd``, ``energy`` (at the kept times, or at ``t1`` for ``keep="final"``),
+    ``energy_error`` (relative change of
     ``T + V`` from ``t0`` to the end), ``ok``, ``result`` (code of ``lagrax.RESULTS``),
     ``status`` (its message), ``t_end``, ``num_steps``, ``num_accepted_steps``,
     ``num_rejected_steps`` (or the outputs of ``reduce``); swept parameters as
@@ -319,7 +321,17 @@ def sweep(
         atol,
         schedule,
         n_dev,
+        names=_coordinate_names(system, n),
     )
+
+
+def _coordinate_names(system, n: int) -> tuple[str, ...] | None:
+    """The system's coordinate names (a tree's joint names; a constrained system's
+    unconstrained system's), if it has one per coordinate."""
+    names = getattr(system, "coordinate_names", None)
+    if names is None:
+        names = getattr(getattr(system, "system", None), "coordinate_names", None)
+    return tuple(names) if names is not None and len(names) == n else None
 
 
 def _top_name(path: tuple) -> str:
