@@ -128,6 +128,9 @@ def test_model_structure():
         [m * (3 * r**2 + length**2) / 12] * 2 + [m * r**2 / 2],
         rtol=1e-8,
     )
+    system, _ = lx.models.arm7()
+    assert system.n_dof == 7 and system.coordinate_names == tree.joint_names
+    assert lx.models.torso_two_arms()[0].n_dof == 8
     torso, _ = from_urdf(urdf_path("torso_two_arms"))
     assert torso.parents == (-1, 0, 1, 2, 3, 1, 5, 6)
     assert torso.joint_types == "PRRRRRRR"
