@@ -42,6 +42,7 @@ from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
 from ._errors import ParameterError as ParameterError  # noqa: E402
 from ._errors import ShapeError as ShapeError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._errors import URDFError as URDFError  # noqa: E402
 from ._methods import METHODS as METHODS  # noqa: E402
 from ._results import RESULTS as RESULTS  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
@@ -92,4 +93,5 @@ __all__ = [
     "ParameterError",
     "ShapeError",
     "SimulationError",
+    "URDFError",
 ]

@@ -202,21 +202,45 @@ def _as_arrays(x: Any, dtype: Any) -> Any:
 
 
 class Passes:
-    """How a recursion runs over the ``n`` links of a chain (link ``i``'s parent is
-    ``i − 1``): written out link by link (``scan=False``: straight-line code, structural
-    zeros skipped, fastest to run for short chains) or as ``lax.scan`` (``scan=True``:
-    one link's code, compile time independent of ``n``).
+    """How a recursion runs over the ``n`` bodies of a chain or a tree: written out body
+    by body (``scan=False``: straight-line code, structural zeros skipped, fastest to run
+    for short chains) or as ``lax.scan`` (``scan=True``: one body's code, compile time
+    independent of ``n``).
 
-    A pass is ``step(carry, x) -> (carry, y)``; per-link inputs ``xs`` are a list of
-    per-link pytrees (unrolled) or one pytree of stacked arrays (scan), and :meth:`run`
-    returns the per-link outputs in the same form.
+    ``parents`` gives each body's parent (``−1``: the base), with ``parents[i] < i``;
+    ``None`` is a chain (``parents[i] = i − 1``). An outward pass hands body ``i`` its
+    parent's carry (the initial carry for a body on the base); an inward pass hands it the
+    initial carry plus the sum of its children's carries (every inward recursion sums over
+    children: composite and articulated inertias, bias forces, joint forces). A scan over
+    a tree keeps the carries of all bodies in an array with one more slot for the base,
+    read (outward) and accumulated (inward, ``.at[parent].add``) by parent index.
+
+    A pass is ``step(carry, x) -> (carry, y)``; per-body inputs ``xs`` are a list of
+    per-body pytrees (unrolled) or one pytree of stacked arrays (scan), and :meth:`run`
+    returns the per-body outputs in the same form.
     """
 
-    def __init__(self, n: int, scan: bool, dtype: Any):
+    def __init__(self, n: int, scan: bool, dtype: Any, parents: tuple[int, ...] | None = None):
         self.n, self.scan, self.dtype = n, scan, dtype
+        if parents is not None and tuple(parents) == tuple(range(-1, n - 1)):
+            parents = None  # a chain: the plain carry-passing loops
+        self.parents = None if parents is None else tuple(int(p) for p in parents)
+
+    def ancestors(self) -> np.ndarray:
+        """``(n, n)`` booleans: ``[j, i]`` is true where body ``j`` is body ``i`` or on its
+        path to the base (upper-triangular for a chain)."""
+        if self.parents is None:
+            return np.triu(np.ones((self.n, self.n), bool))
+        out = np.zeros((self.n, self.n), bool)
+        for i in range(self.n):
+            j = i
+            while j >= 0:
+                out[j, i] = True
+                j = self.parents[j]
+        return out
 
     def links(self, per_link: Any) -> Any:
-        """Per-link data given as a pytree of arrays with a leading axis ``n``."""
+        """Per-body data given as a pytree of arrays with a leading axis ``n``."""
         if self.scan:
             return per_link
         return [
@@ -224,12 +248,16 @@ class Passes:
         ]
 
     def zip(self, *seqs: Any) -> Any:
-        """Several per-link sequences as one (tuples per link)."""
+        """Several per-body sequences as one (tuples per body)."""
         if self.scan:
             return tuple(seqs)
         return list(zip(*seqs, strict=True))
 
     def run(self, step: Callable, carry: Any, xs: Any, reverse: bool = False) -> tuple[Any, Any]:
+        if self.parents is not None:
+            if self.scan:
+                return self._run_tree_scan(step, carry, xs, reverse)
+            return self._run_tree(step, carry, xs, reverse)
         if not self.scan:
             ys: list = [None] * self.n
             for i in reversed(range(self.n)) if reverse else range(self.n):
@@ -243,14 +271,68 @@ class Passes:
 
         return jax.lax.scan(body, _as_arrays(carry, dtype), xs, reverse=reverse)
 
+    def _run_tree(self, step: Callable, init: Any, xs: Any, reverse: bool) -> tuple[Any, Any]:
+        parents = self.parents
+        assert parents is not None
+        ys: list = [None] * self.n
+        if not reverse:
+            outs: list = [None] * self.n
+            for i in range(self.n):
+                outs[i], ys[i] = step(init if parents[i] < 0 else outs[parents[i]], xs[i])
+            return init, ys
+        acc: list = [init] * self.n
+        total = init
+        for i in reversed(range(self.n)):
+            out, ys[i] = step(acc[i], xs[i])
+            p = parents[i]
+            if p >= 0:
+                acc[p] = jax.tree_util.tree_map(add, acc[p], out)
+            else:
+                total = jax.tree_util.tree_map(add, total, out)
+        return total, ys
+
+    def _run_tree_scan(self, step: Callable, init: Any, xs: Any, reverse: bool):
+        parents = self.parents
+        assert parents is not None
+        n, dtype = self.n, self.dtype
+        index = jnp.arange(n)
+        parent = jnp.asarray([p if p >= 0 else n for p in parents])  # slot n: the base
+        init = _as_arrays(init, dtype)
+        slots = jax.tree_util.tree_map(lambda v: jnp.broadcast_to(v, (n + 1, *v.shape)), init)
+
+        def take(buf, k):
+            return jax.tree_util.tree_map(lambda b: b[k], buf)
+
+        if not reverse:
+
+            def outward(buf, x):
+                (i, p), xi = x
+                out, y = step(scalars(take(buf, p)), scalars(xi))
+                out = _as_arrays(out, dtype)
+                buf = jax.tree_util.tree_map(lambda b, o: b.at[i].set(o), buf, out)
+                return buf, _as_arrays(y, dtype)
+
+            _, ys = jax.lax.scan(outward, slots, ((index, parent), xs))
+            return init, ys
+
+        def inward(buf, x):
+            (i, p), xi = x
+            out, y = step(scalars(take(buf, i)), scalars(xi))
+            out = _as_arrays(out, dtype)
+            buf = jax.tree_util.tree_map(lambda b, o: b.at[p].add(o), buf, out)
+            return buf, _as_arrays(y, dtype)
+
+        buf, ys = jax.lax.scan(inward, slots, ((index, parent), xs), reverse=True)
+        return take(buf, n), ys
+
     def split(self, ys: Any) -> tuple:
-        """Per-link outputs that are tuples, as a tuple of per-link sequences."""
+        """Per-body outputs that are tuples, as a tuple of per-body sequences."""
         if self.scan:
             return tuple(ys)
         return tuple(list(c) for c in zip(*ys, strict=True))
 
     def column(self, ys: Any) -> Any:
-        """Per-link vector outputs as an ``(n, k)`` array."""
+        """Per-body vector outputs as an ``(n, k)`` array."""
         if self.scan:
             return jnp.stack(jax.tree_util.tree_leaves(ys), axis=-1).reshape(self.n, -1)
         return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
@@ -336,8 +418,10 @@ def crba(chain: Chain) -> jax.Array:
     _, f = passes.run(inward, chain._zero_matrix(), xs, reverse=True)
     s_arr, f_arr = passes.column(chain.s), passes.column(f)
     g = s_arr @ f_arr.T  # g[j, i] = S_j · I^c_i S_i
-    upper = jnp.triu(jnp.ones(g.shape, bool))
-    return jnp.where(upper, g, g.T)
+    above = passes.ancestors()  # j on i's path to the base: M_ji = S_j · I^c_i S_i
+    if passes.parents is None:
+        return jnp.where(above, g, g.T)
+    return jnp.where(above, g, jnp.where(above.T, g.T, 0.0))
 
 
 def rnea(chain: Chain, qd: Any, qdd: Any) -> Any:

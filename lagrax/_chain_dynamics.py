@@ -76,13 +76,15 @@ def _spatial_link(carry, x):
 
 
 def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.Chain:
-    """A spatial chain: world joint axes ``z_i = R_i axis_i`` through the joint origins
-    ``o_i``, ``S_i = (z_i, o_i × z_i)`` (revolute) or ``(0, z_i)`` (prismatic), and link
-    inertias at the origin, ``R_i Ī_i R_iᵀ`` about the centre of mass ``o_i + R_i com_i``."""
+    """A spatial chain or tree (a :class:`~lagrax.chains.Tree`: body ``i`` hangs from
+    body ``parents[i]``, and every pass runs over parents): world joint axes
+    ``z_i = R_i axis_i`` through the joint origins ``o_i``, ``S_i = (z_i, o_i × z_i)``
+    (revolute) or ``(0, z_i)`` (prismatic), and link inertias at the origin,
+    ``R_i Ī_i R_iᵀ`` about the centre of mass ``o_i + R_i com_i``."""
     n = chain.n
     _check(n, q)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
-    passes = a.Passes(n, scan, q.dtype)
+    passes = a.Passes(n, scan, q.dtype, getattr(chain, "parents", None))
     big_a, big_b, big_c, slide = chain._joint_constants()
     axes = np.asarray(chain.axes, float)
     rev = np.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types])
@@ -97,13 +99,13 @@ def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.
 
 
 class ChainEquations(eqx.Module):
-    """The equations of a chain's ``LagrangianSystem`` from Featherstone's recursions:
+    """The equations of a chain's or a tree's ``LagrangianSystem`` from Featherstone's recursions:
     ``q̈`` by the articulated-body algorithm (O(n)), ``M`` by the composite-rigid-body
     algorithm, ``M q̈ + C q̇ + G`` by recursive Newton–Euler. They equal the autodiff
     Lagrangian of the chain's energies to round-off (tested against it and against
     :func:`lagrax.newton_euler.rnea`)."""
 
-    chain: Any  # PlanarChain | SpatialChain: structure only (static fields)
+    chain: Any  # PlanarChain | SpatialChain | Tree: structure only (static fields)
 
     scan: bool | None = eqx.field(default=None, static=True)
 

@@ -300,6 +300,25 @@ def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
     return eye + jnp.sin(angle) * k + (1 - jnp.cos(angle)) * (k @ k)
 
 
+def joint_constants(types: str, axes: Any, rotations: Any) -> tuple[np.ndarray, ...]:
+    """Per-joint constants ``(A, B, C, s)``, stacked: ``ⁱ⁻¹R_i = A + sin q B +
+    (1 − cos q) C`` and the origin slides by ``q s`` in frame ``i − 1``.
+
+    Revolute (Rodrigues): ``A = S``, ``B = S [a]×``, ``C = S [a]×²``, ``s = 0``;
+    prismatic: ``A = S``, ``B = C = 0``, ``s = S a``.
+    """
+    consts = []
+    for kind, axis, fixed in zip(types, axes, rotations, strict=True):
+        a, rot = np.asarray(axis), np.asarray(fixed)
+        k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+        zero = np.zeros((3, 3))
+        if kind == "R":
+            consts.append((rot, rot @ k, rot @ k @ k, np.zeros(3)))
+        else:
+            consts.append((rot, zero, zero, rot @ a))
+    return tuple(np.stack(c) for c in zip(*consts, strict=True))
+
+
 class SpatialChain(eqx.Module):
     r"""A spatial serial chain of revolute (``"R"``) and prismatic (``"P"``) joints.
 
@@ -426,22 +445,8 @@ class SpatialChain(eqx.Module):
         }
 
     def _joint_constants(self) -> tuple[np.ndarray, ...]:
-        """Per-joint constants ``(A, B, C, s)``, stacked: ``ⁱ⁻¹R_i = A + sin q B +
-        (1 − cos q) C`` and the origin slides by ``q s`` in frame ``i − 1``.
-
-        Revolute (Rodrigues): ``A = S``, ``B = S [a]×``, ``C = S [a]×²``, ``s = 0``;
-        prismatic: ``A = S``, ``B = C = 0``, ``s = S a``.
-        """
-        consts = []
-        for kind, axis, fixed in zip(self.joint_types, self.axes, self.rotations, strict=True):
-            a, rot = np.asarray(axis), np.asarray(fixed)
-            k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-            zero = np.zeros((3, 3))
-            if kind == "R":
-                consts.append((rot, rot @ k, rot @ k @ k, np.zeros(3)))
-            else:
-                consts.append((rot, zero, zero, rot @ a))
-        return tuple(np.stack(c) for c in zip(*consts, strict=True))
+        """Per-joint constants, stacked (see :func:`joint_constants`)."""
+        return joint_constants(self.joint_types, self.axes, self.rotations)
 
     def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         """Forward kinematics: origins ``(n, 3)`` and rotations ``(n, 3, 3)`` of the link

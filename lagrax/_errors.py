@@ -55,3 +55,9 @@ class CheckpointWarning(UserWarning):
     """A chunk file in a checkpoint directory cannot be trusted (unreadable, truncated,
     its checksum or fingerprint does not match, an older format): it is not loaded, and
     its members are computed again. The message names the file and the reason."""
+
+
+class URDFError(LagraxError, ValueError):
+    """A URDF model cannot be read into a tree: malformed XML, a missing or unphysical
+    ``<inertial>``, a link with two parents or a loop, an unknown or unsupported joint
+    type. The message names the link or joint and says what to fix."""

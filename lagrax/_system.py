@@ -102,6 +102,8 @@ class LagrangianSystem(AbstractSystem):
       of differentiating them (chains' ``system()`` sets this to Featherstone's recursions,
       O(n) per evaluation). ``None`` (default): autodiff of the energies, the definition.
       ``dataclasses.replace(system, equations=None)`` gives the autodiff path of a chain.
+    - ``coordinate_names``: a label for each coordinate (a tree's joint names), used to
+      label the ``dof`` coordinate of :func:`lagrax.sweep` results. Optional.
 
     **Example:**
 
@@ -130,6 +132,7 @@ class LagrangianSystem(AbstractSystem):
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
     equations: d.Equations | None = None
     time_dependent: bool = eqx.field(default=False, static=True)
+    coordinate_names: tuple[str, ...] | None = eqx.field(default=None, static=True)
 
     def __check_init__(self):
         if isinstance(self.kinetic, AbstractSystem):
@@ -168,6 +171,12 @@ class LagrangianSystem(AbstractSystem):
             ):
                 if fn is not None and binds(fn, n_args) is False:
                     raise ArgumentTypeError(time_signature_message(label, n_args, fn, True))
+        names = self.coordinate_names
+        if names is not None and self.n_dof is not None and len(names) != self.n_dof:
+            raise ConfigurationError(
+                f"LagrangianSystem has n_dof={self.n_dof} but {len(names)} coordinate_names "
+                f"{names!r}: give one name per coordinate"
+            )
 
     # ------------------------------------------------------------------ energies
     # Every method takes the time t= (default 0.0); only a time_dependent system reads it.

@@ -1,6 +1,18 @@
-"""Serial chains: planar n-link arms and spatial revolute/prismatic chains.
+"""Serial chains, kinematic trees and URDF robots.
 
-Each builder returns ``(system, params)`` with ``params`` a dict of arrays (leading axis
+Planar n-link arms and spatial revolute/prismatic chains; :class:`Tree`, a kinematic tree
+(a parent index per body: a torso with two arms, a hand); :func:`from_urdf`, a URDF robot
+as a tree (fixed joints merged into their bodies) with its joint names, limits and
+damping:
+
+```python
+tree, params = lx.chains.from_urdf("arm.urdf")        # or root=..., tip=... for a chain
+system = tree.system()                                # Featherstone's recursions, O(n)
+system.coordinate_names                               # the URDF's joint names
+tau_ne = lx.newton_euler.rnea(tree, q, qd, qdd, params)   # the independent oracle
+```
+
+Each chain builder returns ``(system, params)`` with ``params`` a dict of arrays (leading axis
 ``n``: one entry per link), so a sweep can vary masses, lengths, offsets and inertias
 with ``jax.vmap``. The chain object (:class:`PlanarChain`, :class:`SpatialChain`) holds the
 structure and is what :func:`lagrax.newton_euler.rnea` consumes:
@@ -35,12 +47,16 @@ from ._chains import SpatialChain as SpatialChain
 from ._chains import axis_angle_rotation as axis_angle_rotation
 from ._chains import planar_chain as planar_chain
 from ._chains import spatial_chain as spatial_chain
+from ._trees import Tree as Tree
+from ._urdf import from_urdf as from_urdf
 
 __all__ = [
     "PlanarChain",
     "SpatialChain",
     "planar_chain",
     "spatial_chain",
+    "Tree",
+    "from_urdf",
     "axis_angle_rotation",
     "BodyKind",
 ]

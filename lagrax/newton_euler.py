@@ -4,9 +4,9 @@
   free; Newton's law ``m a_c = Σ f`` and Euler's equation ``I α = Σ M`` (about the centre of
   mass, or about a fixed point with the parallel-axis inertia) are applied to each, and the
   unknown joint reaction is eliminated.
-- :func:`rnea`: the recursive Newton–Euler algorithm for any serial chain of
-  :mod:`lagrax.chains` (planar or spatial): velocities and accelerations outward from the
-  base, forces and moments inward from the tip.
+- :func:`rnea`: the recursive Newton–Euler algorithm for any serial chain or kinematic
+  tree of :mod:`lagrax.chains` (planar, spatial, :class:`~lagrax.chains.Tree`): velocities
+  and accelerations outward from the base, forces and moments inward from the tips.
 
 No Lagrangian appears anywhere in this module, and ``rnea`` reads only the chain's
 structure (joint types, axes, fixed rotations) and ``params``, with its own kinematics.
@@ -20,6 +20,7 @@ from jaxtyping import Array, Float
 
 from ._chains import PlanarChain, SpatialChain
 from ._errors import ShapeError
+from ._trees import Tree
 from ._typing import Params
 
 
@@ -103,13 +104,14 @@ def planar_2r(q, qd, qdd, params: Params) -> Float[Array, "2"]:
 
 # ------------------------------------------------------------------ recursive Newton–Euler
 def rnea(
-    chain: PlanarChain | SpatialChain,
+    chain: PlanarChain | SpatialChain | Tree,
     q: Float[Array, " n"],
     qd: Float[Array, " n"],
     qdd: Float[Array, " n"],
     params: Params,
 ) -> Float[Array, " n"]:
-    r"""Joint torques/forces of a serial chain by the recursive Newton–Euler algorithm.
+    r"""Joint torques/forces of a serial chain or a kinematic tree by the recursive
+    Newton–Euler algorithm.
 
     **Outward recursion** (base to tip), link ``i`` from link ``i − 1``, all vectors in
     link ``i``'s own frame, ``E = ⁱ⁻¹R_iᵀ``, joint axis ``a``, ``p`` the joint's offset:
@@ -131,6 +133,11 @@ def rnea(
     - ``n_i = N_i + ⁱR_{i+1} n_{i+1} + c_i × F_i + ⁱp_{i+1} × ⁱR_{i+1} f_{i+1}``,
     - ``τ_i = n_i · a_i`` (revolute) or ``f_i · a_i`` (prismatic).
 
+    For a :class:`~lagrax.chains.Tree` "link ``i − 1``" is body ``i``'s parent and the
+    inward sums run over all of body ``i``'s children ``c``:
+    ``f_i = F_i + Σ_c ⁱR_c f_c``, ``n_i = N_i + c_i × F_i + Σ_c (ⁱR_c n_c + ⁱp_c × ⁱR_c f_c)``.
+    (Joint damping, a Rayleigh dissipation of the system, is not part of ``τ`` here.)
+
     For a :class:`~lagrax.chains.PlanarChain` the same recursion runs in the plane with
     scalar angular rates and moments (``z`` components) in the fixed frame: joint ``i + 1``'s
     acceleration ``a_{i+1} = a_i + α_i ẑ × l_i u_i − ω_i² l_i u_i``, then
@@ -142,7 +149,8 @@ def rnea(
 
     **Arguments:**
 
-    - ``chain``: a :class:`~lagrax.chains.PlanarChain` or :class:`~lagrax.chains.SpatialChain`.
+    - ``chain``: a :class:`~lagrax.chains.PlanarChain`, :class:`~lagrax.chains.SpatialChain`
+      or :class:`~lagrax.chains.Tree`.
     - ``q``, ``qd``, ``qdd``: joint positions, rates and accelerations, shape ``(n,)``.
     - ``params``: the chain's parameters (``chain.params(...)``).
 
@@ -151,8 +159,10 @@ def rnea(
     **Raises:** ``ShapeError`` for inputs of the wrong length; ``TypeError`` for another
     kind of chain.
     """
-    if not isinstance(chain, (PlanarChain, SpatialChain)):
-        raise TypeError(f"rnea needs a PlanarChain or SpatialChain, got {type(chain).__name__}")
+    if not isinstance(chain, (PlanarChain, SpatialChain, Tree)):
+        raise TypeError(
+            f"rnea needs a PlanarChain, SpatialChain or Tree, got {type(chain).__name__}"
+        )
     q, qd, qdd = (jnp.asarray(x) for x in (q, qd, qdd))
     for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
         if x.shape != (chain.n,):
@@ -219,12 +229,17 @@ def _rnea_spatial(chain, q, qd, qdd, p):
             rel_rot.append(fixed[i])
             rel_pos.append(offset[i] + fixed[i] @ (axes[i] * q[i]))
 
-    # outward
-    w = jnp.zeros(3, dtype)
-    wd = jnp.zeros(3, dtype)
-    acc = g * jnp.asarray(np.asarray(chain.up), dtype)  # base accelerates up: gravity
+    parents = getattr(chain, "parents", tuple(range(-1, n - 1)))
+    # outward: each body from its parent (the base: at rest, accelerating up: gravity)
+    base = (
+        jnp.zeros(3, dtype),
+        jnp.zeros(3, dtype),
+        g * jnp.asarray(np.asarray(chain.up), dtype),
+    )
+    motion = []  # (ω_i, ω̇_i, a_i) in frame i
     forces, moments = [], []
     for i, kind in enumerate(chain.joint_types):
+        w, wd, acc = base if parents[i] < 0 else motion[parents[i]]
         e = rel_rot[i].T
         a = axes[i]
         pi = offset[i]
@@ -243,23 +258,22 @@ def _rnea_spatial(chain, q, qd, qdd, p):
                 + 2 * jnp.cross(w, qd[i] * a)
                 + qdd[i] * a
             )
+        motion.append((w, wd, acc))
         a_c = acc + jnp.cross(wd, com[i]) + jnp.cross(w, jnp.cross(w, com[i]))
         forces.append(m[i] * a_c)
         moments.append(inertia[i] @ wd + jnp.cross(w, inertia[i] @ w))
 
-    # inward
-    f = jnp.zeros(3, dtype)
-    mom = jnp.zeros(3, dtype)
+    # inward: f_i, n_i exerted on body i by its parent, summing over its children
+    f_on = [None] * n
+    n_on = [None] * n
     tau = [None] * n
     for i in reversed(range(n)):
-        if i + 1 < n:
-            f_child = rel_rot[i + 1] @ f
-            n_child = rel_rot[i + 1] @ mom
-            arm = rel_pos[i + 1]
-        else:
-            f_child = n_child = arm = jnp.zeros(3, dtype)
-        f_i = forces[i] + f_child
-        mom = moments[i] + n_child + jnp.cross(com[i], forces[i]) + jnp.cross(arm, f_child)
-        f = f_i
-        tau[i] = jnp.dot(mom if chain.joint_types[i] == "R" else f, axes[i])
+        f_i = forces[i]
+        mom = moments[i] + jnp.cross(com[i], forces[i])
+        for c in (k for k in range(i + 1, n) if parents[k] == i):
+            f_child = rel_rot[c] @ f_on[c]
+            f_i = f_i + f_child
+            mom = mom + rel_rot[c] @ n_on[c] + jnp.cross(rel_pos[c], f_child)
+        f_on[i], n_on[i] = f_i, mom
+        tau[i] = jnp.dot(mom if chain.joint_types[i] == "R" else f_i, axes[i])
     return jnp.stack(tau)

@@ -359,7 +359,7 @@ def test_errors():
         chain.system().mass_matrix(jnp.zeros(3), chain.params())
     with pytest.raises(lx.ShapeError, match="qd"):
         rnea(chain, jnp.zeros(2), jnp.zeros(3), jnp.zeros(2), chain.params())
-    with pytest.raises(TypeError, match="PlanarChain or SpatialChain"):
+    with pytest.raises(TypeError, match="PlanarChain, SpatialChain or Tree"):
         rnea(object(), jnp.zeros(2), jnp.zeros(2), jnp.zeros(2), chain.params())
     with pytest.raises(lx.ParameterError, match="'I'"):
         p = chain.params()

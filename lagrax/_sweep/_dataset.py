@@ -25,6 +25,7 @@ def dataset(
     atol,
     schedule,
     n_dev,
+    names=None,
 ):
     cat = {
         k: np.concatenate([c[k] for c in chunks])
@@ -75,7 +76,8 @@ def dataset(
         data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
     for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
         data[k] = (sweep_dims, shaped(cat[k]))
-    coords = {"dof": np.arange(n)}
+    # the system's coordinate names (a tree's joint names) label the dof axis
+    coords = {"dof": np.arange(n) if names is None else np.asarray(names, dtype=str)}
     if not final and not callable(keep):
         coords["time"] = ts
     if batch is not None:

@@ -123,9 +123,10 @@ def sweep(
       (the traced data flow, whichever branch a member takes).
 
     **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
-    ``"time"`` (when kept) and ``"dof"``; variables ``q``, ``qd``, ``energy`` (at the kept
-    times, or at ``t1`` for ``keep="final"``; the Jacobi integral ``h``, see
-    ``Solution.energy``), ``energy_error`` (relative change of ``h`` from ``t0`` to the end;
+    ``"time"`` (when kept) and ``"dof"`` (labelled by the system's ``coordinate_names``
+    where it has them, e.g. a URDF robot's joint names; else ``0 … n−1``); variables
+    ``q``, ``qd``, ``energy`` (at the kept times, or at ``t1`` for ``keep="final"``; the
+    Jacobi integral ``h``, see ``Solution.energy``), ``energy_error`` (relative change of ``h`` from ``t0`` to the end;
     NaN for a time-dependent system, whose ``h`` changes by the work of ``−∂L/∂t`` along the
     path: reduce each member's ``Solution.energy_error`` with ``keep=``), ``ok``, ``result``
     (code of ``lagrax.RESULTS``), ``status`` (its message), ``t_end``, ``num_steps``,
@@ -321,7 +322,17 @@ def sweep(
         atol,
         schedule,
         n_dev,
+        names=_coordinate_names(system, n),
     )
+
+
+def _coordinate_names(system, n: int) -> tuple[str, ...] | None:
+    """The system's coordinate names (a tree's joint names; a constrained system's
+    unconstrained system's), if it has one per coordinate."""
+    names = getattr(system, "coordinate_names", None)
+    if names is None:
+        names = getattr(getattr(system, "system", None), "coordinate_names", None)
+    return tuple(names) if names is not None and len(names) == n else None
 
 
 def _top_name(path: tuple) -> str:

@@ -5,6 +5,9 @@ from ._four_bar import four_bar as four_bar
 from ._free_rigid_body import free_rigid_body_euler_angles as free_rigid_body_euler_angles
 from ._mass_spring_damper import mass_spring_damper as mass_spring_damper
 from ._planar_2r import planar_2r as planar_2r
+from ._robots import arm7 as arm7
+from ._robots import torso_two_arms as torso_two_arms
+from ._robots import urdf_path as urdf_path
 
 __all__ = [
     "planar_2r",
@@ -12,4 +15,7 @@ __all__ = [
     "cartesian_pendulum",
     "four_bar",
     "free_rigid_body_euler_angles",
+    "arm7",
+    "torso_two_arms",
+    "urdf_path",
 ]

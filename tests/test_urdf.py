@@ -1,0 +1,356 @@
+"""URDF import (``lagrax.chains.from_urdf``) against Pinocchio, by hand, and on bad files.
+
+- The project's two models (``lagrax/models/urdf``: a 7-DOF arm with a fixed gripper and a
+  massless tool frame, a torso on a lift with a fixed head and two 3-link arms) loaded by
+  lagrax and by Pinocchio's own URDF parser: ``M`` (CRBA), the bias ``C q̇ + G``, inverse
+  dynamics (RNEA) and forward dynamics (ABA) agree to ~1e-12 relative at random states.
+  Pinocchio keeps fixed joints as frames and appends their inertia to the parent body;
+  lagrax merges them at import: equal ``M`` checks the merge.
+- A fixed joint's merge (mass, centre of mass, inertia by the parallel-axis theorem with
+  both rotations) against a hand computation.
+- Bad URDFs raise ``URDFError`` naming the link or joint.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from lagrax.chains import from_urdf
+from lagrax.models import urdf_path
+
+RTOL = 1e-12
+N_STATES = 4
+
+
+def _rel(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1.0))
+
+
+# ------------------------------------------------------------------ against Pinocchio
+@pytest.fixture(scope="module", params=["arm7", "torso_two_arms"])
+def robot(request):
+    """The model loaded by lagrax and by Pinocchio, with lagrax's equations compiled once
+    (vmapped over states)."""
+    pin = pytest.importorskip(
+        "pinocchio", reason="Pinocchio (pip install pin) is the reference for URDF dynamics"
+    )
+    path = urdf_path(request.param)
+    tree, params = from_urdf(path)
+    model = pin.buildModelFromXML(path.read_text())
+    system = tree.system()
+    no_damping = {**params, "damping": jnp.zeros(tree.n)}
+    funcs = {
+        "mass": jax.jit(jax.vmap(lambda q: system.mass_matrix(q, no_damping))),
+        "bias": jax.jit(
+            jax.vmap(lambda q, qd: system.inverse_dynamics(q, qd, jnp.zeros_like(q), no_damping))
+        ),
+        "inverse": jax.jit(
+            jax.vmap(lambda q, qd, qdd: system.inverse_dynamics(q, qd, qdd, no_damping))
+        ),
+        "forward": jax.jit(
+            jax.vmap(lambda q, qd, tau: system.forward_dynamics(q, qd, no_damping, tau))
+        ),
+        "damped": jax.jit(jax.vmap(lambda q, qd, tau: system.forward_dynamics(q, qd, params, tau))),
+    }
+    return pin, tree, params, model, funcs
+
+
+def _pin_state(pin, model, tree, q, qd):
+    """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
+    ``(cos q, sin q)`` in Pinocchio's configuration)."""
+    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
+    for k, name in enumerate(tree.joint_names):
+        joint = model.joints[model.getJointId(name)]
+        if joint.nq == 2:
+            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
+        else:
+            qp[joint.idx_q] = q[k]
+        vp[joint.idx_v] = qd[k]
+        order.append(joint.idx_v)
+    return qp, vp, np.asarray(order)
+
+
+def test_models_match_pinocchio(robot):
+    pin, tree, params, model, funcs = robot
+    data = model.createData()
+    assert model.nv == tree.n
+    np.testing.assert_allclose(model.gravity.linear, [0.0, 0.0, -float(params["g"])])
+    rng = np.random.default_rng(tree.n)
+    n = tree.n
+    q = rng.uniform(-np.pi, np.pi, (N_STATES, n))
+    qd, qdd, tau = (rng.uniform(-2, 2, (N_STATES, n)) for _ in range(3))
+    mass = np.asarray(funcs["mass"](q))
+    bias = np.asarray(funcs["bias"](q, qd))
+    inverse = np.asarray(funcs["inverse"](q, qd, qdd))
+    forward = np.asarray(funcs["forward"](q, qd, tau))
+    damped = np.asarray(funcs["damped"](q, qd, tau))
+    b = np.asarray(params["damping"])
+    worst = {}
+    for k in range(N_STATES):
+        qp, vp, order = _pin_state(pin, model, tree, q[k], qd[k])
+        m_pin = pin.crba(model, data, qp)
+        m_pin = (np.triu(m_pin) + np.triu(m_pin, 1).T)[np.ix_(order, order)]
+        a_pin = np.zeros(n)
+        a_pin[order] = qdd[k]
+        t_pin = np.zeros(n)
+        t_pin[order] = tau[k]
+        td_pin = np.zeros(n)
+        td_pin[order] = tau[k] - b * qd[k]  # joint damping: a torque -b q̇
+        results = {
+            "M": (mass[k], m_pin),
+            "bias": (bias[k], pin.rnea(model, data, qp, vp, np.zeros(n))[order]),
+            "inverse": (inverse[k], pin.rnea(model, data, qp, vp, a_pin)[order]),
+            "forward": (forward[k], pin.aba(model, data, qp, vp, t_pin)[order]),
+            "damped": (damped[k], pin.aba(model, data, qp, vp, td_pin)[order]),
+        }
+        for key, (ours, theirs) in results.items():
+            worst[key] = max(worst.get(key, 0.0), _rel(ours, theirs))
+    assert max(worst.values()) <= RTOL, worst
+
+
+def test_model_structure():
+    tree, params = from_urdf(urdf_path("arm7"))
+    assert tree.joint_names == tuple(f"joint{i}" for i in range(1, 8))
+    assert tree.parents == (-1, 0, 1, 2, 3, 4, 5)
+    assert tree.limits[0] == (-2.96, 2.96)
+    assert tree.effort_limits[0] == 176.0 and tree.velocity_limits[6] == 3.14
+    np.testing.assert_allclose(params["damping"], [0.5, 0.5, 0.3, 0.3, 0.1, 0.1, 0.05])
+    assert tree.system().coordinate_names == tree.joint_names
+    # link 4's inertia is given along x in a frame pitched by -pi/2: along z after import
+    r, length, m = 0.05, 0.2, 2700 * math.pi * 0.05**2 * 0.2
+    np.testing.assert_allclose(
+        np.diag(params["inertia"][3]),
+        [m * (3 * r**2 + length**2) / 12] * 2 + [m * r**2 / 2],
+        rtol=1e-8,
+    )
+    system, _ = lx.models.arm7()
+    assert system.n_dof == 7 and system.coordinate_names == tree.joint_names
+    assert lx.models.torso_two_arms()[0].n_dof == 8
+    torso, _ = from_urdf(urdf_path("torso_two_arms"))
+    assert torso.parents == (-1, 0, 1, 2, 3, 1, 5, 6)
+    assert torso.joint_types == "PRRRRRRR"
+    assert torso.limits[torso.joint_names.index("right_elbow")] == (-math.inf, math.inf)
+
+
+def test_tip_keeps_the_chain_to_it():
+    """``tip``: the joints from the root to that link, with links fixed to them; moving
+    branches off the path are dropped."""
+    tree, params = from_urdf(urdf_path("torso_two_arms"))
+    chain, chain_params = from_urdf(urdf_path("torso_two_arms"), tip="left_forearm")
+    assert chain.joint_names == tree.joint_names[:5]
+    assert chain.parents == (-1, 0, 1, 2, 3)
+    for key in ("m", "offset", "com", "inertia", "damping"):
+        np.testing.assert_array_equal(chain_params[key], params[key][:5])
+    arm, _ = from_urdf(urdf_path("arm7"), root="link2", tip="link5")
+    assert arm.joint_names == ("joint3", "joint4", "joint5")
+
+
+# ------------------------------------------------------------------ fixed joints by hand
+def _rpy(r, p, y):
+    def rx(a):
+        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+    def ry(a):
+        return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+
+    def rz(a):
+        return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+    return rz(y) @ ry(p) @ rx(r)
+
+
+def _link(name, mass, xyz="0 0 0", rpy="0 0 0", inertia=(0.1, 0.0, 0.0, 0.2, 0.0, 0.25)):
+    ixx, ixy, ixz, iyy, iyz, izz = inertia
+    return (
+        f'<link name="{name}"><inertial><origin xyz="{xyz}" rpy="{rpy}"/>'
+        f'<mass value="{mass}"/><inertia ixx="{ixx}" ixy="{ixy}" ixz="{ixz}" iyy="{iyy}" '
+        f'iyz="{iyz}" izz="{izz}"/></inertial></link>'
+    )
+
+
+def _joint(name, kind, parent, child, xyz="0 0 0", rpy="0 0 0", axis="0 0 1"):
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/></joint>'
+    )
+
+
+def _robot(*parts):
+    return '<robot name="r"><link name="base"/>' + "".join(parts) + "</robot>"
+
+
+def test_fixed_joint_merges_by_parallel_axis():
+    """Body A (2 kg, CoM (0.1, 0, 0.2), inertia rotated by its inertial rpy) carries B
+    (3 kg) on a fixed joint at (0.3, 0.1, 0) turned by rpy (0.2, −0.4, 0.7), B's inertia
+    given in a frame turned by its own rpy. Expected, in A's frame: ``m = m_A + m_B``,
+    ``c = (m_A c_A + m_B c_B)/m`` with ``c_B = p + R c'_B``, and
+    ``I = Σ R_k Ī_k R_kᵀ + m_k (|c_k − c|² 1 − (c_k − c)(c_k − c)ᵀ)``."""
+    ia, ib = (0.1, 0.01, -0.02, 0.2, 0.03, 0.25), (0.05, 0.0, 0.01, 0.06, -0.01, 0.09)
+    urdf = _robot(
+        _joint("j", "revolute", "base", "a", xyz="0 0 1", axis="0 1 0"),
+        _link("a", 2.0, xyz="0.1 0 0.2", rpy="0.3 0 0", inertia=ia),
+        _joint("weld", "fixed", "a", "b", xyz="0.3 0.1 0", rpy="0.2 -0.4 0.7"),
+        _link("b", 3.0, xyz="0 0.05 -0.1", rpy="0 0.5 0", inertia=ib),
+    )
+    tree, params = from_urdf(urdf)
+    assert tree.n == 1 and tree.joint_names == ("j",)
+
+    def tensor(i):
+        return np.array([[i[0], i[1], i[2]], [i[1], i[3], i[4]], [i[2], i[4], i[5]]])
+
+    r_a, r_f, r_b = _rpy(0.3, 0, 0), _rpy(0.2, -0.4, 0.7), _rpy(0, 0.5, 0)
+    c_a = np.array([0.1, 0, 0.2])
+    c_b = np.array([0.3, 0.1, 0]) + r_f @ np.array([0, 0.05, -0.1])
+    i_a = r_a @ tensor(ia) @ r_a.T
+    i_b = r_f @ r_b @ tensor(ib) @ r_b.T @ r_f.T
+    m = 5.0
+    c = (2.0 * c_a + 3.0 * c_b) / m
+
+    def shift(mass, d):
+        return mass * (d @ d * np.eye(3) - np.outer(d, d))
+
+    expected = i_a + shift(2.0, c_a - c) + i_b + shift(3.0, c_b - c)
+    np.testing.assert_allclose(params["m"], [m], rtol=1e-14)
+    np.testing.assert_allclose(params["com"][0], c, rtol=1e-13)
+    np.testing.assert_allclose(params["inertia"][0], expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(params["offset"][0], [0, 0, 1])
+
+
+def test_links_fixed_to_the_world_place_the_joints_below():
+    """A fixed joint between the root and the first moving joint moves and turns that
+    joint; its link's mass is dropped (it never moves)."""
+    urdf = _robot(
+        _joint("mount", "fixed", "base", "plate", xyz="0 0 0.5", rpy="0 0 1.0"),
+        _link("plate", 10.0),
+        _joint("j", "revolute", "plate", "a", xyz="0.2 0 0"),
+        _link("a", 1.0),
+    )
+    tree, params = from_urdf(urdf)
+    np.testing.assert_allclose(params["offset"][0], [0.2 * np.cos(1.0), 0.2 * np.sin(1.0), 0.5])
+    np.testing.assert_allclose(np.asarray(tree.rotations[0]), _rpy(0, 0, 1.0), atol=1e-15)
+    np.testing.assert_allclose(params["m"], [1.0])
+
+
+# ------------------------------------------------------------------ bad files
+GOOD_A = _link("a", 1.0)
+BAD = {
+    "missing inertial": (
+        _robot(_joint("j", "revolute", "base", "a"), '<link name="a"/>'),
+        "'a'",
+    ),
+    "zero mass": (_robot(_joint("j", "revolute", "base", "a"), _link("a", 0.0)), "'a'"),
+    "negative mass": (_robot(_joint("j", "revolute", "base", "a"), _link("a", -1.0)), "'a'"),
+    "triangle inequality": (
+        _robot(
+            _joint("j", "revolute", "base", "a"), _link("a", 1.0, inertia=(0.1, 0, 0, 0.1, 0, 0.3))
+        ),
+        "'a'",
+    ),
+    "not positive-semidefinite": (
+        _robot(
+            _joint("j", "revolute", "base", "a"),
+            _link("a", 1.0, inertia=(0.1, 0.5, 0, 0.1, 0, 0.1)),
+        ),
+        "'a'",
+    ),
+    "two parents": (
+        _robot(
+            _joint("j1", "revolute", "base", "a"),
+            GOOD_A,
+            _link("b", 1.0),
+            _joint("j2", "revolute", "b", "a"),
+            _joint("j3", "revolute", "base", "b"),
+        ),
+        "'a'",
+    ),
+    "loop": (
+        _robot(
+            _joint("j0", "revolute", "base", "c"),
+            _link("c", 1.0),
+            GOOD_A,
+            _link("b", 1.0),
+            _joint("j1", "revolute", "a", "b"),
+            _joint("j2", "revolute", "b", "a"),
+        ),
+        "loop",
+    ),
+    "unknown joint type": (_robot(_joint("hinge", "ball", "base", "a"), GOOD_A), "'hinge'"),
+    "floating joint": (_robot(_joint("free", "floating", "base", "a"), GOOD_A), "'free'"),
+    "planar joint": (_robot(_joint("slide", "planar", "base", "a"), GOOD_A), "'slide'"),
+    "unknown link": (_robot(_joint("j", "revolute", "base", "nowhere"), GOOD_A), "'nowhere'"),
+    "malformed XML": ('<robot name="r"><link name="base"></robot>', "XML"),
+    "bad number": (
+        _robot(_joint("j", "revolute", "base", "a", xyz="0 zero 1"), GOOD_A),
+        "'j'",
+    ),
+    "no moving joint": (_robot(_joint("j", "fixed", "base", "a"), GOOD_A), "'base'"),
+    "mimic": (
+        _robot(
+            _joint("j1", "revolute", "base", "a"),
+            GOOD_A,
+            '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
+            '<mimic joint="j1"/></joint>',
+            _link("b", 1.0),
+        ),
+        "'j2'",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_urdf_raises_naming_the_culprit(case):
+    text, culprit = BAD[case]
+    with pytest.raises(lx.URDFError) as info:
+        from_urdf(text)
+    assert culprit in str(info.value), str(info.value)
+    assert isinstance(info.value, lx.LagraxError)
+
+
+def test_several_roots_need_root():
+    text = _robot(_joint("j", "revolute", "base", "a"), GOOD_A, _link("island", 1.0))
+    with pytest.raises(lx.URDFError, match="root"):
+        from_urdf(text)
+    tree, _ = from_urdf(text, root="base")
+    assert tree.joint_names == ("j",)
+
+
+def test_massless_frames_and_missing_meshes_are_fine():
+    """A link without <inertial> on a fixed joint is a frame; a mesh that does not exist is
+    never read. ``massless_links=True`` admits a moving link without mass."""
+    text = _robot(
+        _joint("j", "revolute", "base", "a"),
+        GOOD_A.replace(
+            "</link>",
+            '<visual><geometry><mesh filename="package://nowhere/a.stl"/></geometry></visual>'
+            "</link>",
+        ),
+        _joint("tool", "fixed", "a", "flange", xyz="0 0 0.1"),
+        '<link name="flange"/>',
+    )
+    tree, params = from_urdf(text)
+    np.testing.assert_allclose(params["m"], [1.0])
+    massless = _robot(_joint("j", "revolute", "base", "a"), '<link name="a"/>')
+    _, params = from_urdf(massless, massless_links=True)
+    np.testing.assert_allclose(params["m"], [0.0])
+
+
+def test_sweep_labels_dof_by_joint_name():
+    """A sweep of a URDF robot labels its ``dof`` axis with the joint names."""
+    text = _robot(
+        _joint("shoulder", "revolute", "base", "a", axis="0 1 0"),
+        _link("a", 1.0, xyz="0 0 -0.3"),
+        _joint("elbow", "continuous", "a", "b", xyz="0 0 -0.6", axis="0 1 0"),
+        _link("b", 0.5, xyz="0 0 -0.2"),
+    )
+    tree, params = from_urdf(text)
+    batch = {k: jnp.stack([v, v]) for k, v in params.items()}
+    batch["m"] = jnp.stack([params["m"], 2 * params["m"]])
+    ds = lx.sweep(tree.system(), [0.3, 0.1], [0.0, 0.0], batch, t1=0.05, progress=False)
+    assert list(ds["dof"].values) == ["shoulder", "elbow"]
+    assert bool(ds["ok"].all())
+    assert ds["q"].sel(dof="elbow").shape == (2,)
