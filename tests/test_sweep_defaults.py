@@ -178,6 +178,24 @@ def test_gpu_schedule_on_cpu_gives_the_same_numbers(arm_batch, monkeypatch):
     assert a["lane_idle_fraction"] < lock.attrs["lane_idle_fraction"]
 
 
+def test_checkpoint_from_a_cpu_resumes_on_a_gpu(arm_batch, tmp_path, monkeypatch):
+    """Lanes do not define a sweep's results: a checkpoint written with the CPU's
+    defaults is complete for the same sweep on a GPU, whose default lanes differ."""
+    system, batch = arm_batch
+    kw = dict(t1=1.0, chunk_size=48, checkpoint=tmp_path / "ckpt", progress=False)
+    cpu = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, **kw)
+    assert cpu.attrs["n_lanes"] == 6
+    calls = []
+    monkeypatch.setattr(_driver, "solve_chunk", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(_driver, "device_info", lambda devices: DeviceInfo("gpu", 8 << 30, 1))
+    gpu = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, **kw)
+    assert calls == [] and gpu.attrs["n_lanes"] == 48
+    np.testing.assert_array_equal(gpu.q.values, cpu.q.values)
+    # other results still refuse the directory
+    with pytest.raises(lx.CheckpointError, match="different sweep definition"):
+        lx.sweep(system, Q0_2R, [0.0, 0.0], batch, **{**kw, "t1": 2.0})
+
+
 def test_sweep_docstring_says_how_to_override():
     doc = lx.sweep.__doc__ or ""
     assert "chunk_size=" in doc and "n_lanes=" in doc and "GPU" in doc

@@ -26,13 +26,15 @@ class Setup(eqx.Module):
     """What fixes the compiled chunk function: the solve's configuration (its controller
     always given), the ``keep=`` reduction, the lane count and the schedule.
 
-    ``refill`` and ``tail_lanes`` (see ``_lanes.run_lanes``) change how members are
-    scheduled onto lanes, never a member's numbers: they are left out of the repr, and so
-    out of a checkpoint's fingerprint (a sweep resumes whatever they were)."""
+    ``n_lanes``, ``refill`` and ``tail_lanes`` (see ``_lanes.run_lanes``) change how
+    members are scheduled onto lanes, not their steps or values (bitwise, but for a
+    single lane's round-off): they are left out of the repr, and so out of a checkpoint's
+    fingerprint, so that a sweep resumes on another kind of device, whose default lanes
+    differ."""
 
     config: SolveConfig
     reduce: Callable | None
-    n_lanes: int = eqx.field(static=True)
+    n_lanes: int = eqx.field(static=True, repr=False)
     schedule: str = eqx.field(static=True)
     refill: int | None = eqx.field(static=True, default=None, repr=False)
     tail_lanes: int = eqx.field(static=True, default=0, repr=False)
