@@ -2,8 +2,9 @@
 
 One concept a module: ``_grid`` (the batch), ``_chunk`` (the compiled chunk), ``_checkpoint``
 (fingerprints, verified chunk files, the checkpoint directory), ``_devices`` (mesh,
-transfers), ``_progress``, ``_dataset`` (the xarray result), ``_io`` (files), ``_unused``
-(swept parameters nothing reads) and ``_driver`` (``sweep`` itself).
+transfers), ``_defaults`` (chunk size and lanes for the device), ``_progress``,
+``_dataset`` (the xarray result), ``_io`` (files), ``_unused`` (swept parameters nothing
+reads) and ``_driver`` (``sweep`` itself).
 """
 
 from ._driver import sweep as sweep

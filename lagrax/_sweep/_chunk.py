@@ -24,12 +24,20 @@ _NOT_PROJECTED = int(code_of(RESULTS.constraint_projection_failed))
 
 class Setup(eqx.Module):
     """What fixes the compiled chunk function: the solve's configuration (its controller
-    always given), the ``keep=`` reduction, the lane count and the schedule."""
+    always given), the ``keep=`` reduction, the lane count and the schedule.
+
+    ``n_lanes``, ``refill`` and ``tail_lanes`` (see ``_lanes.run_lanes``) change how
+    members are scheduled onto lanes, not their steps or values (bitwise, but for a
+    single lane's round-off): they are left out of the repr, and so out of a checkpoint's
+    fingerprint, so that a sweep resumes on another kind of device, whose default lanes
+    differ."""
 
     config: SolveConfig
     reduce: Callable | None
-    n_lanes: int = eqx.field(static=True)
+    n_lanes: int = eqx.field(static=True, repr=False)
     schedule: str = eqx.field(static=True)
+    refill: int | None = eqx.field(static=True, default=None, repr=False)
+    tail_lanes: int = eqx.field(static=True, default=0, repr=False)
 
 
 def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOutput:
@@ -78,6 +86,8 @@ def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
             ts,
             setup.n_lanes,
             c.max_steps,
+            refill=setup.refill,
+            tail_lanes=setup.tail_lanes,
         )
     # scalars become (1,) so that shards concatenate
     return eqx.tree_at(
@@ -164,16 +174,13 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
 
 
 @eqx.filter_jit
-def _initial_states(system, q0s, qd0s, members):
-    """Per member: the system's initial state (e.g. projected onto its constraints), and
-    whether it could be formed."""
-    return jax.vmap(system.initial_state)(q0s, qd0s, members)
-
-
-@eqx.filter_jit
-def _mass_check(system, q0s, qd0s, members, t0):
-    """Per member: the mass matrix at the initial state (for a positive-definiteness check)."""
-    return jax.vmap(lambda q, qd, p: system.mass_matrix(q, p, qd, t=t0))(q0s, qd0s, members)
+def _initial_states(system, q0s, qd0s, members, t0):
+    """Per member: the system's initial state (e.g. projected onto its constraints),
+    whether it could be formed, and the mass matrix there (for a positive-definiteness
+    check): one compiled program, not two."""
+    q0s, qd0s, projected = jax.vmap(system.initial_state)(q0s, qd0s, members)
+    mass = jax.vmap(lambda q, qd, p: system.mass_matrix(q, p, qd, t=t0))(q0s, qd0s, members)
+    return q0s, qd0s, projected, mass
 
 
 def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt):
@@ -182,24 +189,19 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
     members = jtu.tree_map(lambda x: np.asarray(x), members)
     # every process computes the whole chunk's initial states (not sharded: no gather)
     start = _initial_states(
-        system, jnp.asarray(q0s), jnp.asarray(qd0s), jtu.tree_map(jnp.asarray, members)
+        system,
+        jnp.asarray(q0s),
+        jnp.asarray(qd0s),
+        jtu.tree_map(jnp.asarray, members),
+        jnp.asarray(t0, tdt),
     )
-    q0s, qd0s, projected = (np.asarray(x) for x in start)
+    q0s, qd0s, projected, mm = (np.asarray(x) for x in start)
     # per member: finite inputs and a positive-definite mass matrix at the initial state
     fin = np.isfinite(q0s).all(1) & np.isfinite(qd0s).all(1)
     for leaf in jtu.tree_leaves(members):
         fin &= np.isfinite(leaf.reshape(m, -1)).all(1) if leaf.dtype.kind in "fc" else True
     valid = fin.copy()
     if fin.any():
-        mm = np.asarray(
-            _mass_check(
-                system,
-                jnp.asarray(q0s),
-                jnp.asarray(qd0s),
-                jtu.tree_map(jnp.asarray, members),
-                jnp.asarray(t0, tdt),
-            )
-        )
         with np.errstate(invalid="ignore"):
             ok_mm = np.all(np.isfinite(mm.reshape(m, -1)), axis=1)
             eig = np.full((m, mm.shape[-1]), -np.inf)

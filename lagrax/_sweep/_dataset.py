@@ -25,6 +25,7 @@ def dataset(
     atol,
     schedule,
     n_dev,
+    cut,
     names=None,
 ):
     cat = {
@@ -107,6 +108,7 @@ def dataset(
         t1=settings["t1"],
         schedule=schedule,
         devices=int(n_dev),
+        **cut,
         lane_idle_fraction=float(1 - busy / total) if total else 0.0,
     )
     return xr.Dataset(data, coords=coords, attrs=attrs)

@@ -8,12 +8,17 @@ import jax.tree_util as jtu
 import numpy as np
 
 
-def mesh_of(devices) -> jax.sharding.Mesh | None:
+def device_list(devices) -> list:
+    """The devices a sweep runs on: ``None`` (all of ``jax.devices()``), a count or a list."""
     if devices is None:
-        devices = jax.devices()
-    elif isinstance(devices, int):
-        devices = jax.devices()[:devices]
-    devices = list(devices)
+        return jax.devices()
+    if isinstance(devices, (int, np.integer)):
+        return jax.devices()[: int(devices)]
+    return list(devices)
+
+
+def mesh_of(devices) -> jax.sharding.Mesh | None:
+    devices = device_list(devices)
     if len(devices) <= 1:
         return None
     return jax.sharding.Mesh(np.asarray(devices), ("batch",))

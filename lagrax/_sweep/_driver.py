@@ -21,7 +21,8 @@ from .._solution import Solution
 from ._checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from ._chunk import Setup, solve_chunk
 from ._dataset import dataset
-from ._devices import mesh_of
+from ._defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
+from ._devices import device_list, mesh_of
 from ._grid import Grid
 from ._progress import progress_bar, progress_default
 from ._unused import read_params
@@ -73,9 +74,10 @@ def sweep(
     checkpoints); each chunk is one compiled call, sharded over ``devices``. Inside a
     chunk, members are integrated on ``n_lanes`` vectorized lanes as a work queue: a lane
     whose member is done takes the next member, so fast members do not wait for slow ones
-    (``schedule="queue"``). ``schedule="lockstep"`` is a plain ``vmap`` of ``simulate``
-    instead (bitwise the same numbers as ``simulate``, but every member of a chunk steps
-    until the slowest is done).
+    (``schedule="queue"``). How many of each is chosen for the device (a CPU, a GPU or a
+    TPU: see ``chunk_size`` and ``n_lanes``), and does not change any member's numbers.
+    ``schedule="lockstep"`` is a plain ``vmap`` of ``simulate`` instead (bitwise the same
+    numbers as ``simulate``, but every member of a chunk steps until the slowest is done).
 
     A member that fails (step budget, blow-up, invalid input) is flagged in the result's
     ``ok`` / ``result`` / ``status`` and never stops the sweep; its values past the failure
@@ -99,10 +101,18 @@ def sweep(
       output is kept, e.g. ``lambda s: jnp.max(jnp.abs(s.energy_error))``.
     - ``tau``, ``solver``, ``rtol``, ``atol``, ``dt``, ``dt0``, ``max_steps``,
       ``stepsize_controller``: as for :func:`lagrax.simulate` (shared by all members).
-    - ``chunk_size``: members per compiled call (default: up to 8,192, fewer when the kept
-      output is large: about 64 MiB of it per chunk).
-    - ``n_lanes``: members integrated at once inside a chunk, per device (default: an
-      eighth of the chunk's members per device, at most 1,024).
+    - ``chunk_size``: members per compiled call. Default, from the device: on a CPU, up
+      to 8,192 (fewer when the kept output is large: about 64 MiB of it per chunk); on a
+      GPU or TPU, four members a lane (the whole batch when it is smaller), within half
+      the device's memory.
+    - ``n_lanes``: members integrated at once inside a chunk, per device. Default, from
+      the device: on a CPU, an eighth of the chunk's members per device, at most 1,024;
+      on a GPU or TPU, enough to fill it: as many as there are members, up to 131,072,
+      fewer for a model whose lanes would not fit in a quarter of the device's memory.
+      The result's ``attrs`` say what was chosen (``chunk_size``, ``n_lanes``); to
+      override, pass ``chunk_size=`` and/or ``n_lanes=`` (e.g. ``n_lanes=4096`` to try
+      fewer lanes on a small GPU, or a CPU's smaller lanes on a GPU shared with other
+      work).
     - ``schedule``: ``"queue"`` (default) or ``"lockstep"``, see above.
     - ``devices``: devices to shard the batch over: ``None`` (all of ``jax.devices()``),
       a count, or a list. On a multi-host run (after ``jax.distributed.initialize()``)
@@ -126,13 +136,16 @@ def sweep(
     ``"time"`` (when kept) and ``"dof"`` (labelled by the system's ``coordinate_names``
     where it has them, e.g. a URDF robot's joint names; else ``0 … n−1``); variables
     ``q``, ``qd``, ``energy`` (at the kept times, or at ``t1`` for ``keep="final"``; the
-    Jacobi integral ``h``, see ``Solution.energy``), ``energy_error`` (relative change of ``h`` from ``t0`` to the end;
-    NaN for a time-dependent system, whose ``h`` changes by the work of ``−∂L/∂t`` along the
-    path: reduce each member's ``Solution.energy_error`` with ``keep=``), ``ok``, ``result``
+    Jacobi integral ``h``, see ``Solution.energy``), ``energy_error`` (relative change of
+    ``h`` from ``t0`` to the end; NaN for a time-dependent system, whose ``h`` changes by
+    the work of ``−∂L/∂t`` along the path: reduce each member's ``Solution.energy_error``
+    with ``keep=``), ``ok``, ``result``
     (code of ``lagrax.RESULTS``), ``status`` (its message), ``t_end``, ``num_steps``,
     ``num_accepted_steps``, ``num_rejected_steps`` (or the outputs of ``reduce``); swept
-    parameters as coordinates; ``attrs`` with the failure count and the share of lane-steps
-    that were idle (``lane_idle_fraction``). Save it with :func:`save_sweep`.
+    parameters as coordinates; ``attrs`` with the failure count, how the batch was cut
+    (``platform``, ``chunk_size``, ``n_lanes``, and the queue's ``refill_lanes`` and
+    ``tail_lanes``) and the share of lane-steps that were idle (``lane_idle_fraction``).
+    Save it with :func:`save_sweep`.
 
     **Raises:**
 
@@ -228,24 +241,30 @@ def sweep(
     if controller is None:
         controller = dfx.PIDController(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt))
 
-    # --- chunks and devices
+    # --- chunks and devices: defaults from the device (see _defaults)
     mesh = mesh_of(devices)
-    n_dev = 1 if mesh is None else mesh.size
+    info = device_info(device_list(devices))
+    n_dev = info.count
     lanes_given = _checks.lanes_option(n_lanes, chunk_size, n_dev)
-    per_member = 8 * (2 * n * max(len(ts), 1) + max(len(ts), 1) + 4 * n + 8)
+    n_kept = max(len(ts), 1)
+    member_bytes = 8 * (2 * n * n_kept + n_kept + 4 * n + 8)
     ckpt = Path(checkpoint) if checkpoint is not None else None
-    if chunk_size is None:
-        stored = stored_chunk_size(ckpt) if ckpt is not None else None
-        chunk_size = stored or int(min(8192, max(64, (64 << 20) // per_member)))
-    chunk_size = int(min(chunk_size, n_members))
-    chunk_size = -(-chunk_size // n_dev) * n_dev  # a whole number of members per device
-    # about eight members per lane: enough to refill lanes, few enough to keep the tail
-    # short; never more lanes than members per device (they would idle)
-    per_device = chunk_size // n_dev
-    lanes = lanes_given if lanes_given is not None else max(1, min(1024, per_device // 8))
-    lanes = min(lanes, per_device)
+    if chunk_size is None and ckpt is not None:
+        chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
+    member0 = batch.params(0, 1) if batch is not None else params
+    n_params = sum(math.prod(np.shape(x)[1:]) for x in jtu.tree_leaves(member0))
+    cut = plan(
+        info,
+        n_members=n_members,
+        member_bytes=member_bytes,
+        lane_bytes=lane_bytes(n, n_params, jnp.dtype(dtype).itemsize),
+        chunk_size=chunk_size,
+        n_lanes=lanes_given,
+    )
+    chunk_size = cut.chunk_size
+    lanes = cut.n_lanes
     config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_)
-    setup = Setup(config, reduce, lanes, schedule)
+    setup = Setup(config, reduce, lanes, schedule, cut.refill, cut.tail_lanes)
     n_chunks = -(-n_members // chunk_size)
 
     # --- checkpoint
@@ -322,7 +341,21 @@ def sweep(
         atol,
         schedule,
         n_dev,
+        _reported(cut, schedule, info),
         names=_coordinate_names(system, n),
+    )
+
+
+def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
+    """How the batch was cut, for the result's ``attrs`` (pass ``chunk_size`` and
+    ``n_lanes`` back to ``sweep`` to repeat it)."""
+    lockstep = schedule == "lockstep"  # then a chunk's members all step at once
+    return dict(
+        platform=info.platform,
+        chunk_size=cut.chunk_size,
+        n_lanes=cut.chunk_size // info.count if lockstep else cut.n_lanes,
+        refill_lanes=0 if lockstep else cut.refill,
+        tail_lanes=0 if lockstep else cut.tail_lanes,
     )
 
 

@@ -1,0 +1,256 @@
+"""The 2R sweep on a GPU: lagrax at its defaults against MuJoCo MJX, at matched accuracy.
+
+The sweep of ``bench_sweep.py`` (a grid of m2 ∈ [0.5, 2] kg × l1 ∈ [0.5, 1.5] m, the
+chaotic start θ = (−π/2 + 1.4, 0.8) at rest, 10 s, final state kept), at batch sizes from
+4k to 512k members, in float64 and float32, on one device:
+
+1. ``lagrax.sweep`` with no option but the tolerance (rtol = atol = 1e-8 in float64, 1e-6
+   in float32): the chunk size and lane count it chose for the device, its idle
+   lane-steps, the first call (compilation included) and the median of the repeats;
+2. MuJoCo MJX (``mujoco.mjx``, the ``bench`` extra) on the same arm (an MJCF of two hinge
+   links, contacts off, the same masses, centres of mass and inertias), ``jax.vmap`` of
+   a ``fori_loop`` of ``mjx.step`` with MuJoCo's RK4 at the largest step in
+   {1e-2, 5e-3, …} whose median final-state error on 64 members is no worse than
+   lagrax's (both against Dopri8 at rtol = atol = 1e-12, float64).
+
+Without a GPU it says so and exits (status 0): the figures are for a GPU. ``--allow-cpu``
+runs it on the CPU anyway (with ``--sizes 64``, a check that both code paths work).
+
+``--schedule`` needs no GPU: it counts the idle lane-steps of the lane queue at the GPU
+defaults for each batch size, by replaying the schedule on the step counts of a CPU
+sweep (``_lane_schedule.py``; a count, not a timing, so exact on any machine).
+
+    python benchmarks/bench_sweep_gpu.py [--sizes 4096 32761 131044 524176] [--repeats 3]
+    python benchmarks/bench_sweep_gpu.py --schedule [--side 64]
+"""
+
+import argparse
+import math
+import os
+import statistics
+import sys
+import time
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import lagrax as lx
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _lane_schedule import idle_fraction  # noqa: E402
+
+Q0 = (-math.pi / 2 + 1.4, 0.8)
+T1 = 10.0
+TOL = {"float64": 1e-8, "float32": 1e-6}
+SIZES = (4096, 32761, 131044, 524176)  # grid sides 64, 181, 362, 724
+RK4_STEPS = (1e-2, 5e-3, 2.5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
+
+
+def arm_mjcf(params, dt: float) -> str:
+    """The lecture's 2R arm as MJCF: θ1 from the x axis, θ2 relative to link 1, both
+    about z; gravity along −y; link i's centre of mass at r_i along it, z-inertia I_i
+    about that centre. No geoms, contacts, damping or armature: the same ODE as
+    ``lagrax.models.planar_2r``."""
+    p = {k: float(v) for k, v in params.items()}
+    # inertia about the unused x and y axes: any, as long as MuJoCo accepts it (x + y >= z)
+    h1, h2 = p["I1"] / 2, p["I2"] / 2
+    return f"""
+<mujoco model="planar_2r">
+  <compiler inertiafromgeom="false" angle="radian"/>
+  <option timestep="{dt}" integrator="RK4" gravity="0 {-p["g"]} 0">
+    <flag contact="disable" constraint="disable"/>
+  </option>
+  <worldbody>
+    <body name="link1">
+      <joint name="q1" type="hinge" axis="0 0 1"/>
+      <inertial pos="{p["r1"]} 0 0" mass="{p["m1"]}" diaginertia="{h1} {h1} {p["I1"]}"/>
+      <body name="link2" pos="{p["l1"]} 0 0">
+        <joint name="q2" type="hinge" axis="0 0 1"/>
+        <inertial pos="{p["r2"]} 0 0" mass="{p["m2"]}" diaginertia="{h2} {h2} {p["I2"]}"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def mjx_sweep(params, dtype):
+    """``run(m2, l1, dt) -> (q, qd)`` at ``T1``: MJX's RK4 at step ``dt``, vmapped over
+    the members (link 2's mass and position vary: ``body_mass[2]``, ``body_pos[2, 0]``).
+    One compilation serves every ``dt`` (the step and the step count are traced)."""
+    import mujoco
+    from mujoco import mjx
+
+    # MJX computes in float32 only with JAX's 64-bit mode off (its constants are
+    # float64 otherwise); lagrax turns that mode on, so float32 runs in a context
+    x64 = jax.enable_x64(dtype != jnp.float32)
+    with x64:
+        mx = mjx.put_model(mujoco.MjModel.from_xml_string(arm_mjcf(params, RK4_STEPS[0])))
+        q0 = jnp.asarray(Q0, dtype)
+
+    def one(m2, l1, dt, n_steps):
+        m = mx.replace(
+            body_mass=jnp.asarray(mx.body_mass).at[2].set(m2),
+            body_pos=jnp.asarray(mx.body_pos).at[2, 0].set(l1),
+            opt=mx.opt.replace(timestep=dt),
+        )
+        d = mjx.make_data(m).replace(qpos=q0, qvel=jnp.zeros(2, dtype))
+        d = jax.lax.fori_loop(0, n_steps, lambda _, d: mjx.step(m, d), d)
+        return d.qpos, d.qvel
+
+    run = jax.jit(jax.vmap(one, in_axes=(0, 0, None, None)))
+
+    def sweep(m2, l1, dt):
+        with x64:
+            n_steps = jnp.asarray(int(round(T1 / dt)), jnp.int32)
+            m2, l1 = jnp.asarray(m2, dtype), jnp.asarray(l1, dtype)
+            out = jax.block_until_ready(run(m2, l1, jnp.asarray(dt, dtype), n_steps))
+        return tuple(np.asarray(x, np.float64) for x in out)
+
+    return sweep
+
+
+def timed(fn, repeats: int):
+    t = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return out, first, statistics.median(times)
+
+
+def members(n: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """The m2 × l1 grid of about ``n`` members (side ⌈√n⌉), flattened."""
+    side = max(2, math.isqrt(n - 1) + 1)
+    m2, l1 = np.meshgrid(np.linspace(0.5, 2.0, side), np.linspace(0.5, 1.5, side), indexing="ij")
+    return m2.ravel(), l1.ravel(), side
+
+
+def final_error(q, qd, ref_q, ref_qd):
+    return np.max(np.abs(np.concatenate([q - ref_q, qd - ref_qd], axis=-1)), axis=-1)
+
+
+def compare(args) -> None:
+    system, params = lx.models.planar_2r()
+    device = jax.devices()[0]
+    print(f"device: {device.device_kind} ({device.platform}), jax {jax.__version__}")
+    # the reference: Dopri8 at 1e-12 (float64) on 64 members spread over the grid
+    m2_all, l1_all, _ = members(max(args.sizes))
+    pick = np.linspace(0, len(m2_all) - 1, 64).astype(int)
+    sub = lx.samples(params, m2=m2_all[pick], l1=l1_all[pick])
+    ref = lx.sweep(
+        system, Q0, [0.0, 0.0], sub, t1=T1, solver="dopri8", rtol=1e-12, atol=1e-12, progress=False
+    )
+    for name in args.dtypes:
+        dtype = jnp.dtype(name)
+        tol = TOL[name]
+        p = {k: np.asarray(v, dtype) for k, v in params.items()}
+
+        def lagrax_run(m2, l1, p=p, dtype=dtype, tol=tol):
+            batch = lx.samples(p, m2=np.asarray(m2, dtype), l1=np.asarray(l1, dtype))
+            q0, qd0 = np.asarray(Q0, dtype), np.zeros(2, dtype)
+            return lambda: lx.sweep(
+                system, q0, qd0, batch, t1=T1, rtol=tol, atol=tol, progress=False
+            )
+
+        # matched accuracy: MJX's RK4 step no coarser than lagrax's median error needs
+        ds = lagrax_run(m2_all[pick], l1_all[pick])()
+        err_lx = final_error(ds.q.values, ds.qd.values, ref.q.values, ref.qd.values)
+        dt, err_mjx = None, None
+        run_mjx = mjx_sweep(params, dtype)
+        for cand in RK4_STEPS:
+            q, qd = run_mjx(m2_all[pick], l1_all[pick], cand)
+            e = final_error(np.asarray(q), np.asarray(qd), ref.q.values, ref.qd.values)
+            if np.median(e) <= np.median(err_lx):
+                dt, err_mjx = cand, e
+                break
+        print(f"\n{name}: final-state error vs Dopri8 1e-12 (64 members): median / max")
+        print(f"  lagrax Tsit5 {tol:g}  {np.median(err_lx):.2e} / {np.max(err_lx):.2e}")
+        if dt is None:
+            print(f"  MJX RK4: no step in {RK4_STEPS} matches; using the finest")
+            dt = RK4_STEPS[-1]
+        else:
+            print(f"  MJX RK4 dt={dt:g}     {np.median(err_mjx):.2e} / {np.max(err_mjx):.2e}")
+        head = (
+            f"{'members':>8} {'chunk':>8} {'lanes':>7} {'idle':>6} {'lagrax traj/s':>14} "
+            f"{'1st call s':>10} {'MJX traj/s':>11} {'1st call s':>10} {'lagrax/MJX':>10}"
+        )
+        print(head)
+        for n in args.sizes:
+            m2, l1, _ = members(n)
+            ds, first, t = timed(lagrax_run(m2, l1), args.repeats)
+            _, first_mjx, t_mjx = timed(partial(run_mjx, m2, l1, dt), args.repeats)
+            a = ds.attrs
+            print(
+                f"{len(m2):>8} {a['chunk_size']:>8} {a['n_lanes']:>7} "
+                f"{a['lane_idle_fraction']:>6.1%} {len(m2) / t:>14,.0f} {first:>10.1f} "
+                f"{len(m2) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>10.1f}"
+            )
+
+
+def schedule(args) -> None:
+    """Idle lane-steps at the GPU defaults, from the step counts of a CPU sweep."""
+    from lagrax._sweep import _defaults
+
+    system, params = lx.models.planar_2r()
+    m2, l1, side = members(args.side**2)
+    ds = lx.sweep(system, Q0, [0.0, 0.0], lx.samples(params, m2=m2, l1=l1), t1=T1, progress=False)
+    steps = ds.num_steps.values
+    print(
+        f"step counts of {len(steps)} members ({side} x {side} grid, {T1:g} s): "
+        f"min {steps.min()}, mean {steps.mean():.0f}, max {steps.max()}"
+    )
+    rng = np.random.default_rng(0)
+    info = _defaults.DeviceInfo("gpu", 80 << 30, 1)  # one H100
+    lane = _defaults.lane_bytes(2, len(params), 8)
+    member = 8 * (2 * 2 + 1 + 4 * 2 + 8)
+    print(
+        f"\n{'members':>8} {'chunk':>8} {'lanes':>7} {'refill':>6} {'tail':>6} "
+        f"{'idle, default':>14} {'refill L/16, no tail':>21} {'lock-step':>10}"
+    )
+    for n in args.sizes:
+        # the grid's own counts, extended by draws from them beyond its size
+        extra = steps[rng.integers(0, len(steps), max(0, n - len(steps)))]
+        s = np.concatenate([steps, extra])[:n]
+        cut = _defaults.plan(info, n_members=n, member_bytes=member, lane_bytes=lane)
+        args_ = (cut.chunk_size, cut.n_lanes)
+        now = idle_fraction(s, *args_, cut.refill, cut.tail_lanes)
+        before = idle_fraction(s, *args_, max(1, cut.n_lanes // 16), 0)
+        lock = idle_fraction(s, cut.chunk_size, cut.chunk_size, cut.chunk_size, 0)
+        print(
+            f"{n:>8} {cut.chunk_size:>8} {cut.n_lanes:>7} {cut.refill:>6} {cut.tail_lanes:>6} "
+            f"{now:>14.1%} {before:>21.1%} {lock:>10.1%}"
+        )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--dtypes", nargs="+", default=["float64", "float32"], choices=list(TOL))
+    ap.add_argument("--schedule", action="store_true", help="count idle lane-steps (no GPU)")
+    ap.add_argument("--side", type=int, default=64, help="--schedule: grid side of the sweep")
+    ap.add_argument("--allow-cpu", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.schedule:
+        schedule(args)
+        return 0
+    platforms = sorted({d.platform for d in jax.devices()})
+    if "gpu" not in platforms and not args.allow_cpu:
+        print(
+            f"no GPU found (JAX sees: {', '.join(platforms)}): this benchmark compares "
+            "lagrax and MuJoCo MJX on a GPU; nothing measured. (--schedule counts the "
+            "work queue's idle lane-steps without one.)"
+        )
+        return 0
+    compare(args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
