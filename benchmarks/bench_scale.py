@@ -4,14 +4,19 @@ Measured in one run, on this machine:
 
 1. Per-state forward dynamics under ``jax.vmap`` over 4,096 random states, for planar and
    spatial revolute chains of n = 2, 4, 7, 10, 20 links: lagrax's chain systems
-   (Featherstone's articulated-body algorithm) and, for n <= 7, the same chains by
-   autodiff of their energies (``equations=None``, the definition), with compile times.
-   Pinocchio's ABA per call from Python when ``pinocchio`` is installed.
+   (Featherstone's articulated-body algorithm), the same chains as scenes of bodies with
+   the pose-map equations (n <= 10), and, for n <= 7, by autodiff of their energies
+   (``equations=None``, the definition); a hand-written planar ``T`` (the generic autodiff
+   path) for every n; with compile times. Pinocchio's ABA per call from Python when
+   ``pinocchio`` is installed (``pip install -e ".[bench]"``).
 2. One trajectory of the scale issue's 7-DOF arm (``SpatialChain``, axes z, y, z, y, z, y,
    z; 1 kg, 1 m links; q0 = 0.3, at rest; 2 s): lagrax Tsit5 over a tolerance ladder
    against ``mujoco.rollout`` RK4 over a step ladder, errors against lagrax Dopri8 at
    rtol = atol = 1e-13, and the ratio at matched final-state error. MuJoCo is optional
    (``pip install -e ".[bench]"``).
+3. lagrax's URDF arm (``lagrax/models/urdf/arm7.urdf``, damped joints): per-state forward
+   dynamics against Pinocchio loading the same file, and one trajectory (as in 2) against
+   MuJoCo loading the same file.
 
 Writes a log-log chart of cost against n with ``--chart PATH``.
 
@@ -61,21 +66,30 @@ def per_state(system, params, n, repeats):
     return compile_s, min(times) / B * 1e6
 
 
-def pinocchio_aba(n, repeats):
-    """Pinocchio ABA per call (µs) on the same spatial chain, or None."""
-    try:
-        import pinocchio as pin
-    except ImportError:
-        return None
-    model = pin.Model()
-    parent = 0
-    for i in range(n):
-        placement = pin.SE3(np.eye(3), np.array([0.0 if i == 0 else 1.0, 0, 0]))
-        joint = pin.JointModelRZ() if ARM_AXES[i % 2][2] else pin.JointModelRY()
-        parent = model.addJoint(parent, joint, placement, f"j{i}")
-        model.appendBodyToJoint(
-            parent, pin.Inertia(1.0, np.array([0.5, 0, 0]), ARM_INERTIA), pin.SE3.Identity()
-        )
+def handwritten(n):
+    """A planar chain of uniform 1 kg, 1 m rods written as a user would: ``T`` from one
+    ``jax.jvp`` of the centres of mass and link angles, ``V`` of their heights. It takes
+    the generic autodiff path (scalar derivatives for n <= 6, forward-over-reverse above)."""
+
+    def pose(q):
+        ang = jnp.cumsum(q)
+        tips = jnp.cumsum(jnp.stack([jnp.cos(ang), jnp.sin(ang)], axis=1), axis=0)
+        com = tips - 0.5 * jnp.stack([jnp.cos(ang), jnp.sin(ang)], axis=1)
+        return com, ang
+
+    def kinetic(q, qd, p):
+        _, (v, w) = jax.jvp(pose, (q,), (qd,))
+        return 0.5 * jnp.sum(v**2) + 0.5 / 12 * jnp.sum(w**2)
+
+    def potential(q, p):
+        return 9.81 * jnp.sum(pose(q)[0][:, 1])
+
+    return lx.LagrangianSystem(kinetic, potential, n_dof=n, name=f"hand-written {n}-link")
+
+
+def _pinocchio_time(model, n, repeats):
+    import pinocchio as pin
+
     data = model.createData()
     q, v, tau = np.full(n, 0.3), np.full(n, 0.1), np.zeros(n)
     times = []
@@ -85,6 +99,30 @@ def pinocchio_aba(n, repeats):
             pin.aba(model, data, q, v, tau)
         times.append((time.perf_counter() - t0) / 1000)
     return min(times) * 1e6
+
+
+def pinocchio_aba(kind, n, repeats):
+    """Pinocchio ABA per call (µs) on the same chain, or None without Pinocchio."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        return None
+    model = pin.Model()
+    parent = 0
+    for i in range(n):
+        placement = pin.SE3(np.eye(3), np.array([0.0 if i == 0 else 1.0, 0, 0]))
+        if kind == "planar":  # about z, gravity along −y: PlanarChain's uniform rods
+            joint, inertia = pin.JointModelRZ(), np.diag([1e-9, 1 / 12, 1 / 12])
+        else:
+            joint = pin.JointModelRZ() if ARM_AXES[i % 2][2] else pin.JointModelRY()
+            inertia = ARM_INERTIA
+        parent = model.addJoint(parent, joint, placement, f"j{i}")
+        model.appendBodyToJoint(
+            parent, pin.Inertia(1.0, np.array([0.5, 0, 0]), inertia), pin.SE3.Identity()
+        )
+    if kind == "planar":
+        model.gravity.linear = np.array([0.0, -9.81, 0.0])
+    return _pinocchio_time(model, n, repeats)
 
 
 def arm_mjcf():
@@ -114,10 +152,12 @@ def timed(fn, repeats):
     return out, statistics.median(times)
 
 
-def arm_trajectory(repeats):
-    chain, params = chain_of("spatial", 7)
-    system = chain.system()
-    q0, qd0 = np.full(7, 0.3), np.zeros(7)
+def trajectory_vs_mujoco(title, system, params, q0, mujoco_model, repeats):
+    """One 2 s trajectory from rest at ``q0``: lagrax Tsit5 over a tolerance ladder and
+    ``mujoco.rollout`` RK4 over a step ladder (``mujoco_model()`` builds the MjModel),
+    errors against lagrax Dopri8 at 1e-13, ratio at matched final-state error."""
+    n = q0.shape[0]
+    qd0 = np.zeros(n)
     t0 = time.perf_counter()
     lx.simulate(system, q0, qd0, params, t1=T1, rtol=1e-8, atol=1e-8)
     first = time.perf_counter() - t0
@@ -127,7 +167,7 @@ def arm_trajectory(repeats):
     def err(y):
         return float(np.max(np.abs(y - y_ref)))
 
-    print(f"\n2. the 7-DOF arm, one 2 s trajectory (first simulate call {first:.2f} s)")
+    print(f"\n{title}, one 2 s trajectory (first simulate call {first:.2f} s)")
     runs = []
     for tol in (1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
         sol, t = timed(
@@ -146,7 +186,7 @@ def arm_trajectory(repeats):
     except ImportError:
         print("   MuJoCo not installed (pip install -e '.[bench]'): comparison skipped")
         return
-    model = mujoco.MjModel.from_xml_string(arm_mjcf())
+    model = mujoco_model()
     data = mujoco.MjData(model)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.zeros((1, mujoco.mj_stateSize(model, spec)))
@@ -159,11 +199,71 @@ def arm_trajectory(repeats):
         (state, _), t = timed(
             lambda nstep=nstep: rollout.rollout(model, data, state0, nstep=nstep), repeats
         )
-        y = state[0, -1, 1 : 1 + 14]
+        y = state[0, -1, 1 : 1 + 2 * n]
         e = err(y)
         match = [tl for el, tl in runs if el <= e]
         ratio = f"  lagrax/MuJoCo at matched error: {min(match) / t:.2f}x" if match else ""
         print(f"   mujoco.rollout RK4 dt {dt:.0e}: {t * 1e3:8.3f} ms  error {e:.1e}{ratio}")
+
+
+def arm_trajectory(repeats):
+    chain, params = chain_of("spatial", 7)
+
+    def model():
+        import mujoco
+
+        return mujoco.MjModel.from_xml_string(arm_mjcf())
+
+    trajectory_vs_mujoco(
+        "2. the 7-DOF arm", chain.system(), params, np.full(7, 0.3), model, repeats
+    )
+
+
+def _urdf_for_mujoco(text):
+    """The URDF without geometry (MuJoCo would load the meshes lagrax ignores)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(text)
+    for link in root.iter("link"):
+        for tag in ("visual", "collision"):
+            for el in link.findall(tag):
+                link.remove(el)
+    return ET.tostring(root, encoding="unicode")
+
+
+def urdf_arm(repeats):
+    """lagrax's 7-DOF URDF arm (``lagrax/models/urdf/arm7.urdf``, with joint damping):
+    per-state forward dynamics against Pinocchio on the same file, and one trajectory
+    against MuJoCo loading the same file."""
+    from lagrax.chains import from_urdf
+    from lagrax.models import urdf_path
+
+    path = urdf_path("arm7")
+    tree, params = from_urdf(path)
+    system, n = tree.system(), tree.n
+    c, t = per_state(system, params, n, repeats)
+    line = f"\n3. the URDF arm (arm7.urdf, {n} DOF): forward dynamics {t:.3f} µs per state"
+    try:
+        import pinocchio as pin
+
+        model = pin.buildModelFromXML(path.read_text())
+        line += f", Pinocchio ABA {_pinocchio_time(model, n, repeats):.3f} µs per call"
+    except ImportError:
+        line += ", Pinocchio not installed"
+    print(line + f" (compile {c:.1f} s)")
+
+    def mujoco_model():
+        import mujoco
+
+        model = mujoco.MjModel.from_xml_string(_urdf_for_mujoco(path.read_text()))
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+        model.opt.disableflags |= (
+            mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+        )
+        return model
+
+    q0 = np.full(n, 0.3)
+    trajectory_vs_mujoco("   the URDF arm", system, params, q0, mujoco_model, repeats)
 
 
 def main(argv=None):
@@ -174,24 +274,39 @@ def main(argv=None):
     args = ap.parse_args(argv)
     sizes = (2, 7, 20) if args.quick else (2, 4, 7, 10, 20)
     print(f"1. forward dynamics per state, vmap over {B} states ({jax.default_backend()})")
-    print("   kind     n   recursions µs (compile s)   autodiff µs (compile s)   pinocchio µs")
+    print(
+        "   µs per state (compile s):\n"
+        "   kind      n   recursions        bodies' poses     autodiff          pinocchio"
+    )
     table = {}
-    for kind in ("planar", "spatial"):
+
+    def cell(system, params, n, key):
+        compile_s, t = per_state(system, params, n, args.repeats)
+        table.setdefault(key, []).append((n, t))
+        return f"{t:8.3f} ({compile_s:4.1f})"
+
+    for kind in ("planar", "spatial", "hand-written"):
         for n in sizes:
+            if kind == "hand-written":  # the generic path of a user's planar T
+                fast = cell(handwritten(n), {}, n, (kind, "autodiff"))
+                print(f"   {kind:12s} {n:2d}   {'—':16s}  {'—':16s}  {fast}")
+                continue
             chain, params = chain_of(kind, n)
             system = chain.system()
-            c_fast, fast = per_state(system, params, n, args.repeats)
+            fast = cell(system, params, n, (kind, "recursions"))
+            scene = chain.scene(**({"bodies": "planar"} if kind == "planar" else {}))
+            poses = dataclasses.replace(scene, equations="poses").system()
+            pose_s = cell(poses, params, n, (kind, "poses")) if n <= 10 else "—"
             auto = "—"
             if n <= 7:
                 generic = dataclasses.replace(system, equations=None)
-                c_auto, t_auto = per_state(generic, params, n, args.repeats)
-                auto = f"{t_auto:8.3f} ({c_auto:5.1f})"
-                table.setdefault((kind, "autodiff"), []).append((n, t_auto))
-            pin = pinocchio_aba(n, args.repeats) if kind == "spatial" else None
-            pin_s = f"{pin:.2f}" if pin is not None else "not installed"
-            table.setdefault((kind, "recursions"), []).append((n, fast))
-            print(f"   {kind:8s} {n:2d}   {fast:8.3f} ({c_fast:5.1f})          {auto:24s}  {pin_s}")
+                auto = cell(generic, params, n, (kind, "autodiff"))
+            pin = pinocchio_aba(kind, n, args.repeats)
+            pin_s = f"{pin:8.3f}" if pin is not None else "not installed"
+            table.setdefault((kind, "pinocchio"), []).append((n, pin))
+            print(f"   {kind:12s} {n:2d}   {fast}  {pose_s:16s}  {auto:16s}  {pin_s}")
     arm_trajectory(args.repeats)
+    urdf_arm(args.repeats)
     if args.chart:
         import matplotlib
 
@@ -200,8 +315,12 @@ def main(argv=None):
 
         fig, ax = plt.subplots(figsize=(5, 4))
         for (kind, path), points in table.items():
+            points = [(n, t) for n, t in points if t is not None]
+            if not points:
+                continue
             ns, ts = zip(*points, strict=True)
-            ax.loglog(ns, ts, "o-" if path == "recursions" else "s--", label=f"{kind}, {path}")
+            style = {"recursions": "o-", "pinocchio": "^:", "poses": "d-."}.get(path, "s--")
+            ax.loglog(ns, ts, style, label=f"{kind}, {path}")
         ax.set_xlabel("links n")
         ax.set_ylabel("forward dynamics per state (µs)")
         ax.set_title(f"cost against size (vmap over {B} states)")

@@ -145,12 +145,13 @@ def test_recursions_under_vmap_and_grad():
 
 def test_simulate_gradient_matches_finite_differences():
     """Gradients flow through the recursions inside a solve."""
-    chain = PlanarChain(3)
+    chain = PlanarChain(4)
     system = chain.system()
-    q0, qd0 = jnp.array([0.3, -0.2, 0.4]), jnp.zeros(3)
+    assert isinstance(system.equations, ChainEquations)
+    q0, qd0 = jnp.array([0.3, -0.2, 0.4, 0.1]), jnp.zeros(4)
 
     def final_angle(m0):
-        params = chain.params(m=jnp.stack([m0, 1.0, 1.0]))
+        params = chain.params(m=jnp.stack([m0, 1.0, 1.0, 1.0]))
         sol = lx.simulate(system, q0, qd0, params, t1=0.5, rtol=1e-10, atol=1e-10)
         return sol.q_end[2]
 
