@@ -308,26 +308,37 @@ def main(argv=None):
     arm_trajectory(args.repeats)
     urdf_arm(args.repeats)
     if args.chart:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(5, 4))
-        for (kind, path), points in table.items():
-            points = [(n, t) for n, t in points if t is not None]
-            if not points:
-                continue
-            ns, ts = zip(*points, strict=True)
-            style = {"recursions": "o-", "pinocchio": "^:", "poses": "d-."}.get(path, "s--")
-            ax.loglog(ns, ts, style, label=f"{kind}, {path}")
-        ax.set_xlabel("links n")
-        ax.set_ylabel("forward dynamics per state (µs)")
-        ax.set_title(f"cost against size (vmap over {B} states)")
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig(args.chart, dpi=120)
+        chart(table, sizes, args.chart)
         print(f"\nchart written to {args.chart}")
+
+
+def chart(table, sizes, path):
+    """A log-log chart of cost per state against n, one line per kind and path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    colors = {"planar": "tab:blue", "spatial": "tab:red", "hand-written": "tab:green"}
+    styles = {"recursions": "o-", "poses": "d-.", "autodiff": "s--", "pinocchio": "^:"}
+    for (kind, method), points in table.items():
+        points = [(n, t) for n, t in points if t is not None]
+        if not points:
+            continue
+        ns, ts = zip(*points, strict=True)
+        label = f"{kind}, {'Pinocchio ABA per call' if method == 'pinocchio' else method}"
+        ax.loglog(ns, ts, styles[method], color=colors[kind], label=label)
+    ax.set_xticks(sizes)
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("links n")
+    ax.set_ylabel("forward dynamics per state (µs)")
+    ax.set_title(f"cost against size (lagrax: vmap over {B} states)")
+    ax.legend(loc="center left", bbox_to_anchor=(1.02, 0.5), fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 if __name__ == "__main__":
