@@ -271,8 +271,29 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="n = 2, 7, 20 only (default: all)")
     ap.add_argument("--repeats", type=int, default=5, help="timing repeats (default: 5)")
     ap.add_argument("--chart", default=None, help="write a log-log chart here (default: none)")
+    ap.add_argument(
+        "--sections",
+        type=int,
+        nargs="+",
+        default=[1, 2, 3],
+        choices=[1, 2, 3],
+        help="which sections to run (default: 1 2 3)",
+    )
     args = ap.parse_args(argv)
     sizes = (2, 7, 20) if args.quick else (2, 4, 7, 10, 20)
+    if 1 in args.sections:
+        table = forward_dynamics(sizes, args.repeats)
+        if args.chart:
+            chart(table, sizes, args.chart)
+            print(f"\nchart written to {args.chart}")
+    if 2 in args.sections:
+        arm_trajectory(args.repeats)
+    if 3 in args.sections:
+        urdf_arm(args.repeats)
+
+
+def forward_dynamics(sizes, repeats):
+    """Section 1: the table of per-state cost (printed), returned for the chart."""
     print(f"1. forward dynamics per state, vmap over {B} states ({jax.default_backend()})")
     print(
         "   µs per state (compile s):\n"
@@ -281,7 +302,7 @@ def main(argv=None):
     table = {}
 
     def cell(system, params, n, key):
-        compile_s, t = per_state(system, params, n, args.repeats)
+        compile_s, t = per_state(system, params, n, repeats)
         table.setdefault(key, []).append((n, t))
         return f"{t:8.3f} ({compile_s:4.1f})"
 
@@ -301,15 +322,11 @@ def main(argv=None):
             if n <= 7:
                 generic = dataclasses.replace(system, equations=None)
                 auto = cell(generic, params, n, (kind, "autodiff"))
-            pin = pinocchio_aba(kind, n, args.repeats)
+            pin = pinocchio_aba(kind, n, repeats)
             pin_s = f"{pin:8.3f}" if pin is not None else "not installed"
             table.setdefault((kind, "pinocchio"), []).append((n, pin))
             print(f"   {kind:12s} {n:2d}   {fast}  {pose_s:16s}  {auto:16s}  {pin_s}")
-    arm_trajectory(args.repeats)
-    urdf_arm(args.repeats)
-    if args.chart:
-        chart(table, sizes, args.chart)
-        print(f"\nchart written to {args.chart}")
+    return table
 
 
 def chart(table, sizes, path):

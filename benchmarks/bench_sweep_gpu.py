@@ -13,6 +13,11 @@ chaotic start θ = (−π/2 + 1.4, 0.8) at rest, 10 s, final state kept), at bat
    {1e-2, 5e-3, …} whose median final-state error on 64 members is no worse than
    lagrax's (both against Dopri8 at rtol = atol = 1e-12, float64).
 
+``--model arm7`` runs the same comparison on the scale issue's 7-DOF spatial arm
+(``bench_scale.py``'s ``SpatialChain``, axes z, y, z, y, z, y, z, 1 kg 1 m links, q0 = 0.3
+at rest, 2 s) over a grid of the masses of links 4 and 7 ∈ [0.5, 2] kg; lagrax runs its
+articulated-body recursions, MJX the same chain in MJCF (nested bodies, hinge joints).
+
 Without a GPU it says so and exits (status 0): the figures are for a GPU. ``--allow-cpu``
 runs it on the CPU anyway (with ``--sizes 64``, a check that both code paths work).
 
@@ -21,16 +26,20 @@ defaults for each batch size, by replaying the schedule on the step counts of a 
 sweep (``_lane_schedule.py``; a count, not a timing, so exact on any machine).
 
     python benchmarks/bench_sweep_gpu.py [--sizes 4096 32761 131044 524176] [--repeats 3]
+    python benchmarks/bench_sweep_gpu.py --model arm7 [--sizes 4096 32761 131044]
     python benchmarks/bench_sweep_gpu.py --schedule [--side 64]
 """
 
 import argparse
+import dataclasses
 import math
 import os
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from functools import partial
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -76,9 +85,97 @@ def arm_mjcf(params, dt: float) -> str:
 """
 
 
-def mjx_sweep(params, dtype):
-    """``run(m2, l1, dt) -> (q, qd)`` at ``T1``: MJX's RK4 at step ``dt``, vmapped over
-    the members (link 2's mass and position vary: ``body_mass[2]``, ``body_pos[2, 0]``).
+ARM7_AXES = [(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
+ARM7_INERTIA = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1) / 12, (3 * 0.05**2 + 1) / 12])
+ARM7_SWEPT = (3, 6)  # links 4 and 7: their masses are swept
+
+
+def arm7_mjcf(dt: float) -> str:
+    """The 7-DOF arm as nested MJCF bodies (hinges, link CoM at 0.5 m, gravity −z)."""
+    d = np.diag(ARM7_INERTIA)
+    body, close = "", ""
+    for i, axis in enumerate(ARM7_AXES):
+        pos = "0 0 0" if i == 0 else "1 0 0"
+        body += (
+            f'<body pos="{pos}"><joint type="hinge" axis="{axis[0]} {axis[1]} {axis[2]}"/>'
+            f'<inertial pos="0.5 0 0" mass="1" diaginertia="{d[0]} {d[1]} {d[2]}"/>'
+        )
+        close += "</body>"
+    return (
+        f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81" integrator="RK4">'
+        '<flag contact="disable" constraint="disable"/></option>'
+        f"<worldbody>{body}{close}</worldbody></mujoco>"
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class Model:
+    """One benchmarked mechanism: the lagrax system, its start, and how a member's two
+    swept values ``(a, b)`` enter lagrax's parameters and MJX's model."""
+
+    name: str
+    system: Any
+    params: dict
+    q0: tuple[float, ...]
+    t1: float
+    ranges: tuple[tuple[float, float], tuple[float, float]]
+    batch: Callable[[dict, np.ndarray, np.ndarray], Any]  # lagrax Grid of the members
+    mjcf: Callable[[float], str]
+    mjx_member: Callable[[Any, Any, Any], Any]  # (mx, a, b) -> mx for one member
+
+
+def planar_2r_model() -> Model:
+    system, params = lx.models.planar_2r()
+    return Model(
+        name="2R arm, m2 x l1",
+        system=system,
+        params=params,
+        q0=Q0,
+        t1=T1,
+        ranges=((0.5, 2.0), (0.5, 1.5)),
+        batch=lambda p, a, b: lx.samples(p, m2=a, l1=b),
+        mjcf=lambda dt: arm_mjcf(params, dt),
+        mjx_member=lambda mx, a, b: mx.replace(
+            body_mass=jnp.asarray(mx.body_mass).at[2].set(a),
+            body_pos=jnp.asarray(mx.body_pos).at[2, 0].set(b),
+        ),
+    )
+
+
+def arm7_model() -> Model:
+    from lagrax.chains import SpatialChain
+
+    chain = SpatialChain("R" * 7, axes=ARM7_AXES)
+    params = chain.params(inertia=ARM7_INERTIA)
+    i, j = ARM7_SWEPT
+
+    def batch(p, a, b):  # a pytree with a leading member axis on every leaf
+        out = {k: np.broadcast_to(v, (len(a), *np.shape(v))) for k, v in p.items()}
+        m = out["m"].copy()
+        m[:, i], m[:, j] = a, b
+        return {**out, "m": m}
+
+    return Model(
+        name="7-DOF arm, m4 x m7",
+        system=chain.system(),
+        params=params,
+        q0=(0.3,) * 7,
+        t1=2.0,
+        ranges=((0.5, 2.0), (0.5, 2.0)),
+        batch=batch,
+        mjcf=arm7_mjcf,
+        mjx_member=lambda mx, a, b: mx.replace(
+            body_mass=jnp.asarray(mx.body_mass).at[i + 1].set(a).at[j + 1].set(b)
+        ),
+    )
+
+
+MODELS = {"2r": planar_2r_model, "arm7": arm7_model}
+
+
+def mjx_sweep(model: Model, dtype):
+    """``run(a, b, dt) -> (q, qd)`` at ``t1``: MJX's RK4 at step ``dt``, vmapped over
+    the members (each member's swept values set in the model by ``model.mjx_member``).
     One compilation serves every ``dt`` (the step and the step count are traced)."""
     import mujoco
     from mujoco import mjx
@@ -86,27 +183,25 @@ def mjx_sweep(params, dtype):
     # MJX computes in float32 only with JAX's 64-bit mode off (its constants are
     # float64 otherwise); lagrax turns that mode on, so float32 runs in a context
     x64 = jax.enable_x64(dtype != jnp.float32)
+    n = len(model.q0)
     with x64:
-        mx = mjx.put_model(mujoco.MjModel.from_xml_string(arm_mjcf(params, RK4_STEPS[0])))
-        q0 = jnp.asarray(Q0, dtype)
+        mx = mjx.put_model(mujoco.MjModel.from_xml_string(model.mjcf(RK4_STEPS[0])))
+        q0 = jnp.asarray(model.q0, dtype)
 
-    def one(m2, l1, dt, n_steps):
-        m = mx.replace(
-            body_mass=jnp.asarray(mx.body_mass).at[2].set(m2),
-            body_pos=jnp.asarray(mx.body_pos).at[2, 0].set(l1),
-            opt=mx.opt.replace(timestep=dt),
-        )
-        d = mjx.make_data(m).replace(qpos=q0, qvel=jnp.zeros(2, dtype))
+    def one(a, b, dt, n_steps):
+        m = model.mjx_member(mx, a, b)
+        m = m.replace(opt=m.opt.replace(timestep=dt))
+        d = mjx.make_data(m).replace(qpos=q0, qvel=jnp.zeros(n, dtype))
         d = jax.lax.fori_loop(0, n_steps, lambda _, d: mjx.step(m, d), d)
         return d.qpos, d.qvel
 
     run = jax.jit(jax.vmap(one, in_axes=(0, 0, None, None)))
 
-    def sweep(m2, l1, dt):
+    def sweep(a, b, dt):
         with x64:
-            n_steps = jnp.asarray(int(round(T1 / dt)), jnp.int32)
-            m2, l1 = jnp.asarray(m2, dtype), jnp.asarray(l1, dtype)
-            out = jax.block_until_ready(run(m2, l1, jnp.asarray(dt, dtype), n_steps))
+            n_steps = jnp.asarray(int(round(model.t1 / dt)), jnp.int32)
+            a, b = jnp.asarray(a, dtype), jnp.asarray(b, dtype)
+            out = jax.block_until_ready(run(a, b, jnp.asarray(dt, dtype), n_steps))
         return tuple(np.asarray(x, np.float64) for x in out)
 
     return sweep
@@ -124,11 +219,12 @@ def timed(fn, repeats: int):
     return out, first, statistics.median(times)
 
 
-def members(n: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """The m2 × l1 grid of about ``n`` members (side ⌈√n⌉), flattened."""
+def members(n: int, ranges=((0.5, 2.0), (0.5, 1.5))) -> tuple[np.ndarray, np.ndarray, int]:
+    """The grid of about ``n`` members (side ⌈√n⌉) over the two ranges, flattened."""
     side = max(2, math.isqrt(n - 1) + 1)
-    m2, l1 = np.meshgrid(np.linspace(0.5, 2.0, side), np.linspace(0.5, 1.5, side), indexing="ij")
-    return m2.ravel(), l1.ravel(), side
+    (a0, a1), (b0, b1) = ranges
+    a, b = np.meshgrid(np.linspace(a0, a1, side), np.linspace(b0, b1, side), indexing="ij")
+    return a.ravel(), b.ravel(), side
 
 
 def final_error(q, qd, ref_q, ref_qd):
@@ -136,35 +232,44 @@ def final_error(q, qd, ref_q, ref_qd):
 
 
 def compare(args) -> None:
-    system, params = lx.models.planar_2r()
+    model = MODELS[args.model]()
+    system, params, n = model.system, model.params, len(model.q0)
     device = jax.devices()[0]
     print(f"device: {device.device_kind} ({device.platform}), jax {jax.__version__}")
+    print(f"model: {model.name}, {model.t1:g} s")
     # the reference: Dopri8 at 1e-12 (float64) on 64 members spread over the grid
-    m2_all, l1_all, _ = members(max(args.sizes))
-    pick = np.linspace(0, len(m2_all) - 1, 64).astype(int)
-    sub = lx.samples(params, m2=m2_all[pick], l1=l1_all[pick])
+    a_all, b_all, _ = members(max(args.sizes), model.ranges)
+    pick = np.linspace(0, len(a_all) - 1, 64).astype(int)
     ref = lx.sweep(
-        system, Q0, [0.0, 0.0], sub, t1=T1, solver="dopri8", rtol=1e-12, atol=1e-12, progress=False
+        system,
+        model.q0,
+        np.zeros(n),
+        model.batch(params, a_all[pick], b_all[pick]),
+        t1=model.t1,
+        solver="dopri8",
+        rtol=1e-12,
+        atol=1e-12,
+        progress=False,
     )
     for name in args.dtypes:
         dtype = jnp.dtype(name)
-        tol = TOL[name]
+        tol = TOL[name] if args.tol is None else args.tol
         p = {k: np.asarray(v, dtype) for k, v in params.items()}
 
-        def lagrax_run(m2, l1, p=p, dtype=dtype, tol=tol):
-            batch = lx.samples(p, m2=np.asarray(m2, dtype), l1=np.asarray(l1, dtype))
-            q0, qd0 = np.asarray(Q0, dtype), np.zeros(2, dtype)
+        def lagrax_run(a, b, p=p, dtype=dtype, tol=tol):
+            batch = model.batch(p, np.asarray(a, dtype), np.asarray(b, dtype))
+            q0, qd0 = np.asarray(model.q0, dtype), np.zeros(n, dtype)
             return lambda: lx.sweep(
-                system, q0, qd0, batch, t1=T1, rtol=tol, atol=tol, progress=False
+                system, q0, qd0, batch, t1=model.t1, rtol=tol, atol=tol, progress=False
             )
 
         # matched accuracy: MJX's RK4 step no coarser than lagrax's median error needs
-        ds = lagrax_run(m2_all[pick], l1_all[pick])()
+        ds = lagrax_run(a_all[pick], b_all[pick])()
         err_lx = final_error(ds.q.values, ds.qd.values, ref.q.values, ref.qd.values)
         dt, err_mjx = None, None
-        run_mjx = mjx_sweep(params, dtype)
+        run_mjx = mjx_sweep(model, dtype)
         for cand in RK4_STEPS:
-            q, qd = run_mjx(m2_all[pick], l1_all[pick], cand)
+            q, qd = run_mjx(a_all[pick], b_all[pick], cand)
             e = final_error(np.asarray(q), np.asarray(qd), ref.q.values, ref.qd.values)
             if np.median(e) <= np.median(err_lx):
                 dt, err_mjx = cand, e
@@ -178,18 +283,18 @@ def compare(args) -> None:
             print(f"  MJX RK4 dt={dt:g}     {np.median(err_mjx):.2e} / {np.max(err_mjx):.2e}")
         head = (
             f"{'members':>8} {'chunk':>8} {'lanes':>7} {'idle':>6} {'lagrax traj/s':>14} "
-            f"{'1st call s':>10} {'MJX traj/s':>11} {'1st call s':>10} {'lagrax/MJX':>10}"
+            f"{'1st call s':>10} {'MJX traj/s':>11} {'1st call s':>10} {'MJX/lagrax time':>15}"
         )
         print(head)
-        for n in args.sizes:
-            m2, l1, _ = members(n)
-            ds, first, t = timed(lagrax_run(m2, l1), args.repeats)
-            _, first_mjx, t_mjx = timed(partial(run_mjx, m2, l1, dt), args.repeats)
-            a = ds.attrs
+        for size in args.sizes:
+            a, b, _ = members(size, model.ranges)
+            ds, first, t = timed(lagrax_run(a, b), args.repeats)
+            _, first_mjx, t_mjx = timed(partial(run_mjx, a, b, dt), args.repeats)
+            at = ds.attrs
             print(
-                f"{len(m2):>8} {a['chunk_size']:>8} {a['n_lanes']:>7} "
-                f"{a['lane_idle_fraction']:>6.1%} {len(m2) / t:>14,.0f} {first:>10.1f} "
-                f"{len(m2) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>10.1f}"
+                f"{len(a):>8} {at['chunk_size']:>8} {at['n_lanes']:>7} "
+                f"{at['lane_idle_fraction']:>6.1%} {len(a) / t:>14,.0f} {first:>10.1f} "
+                f"{len(a) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>15.2f}"
             )
 
 
@@ -230,7 +335,11 @@ def schedule(args) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--model", choices=list(MODELS), default="2r", help="the mechanism")
     ap.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
+    ap.add_argument(
+        "--tol", type=float, default=None, help="lagrax rtol = atol (default: 1e-8 / 1e-6)"
+    )
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--dtypes", nargs="+", default=["float64", "float32"], choices=list(TOL))
     ap.add_argument("--schedule", action="store_true", help="count idle lane-steps (no GPU)")
