@@ -32,6 +32,8 @@ from . import rigid_body as rigid_body  # noqa: E402
 from ._abstract_system import AbstractSystem as AbstractSystem  # noqa: E402
 from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
 from ._errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
+from ._events import Event as Event  # noqa: E402
+from ._events import EventRecord as EventRecord  # noqa: E402
 from ._errors import CheckpointError as CheckpointError  # noqa: E402
 from ._errors import CheckpointWarning as CheckpointWarning  # noqa: E402
 from ._errors import ConfigurationError as ConfigurationError  # noqa: E402
@@ -67,6 +69,8 @@ __all__ = [
     "rigid_body",
     "ConstraintError",
     "simulate",
+    "Event",
+    "EventRecord",
     "sweep",
     "grid",
     "samples",
