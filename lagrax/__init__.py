@@ -32,8 +32,6 @@ from . import rigid_body as rigid_body  # noqa: E402
 from ._abstract_system import AbstractSystem as AbstractSystem  # noqa: E402
 from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
 from ._errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
-from ._events import Event as Event  # noqa: E402
-from ._events import EventRecord as EventRecord  # noqa: E402
 from ._errors import CheckpointError as CheckpointError  # noqa: E402
 from ._errors import CheckpointWarning as CheckpointWarning  # noqa: E402
 from ._errors import ConfigurationError as ConfigurationError  # noqa: E402
@@ -45,6 +43,8 @@ from ._errors import ParameterError as ParameterError  # noqa: E402
 from ._errors import ShapeError as ShapeError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
 from ._errors import URDFError as URDFError  # noqa: E402
+from ._events import Event as Event  # noqa: E402
+from ._events import EventRecord as EventRecord  # noqa: E402
 from ._methods import METHODS as METHODS  # noqa: E402
 from ._results import RESULTS as RESULTS  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402

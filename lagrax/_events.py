@@ -111,7 +111,9 @@ class Event(eqx.Module):
                 f"(upwards), got direction={self.direction!r}"
             )
         if not isinstance(self.terminal, (bool, np.bool_)):
-            raise ArgumentTypeError(f"Event's terminal must be True or False, got {self.terminal!r}")
+            raise ArgumentTypeError(
+                f"Event's terminal must be True or False, got {self.terminal!r}"
+            )
         if self.terminal and self.reset is not None:
             raise ConfigurationError(
                 "an Event is either terminal (the solve ends at it) or has a reset (the "
@@ -181,8 +183,18 @@ def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
     """Shapes of every condition (a scalar) and reset (``(q, qd)`` as the state), from
     their traces at the initial state: a ``ShapeError`` naming the event otherwise."""
     q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+
+    def call(i, name, fn):
+        try:
+            return jax.eval_shape(fn, t0, q0, qd0, params)
+        except TypeError as err:
+            raise ArgumentTypeError(
+                f"events[{i}]: {name}(t, q, qd, params) cannot be called with the time, "
+                f"the state and params ({err}): it takes those four arguments"
+            ) from err
+
     for i, ev in enumerate(events):
-        g = jax.eval_shape(ev.condition, t0, q0, qd0, params)
+        g = call(i, "condition", ev.condition)
         shape = getattr(g, "shape", None)
         if shape is None or shape != () or not jnp.issubdtype(g.dtype, jnp.floating):
             what = f"shape {shape}" if shape is not None else type(g).__name__
@@ -195,7 +207,7 @@ def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
             )
         if ev.reset is None:
             continue
-        out = jax.eval_shape(ev.reset, t0, q0, qd0, params)
+        out = call(i, "reset", ev.reset)
         ok = isinstance(out, (tuple, list)) and len(out) == 2
         if ok:
             ok = all(getattr(o, "shape", None) == q0.shape for o in out)
@@ -348,14 +360,9 @@ def integrate_events(
         ta, tb = s.t, s.tnext
         live = keep & (new.result == RESULTS.successful)
         g_b = jnp.stack(
-            [
-                jnp.asarray(ev.condition(tb, new.y[0], new.y[1], params), dtype)
-                for ev in events
-            ]
+            [jnp.asarray(ev.condition(tb, new.y[0], new.y[1], params), dtype) for ev in events]
         )
-        crossed = jnp.stack(
-            [_crossed(ev.direction, c.g[i], g_b[i]) for i, ev in enumerate(events)]
-        )
+        crossed = jnp.stack([_crossed(ev.direction, c.g[i], g_b[i]) for i, ev in enumerate(events)])
         crossed = crossed & live
         roots = jnp.stack(
             [
@@ -377,7 +384,9 @@ def integrate_events(
         overflow = recorded & (c.counts >= capacity)
         zeno = jnp.isfinite(t_stop) & jnp.asarray(resets)[winner]
         zeno = zeno & (t_stop - c.t_reset <= no_progress * jnp.maximum(jnp.abs(t_stop), 1.0))
-        t_cascade = jnp.minimum(jnp.min(jnp.where(overflow, roots, inf)), jnp.where(zeno, t_stop, inf))
+        t_cascade = jnp.minimum(
+            jnp.min(jnp.where(overflow, roots, inf)), jnp.where(zeno, t_stop, inf)
+        )
         cascade = jnp.isfinite(t_cascade)
         t_cut = jnp.minimum(t_stop, t_cascade)
         recorded = recorded & (roots <= t_cut) & ~overflow
