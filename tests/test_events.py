@@ -193,6 +193,19 @@ def test_terminal_event_stops_at_the_root():
     assert np.all(np.isinf(np.asarray(sol.energy)[~before]))
 
 
+def test_gradient_of_the_event_time():
+    # t_hit = sqrt(2h/g): d t_hit / dh = 1 / sqrt(2 g h), through the implicit root
+    def hit(h):
+        sol = lx.simulate(
+            BALL, h[None], jnp.zeros(1), {"g": G}, t1=2.0, events=GROUND, solver="rk4",
+            dt=0.05, n_save=2,
+        )  # fmt: skip
+        return sol.t_end
+
+    grad = jax.grad(hit)(jnp.asarray(H))
+    assert float(grad) == pytest.approx(1 / np.sqrt(2 * G * H), rel=1e-10)
+
+
 def test_terminal_event_with_fixed_step_rk4():
     sol = lx.simulate(BALL, [H], [0.0], {"g": G}, t1=2.0, events=GROUND, solver="rk4", dt=0.05)
     # the cubic Hermite output of RK4 is exact on a parabola
