@@ -43,6 +43,8 @@ from ._errors import ParameterError as ParameterError  # noqa: E402
 from ._errors import ShapeError as ShapeError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
 from ._errors import URDFError as URDFError  # noqa: E402
+from ._events import Event as Event  # noqa: E402
+from ._events import EventRecord as EventRecord  # noqa: E402
 from ._methods import METHODS as METHODS  # noqa: E402
 from ._results import RESULTS as RESULTS  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
@@ -67,6 +69,8 @@ __all__ = [
     "rigid_body",
     "ConstraintError",
     "simulate",
+    "Event",
+    "EventRecord",
     "sweep",
     "grid",
     "samples",

@@ -61,6 +61,8 @@ class LaneOutput(eqx.Module):
     num_rejected_steps: jax.Array  # (M,)
     busy_lane_steps: jax.Array  # () lane-steps spent on members
     lane_steps: jax.Array  # () lane-steps in all (busy + idle)
+    event_count: Any = None  # (M, E) with events (lock-step schedule only)
+    event_first: Any = None  # (M, E) the first crossing time of each event (inf: none)
 
 
 class _Queue(eqx.Module):

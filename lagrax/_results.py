@@ -21,6 +21,13 @@ class RESULTS(dfx.RESULTS):
         "This member was not solved: its parameters or initial state are non-finite, or "
         "its mass matrix is not positive-definite at the initial state."
     )
+    # (new codes go last: codes are stored in sweep files and checkpoints)
+    event_cascade = (
+        "An event cascade: an event occurred more than its max_events times, or a reset "
+        "event recurred at the time of the previous one (events accumulating at a point, "
+        "a Zeno-like cascade such as a ball bouncing infinitely often in finite time); "
+        "the solve stopped there."
+    )
 
 
 def code_of(result: RESULTS):

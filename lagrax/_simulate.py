@@ -1,7 +1,7 @@
 """One trajectory: ``simulate``, on diffrax's steps."""
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import diffrax as dfx
@@ -11,15 +11,17 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from . import _checks, _integrate
+from . import _checks, _events, _integrate
 from ._abstract_system import AbstractSystem
 from ._diagnose import diagnose
-from ._errors import ArgumentTypeError, ShapeError, SimulationError
+from ._errors import ArgumentTypeError, ConfigurationError, ShapeError, SimulationError
+from ._events import Event
 from ._methods import configure
 from ._results import RESULTS, code_of, messages
 from ._solution import Solution
 from ._typing import Coordinates, Params, Velocities
 from ._vector_field import LagrangianVectorField, TauFn
+from .integrators import Variational
 
 
 class SolveConfig(eqx.Module):
@@ -37,6 +39,7 @@ class SolveConfig(eqx.Module):
     adjoint: dfx.AbstractAdjoint | None = None
     n_save: int = eqx.field(default=0, static=True)
     max_steps: int = eqx.field(default=100_000, static=True)
+    events: tuple[_events.Event, ...] | None = None
 
 
 class SolveInputs(eqx.Module):
@@ -80,11 +83,28 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     field = LagrangianVectorField(system, config.tau_fn)
     term = dfx.ODETerm(field)
     args = (params, inputs.tau_const)
+    records = None
     if config.adjoint is None and own_saveat and _integrate.is_lean(controller):
         # the lean loop: the same steps as diffeqsolve, without its per-step machinery
-        (q, qd), end = _integrate.integrate(
-            term, solver, controller, y0, args, t0, t1, inputs.dt0, ts, max_steps
-        )
+        if config.events is None:
+            (q, qd), end = _integrate.integrate(
+                term, solver, controller, y0, args, t0, t1, inputs.dt0, ts, max_steps
+            )
+        else:
+            (q, qd), end, records = _events.integrate_events(
+                term,
+                solver,
+                controller,
+                y0,
+                args,
+                t0,
+                t1,
+                inputs.dt0,
+                ts,
+                max_steps,
+                config.events,
+                field,
+            )
         t_end, (q_end, qd_end), result = end.t, end.y, end.result
         ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
         steps, accepted = end.num_steps, end.num_accepted_steps
@@ -135,7 +155,9 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
     extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
     work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
-    return Solution(ts, q, qd, energy, result, stats, t_end, q_end, qd_end, **extras, work=work)
+    return Solution(
+        ts, q, qd, energy, result, stats, t_end, q_end, qd_end, **extras, work=work, events=records
+    )
 
 
 def work_along(system, field, params, tau_const, ts, q, qd):
@@ -235,7 +257,12 @@ def _checked_once(config: SolveConfig, inputs: SolveInputs):
     q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
     sol = solve_from(config, inputs, (q0, qd0), started)
     inputs_ok = _inputs_ok(config, inputs, (q0, qd0), started)
-    solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
+    if config.events is None:
+        solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
+    else:  # a terminal event leaves the saves after it unreached (inf)
+        reached = jnp.isfinite(sol.ts)[:, None]
+        solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q) | ~reached)
+        solved_ok = solved_ok & jnp.all(jnp.isfinite(sol.qd) | ~reached)
     return sol, jnp.stack([inputs_ok, solved_ok])
 
 
@@ -320,6 +347,7 @@ def simulate(
     saveat: dfx.SaveAt | None = None,
     stepsize_controller: dfx.AbstractStepSizeController | None = None,
     adjoint: dfx.AbstractAdjoint | None = None,
+    events: Event | Sequence[Event] | None = None,
     throw: bool = True,
 ) -> Solution:
     """Integrate ``M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇`` from ``(q0, q̇0)`` over ``[t0, t1]``.
@@ -366,6 +394,17 @@ def simulate(
       ``diffrax.RecursiveCheckpointAdjoint()`` for diffrax's default. A custom ``saveat``
       or a step-size controller other than ``PIDController`` / ``ConstantStepSize``
       also runs ``diffeqsolve``.
+    - ``events``: a :class:`lagrax.Event` or a sequence of them: zero crossings of
+      ``condition(t, q, qd, params)``, located on the solver's dense output and recorded
+      in ``Solution.events``; a terminal event ends the solve at its root, an event with
+      a ``reset`` continues from the reset state (an impact), a cascade of events (more
+      than ``max_events``, or resets accumulating at a point) ends it with
+      ``RESULTS.event_cascade``. Events run on lagrax's own stepping loop: not with
+      ``adjoint``, ``saveat`` or a controller other than ``PIDController`` /
+      ``ConstantStepSize``, nor with the variational integrators (their linear dense
+      output would locate events to second order only, and a reset breaks their discrete
+      variational structure); the fixed-step ``"rk4"`` is supported (cubic Hermite
+      output).
     - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
       in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
       need: one bad member does not kill the batch.
@@ -382,7 +421,10 @@ def simulate(
     system whose initial state cannot be projected onto its constraints or whose
     constraint Jacobian is rank-deficient there, and ``SimulationError`` when the solve
     fails: the message names the cause (step budget, non-finite state, singular mass
-    matrix), the time reached and what to try.
+    matrix, an event cascade with its time and counts), the time reached and what to try.
+    An event whose condition is not a scalar or whose reset returns the wrong shapes
+    raises a ``ShapeError``; events with an option they cannot run with a
+    ``ConfigurationError``.
 
     **Example:**
 
@@ -437,9 +479,21 @@ def simulate(
     solver, stepsize_controller, dt0, max_steps = configure(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
+    events = _events.as_events(events)
+    if events is not None:
+        events_supported(solver, stepsize_controller, saveat, adjoint)
+        _events.check_events(events, t0, q0, qd0, params)
     asarray = np.asarray if eager else jnp.asarray
     config = SolveConfig(
-        system, solver, tau_fn, stepsize_controller, saveat, adjoint, n_save, int(max_steps)
+        system,
+        solver,
+        tau_fn,
+        stepsize_controller,
+        saveat,
+        adjoint,
+        n_save,
+        int(max_steps),
+        events,
     )
     inputs = SolveInputs(
         y0=(q0, qd0),
@@ -464,6 +518,11 @@ def simulate(
         system.check_state(q0, qd0, params, t=t0)  # raises with the values in the message
     if not throw or solved_ok:
         return sol
+    if events is not None and sol.result == RESULTS.event_cascade:
+        raise SimulationError(
+            f"simulate failed for {system.name}: "
+            + _events.cascade_message(events, sol.events, sol.t_end)
+        )
     why = diagnose(
         system,
         sol,
@@ -477,6 +536,30 @@ def simulate(
         t1=t1,
     )
     raise SimulationError(why)
+
+
+def events_supported(solver, controller, saveat, adjoint) -> None:
+    """A ``ConfigurationError`` where ``events=`` cannot run (see ``simulate``)."""
+    if isinstance(solver, Variational):
+        raise ConfigurationError(
+            "events are not supported with the variational integrators (their dense output "
+            "is linear, so event times would be second order, and a reset breaks their "
+            "discrete variational structure): use solver='rk4' at a fixed dt, or an "
+            "adaptive method such as 'tsit5' or 'dopri8'"
+        )
+    for name, value in (("adjoint", adjoint), ("saveat", saveat)):
+        if value is not None:
+            raise ConfigurationError(
+                f"events run on lagrax's own stepping loop, which {name}= replaces with "
+                f"diffrax.diffeqsolve: drop {name}={value!r}, or use diffrax.Event with "
+                "diffeqsolve directly"
+            )
+    if not _integrate.is_lean(controller):
+        raise ConfigurationError(
+            "events run on lagrax's own stepping loop, which supports the step-size "
+            "controllers diffrax.PIDController and diffrax.ConstantStepSize only, got "
+            f"stepsize_controller={controller!r}"
+        )
 
 
 _JIT_MESSAGES = [

@@ -1,10 +1,15 @@
 """``Solution``: one simulated trajectory at its saved times."""
 
+from typing import TYPE_CHECKING
+
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
 from ._results import RESULTS
+
+if TYPE_CHECKING:
+    from ._events import EventRecord
 
 
 class Solution(eqx.Module):
@@ -20,11 +25,14 @@ class Solution(eqx.Module):
       when ``T`` has terms linear in ``q̇`` (a charge in a magnetic field, a rotating
       frame), where ``T + V`` is not conserved.
     - ``result``: result code (``lagrax.RESULTS``: diffrax's codes plus
-      ``non_finite_state``); ``ok`` tells success, ``RESULTS[sol.result]`` the message.
+      ``non_finite_state``, ``event_cascade``, ...); ``ok`` tells success (also true for
+      ``event_occurred``, a stop at a terminal :class:`Event`), ``RESULTS[sol.result]``
+      the message.
     - ``stats``: solver counters (``num_steps``, ``num_accepted_steps``,
       ``num_rejected_steps``, ``max_steps``).
     - ``t_end``, ``q_end``, ``qd_end``: the last state the solver reached: ``t1`` on
-      success, the time it stopped at on failure (with a custom ``saveat``, the last save).
+      success, the root of a terminal event, the time it stopped at on failure (with a
+      custom ``saveat``, the last save).
     - ``constraint_violation``: for a ``ConstrainedSystem``, ``φ(q)`` at ``ts``, shape
       ``(T, m)``; ``None`` otherwise.
     - ``multipliers``: for a ``ConstrainedSystem``, the Lagrange multipliers ``λ`` at
@@ -36,6 +44,11 @@ class Solution(eqx.Module):
       ``None`` for an autonomous system. Integrated from the saved states by a
       sixth-order (Hermite) two-point rule, so the saves must resolve the time
       dependence (see :attr:`energy_error`).
+    - ``events``: with ``simulate(..., events=...)``, one :class:`EventRecord` per event
+      (in the order given): ``times`` ``(K,)``, ``q`` and ``qd`` ``(K, n)`` at each
+      crossing (before a reset), padded with ``inf`` past ``count`` (``K`` is the
+      event's ``max_events``; fixed shapes, so it works under ``jit`` and ``vmap``);
+      ``None`` without events.
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -55,11 +68,15 @@ class Solution(eqx.Module):
     constraint_violation: Float[Array, "T m"] | None = None
     multipliers: Float[Array, "T m"] | None = None
     work: Float[Array, " T"] | None = None
+    events: "tuple[EventRecord, ...] | None" = None
 
     @property
     def ok(self) -> Array:
-        """``True`` where the solve succeeded (an array under ``vmap``)."""
-        return self.result == RESULTS.successful
+        """``True`` where the solve succeeded (an array under ``vmap``): it reached
+        ``t1``, or stopped at a terminal event (``RESULTS.event_occurred``)."""
+        if self.events is None:
+            return self.result == RESULTS.successful
+        return (self.result == RESULTS.successful) | (self.result == RESULTS.event_occurred)
 
     @property
     def energy_change(self) -> Float[Array, " T"]:

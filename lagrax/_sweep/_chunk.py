@@ -20,6 +20,7 @@ from ._devices import to_device, to_host
 _OK = int(code_of(RESULTS.successful))
 _INVALID = int(code_of(RESULTS.invalid_input))
 _NOT_PROJECTED = int(code_of(RESULTS.constraint_projection_failed))
+_EVENT = int(code_of(RESULTS.event_occurred))
 
 
 class Setup(eqx.Module):
@@ -53,6 +54,10 @@ def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOut
 
     sol = jax.vmap(one)(members, y0s)
     steps = sol.stats["num_steps"]
+    count = first = None
+    if sol.events is not None:
+        count = jnp.stack([r.count for r in sol.events], axis=1)
+        first = jnp.stack([r.times[:, 0] for r in sol.events], axis=1)
     ys = (sol.q, sol.qd) if ts.shape[0] else (sol.q[:, :0], sol.qd[:, :0])
     return LaneOutput(
         ys=ys,
@@ -64,6 +69,8 @@ def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOut
         num_rejected_steps=sol.stats["num_rejected_steps"],
         busy_lane_steps=jnp.sum(steps),
         lane_steps=jnp.max(steps) * steps.shape[0],
+        event_count=count,
+        event_first=first,
     )
 
 
@@ -231,7 +238,7 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
     q, qd = out.ys
     q_end, qd_end = out.y_end
     res = cut(out.result).copy()
-    res[~projected & (res == _OK)] = _NOT_PROJECTED
+    res[~projected & ((res == _OK) | (res == _EVENT))] = _NOT_PROJECTED
     res[~valid] = _INVALID
     bad = ~valid
 
@@ -258,6 +265,9 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
     )
     if violation is not None:
         chunk["constraint_violation"] = blank(violation)
+    if out.event_count is not None:
+        chunk["event_count"] = np.where(np.asarray(bad)[:, None], 0, cut(out.event_count))
+        chunk["first_event_time"] = blank(out.event_first)
     if reduced is not None:
         leaves, _ = jtu.tree_flatten_with_path(reduced)
         for path, leaf in leaves:

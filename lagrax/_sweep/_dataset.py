@@ -8,6 +8,7 @@ import numpy as np
 from .._results import RESULTS, code_of, messages
 
 _OK = int(code_of(RESULTS.successful))
+_EVENT = int(code_of(RESULTS.event_occurred))  # a stop at a terminal event: ok
 
 
 def dataset(
@@ -47,7 +48,7 @@ def dataset(
     data = {}
     final = isinstance(keep, str) and keep == "final"
     time_dims = [] if final else ["time"]
-    ok = cat["result"] == _OK
+    ok = (cat["result"] == _OK) | (cat["result"] == _EVENT)
     if final:
         at_t1 = ok[:, None]
         data["q"] = (sweep_dims + ["dof"], shaped(np.where(at_t1, cat["q_end"], np.inf)))
@@ -71,10 +72,22 @@ def dataset(
     data["ok"] = (sweep_dims, shaped(ok))
     data["result"] = (sweep_dims, shaped(cat["result"]))
     text = messages()
-    status = np.asarray(["ok" if r == _OK else _short(text[r]) for r in cat["result"]])
+    status = np.asarray(
+        [
+            "ok"
+            if r == _OK
+            else "ok: stopped at a terminal event"
+            if r == _EVENT
+            else _short(text[r])
+            for r in cat["result"]
+        ]
+    )
     data["status"] = (sweep_dims, shaped(status))
     if "constraint_violation" in cat:
         data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
+    if "event_count" in cat:  # per member and event (simulate's Solution.events)
+        data["event_count"] = (sweep_dims + ["event"], shaped(cat["event_count"]))
+        data["first_event_time"] = (sweep_dims + ["event"], shaped(cat["first_event_time"]))
     for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
         data[k] = (sweep_dims, shaped(cat[k]))
     # the system's coordinate names (a tree's joint names) label the dof axis

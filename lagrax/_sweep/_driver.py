@@ -15,8 +15,9 @@ import numpy as np
 from .. import _checks
 from .._abstract_system import AbstractSystem
 from .._errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._events import as_events, check_events
 from .._methods import configure
-from .._simulate import SolveConfig
+from .._simulate import SolveConfig, events_supported
 from .._solution import Solution
 from ._checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from ._chunk import Setup, solve_chunk
@@ -65,6 +66,7 @@ def sweep(
     checkpoint: str | os.PathLike | None = None,
     progress: bool | None = None,
     allow_unused: bool = False,
+    events: Any = None,
 ):
     """Simulate ``system`` for many parameter sets (and initial states) at once.
 
@@ -127,6 +129,12 @@ def sweep(
       (by its ``manifest.json``, or without one by its chunk files) is refused.
     - ``progress``: show a progress bar (tqdm; members/s). Default: on in a terminal or
       notebook, off otherwise.
+    - ``events``: a :class:`lagrax.Event` or a sequence of them, as for
+      :func:`lagrax.simulate`. Each member's events are located as in ``simulate`` (a
+      terminal event ends that member at its root; its ``ok`` stays true); the result
+      gains ``event_count`` and ``first_event_time`` (dimensions: the members' and
+      ``"event"``; ``inf`` where an event did not occur). A sweep with events runs
+      ``schedule="lockstep"`` (the lane queue has no event handling).
     - ``allow_unused``: sweep parameters that nothing the solve evaluates reads (energies,
       force, ``tau``, constraints, initial-state projection); by default that is an error,
       since a misspelt grid name would otherwise sweep nothing. The test is structural
@@ -240,6 +248,13 @@ def sweep(
     )
     if controller is None:
         controller = dfx.PIDController(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt))
+    events = as_events(events)
+    if events is not None:
+        events_supported(solver_, controller, None, None)
+        member = batch.params(0, 1) if batch is not None else get_params(0, 1)
+        member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
+        check_events(events, jnp.asarray(t0, tdt), q0s[0], qd0s[0], member)
+        schedule = "lockstep"  # the lane queue has no event handling
 
     # --- chunks and devices: defaults from the device (see _defaults)
     mesh = mesh_of(devices)
@@ -263,7 +278,7 @@ def sweep(
     )
     chunk_size = cut.chunk_size
     lanes = cut.n_lanes
-    config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_)
+    config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_, events=events)
     setup = Setup(config, reduce, lanes, schedule, cut.refill, cut.tail_lanes)
     n_chunks = -(-n_members // chunk_size)
 
