@@ -142,9 +142,11 @@ def sweep(
     with ``keep=``), ``ok``, ``result``
     (code of ``lagrax.RESULTS``), ``status`` (its message), ``t_end``, ``num_steps``,
     ``num_accepted_steps``, ``num_rejected_steps`` (or the outputs of ``reduce``); swept
-    parameters as coordinates; ``attrs`` with the failure count, how the batch was cut
-    (``platform``, ``chunk_size``, ``n_lanes``, and the queue's ``refill_lanes`` and
-    ``tail_lanes``) and the share of lane-steps that were idle (``lane_idle_fraction``).
+    parameters and state components as coordinates (with the grid's ``units`` as their
+    ``attrs["units"]``; ``time`` and ``t_end`` in ``s``); ``attrs`` with the failure
+    count, how the batch was cut (``platform``, ``chunk_size``, ``n_lanes``, and the
+    queue's ``refill_lanes`` and ``tail_lanes``) and the share of lane-steps that were
+    idle (``lane_idle_fraction``).
     Save it with :func:`save_sweep`.
 
     **Raises:**
@@ -167,8 +169,13 @@ def sweep(
     ```python
     system, params = lagrax.models.planar_2r()
     batch = lagrax.grid(params, m2=np.linspace(0.5, 2, 32), l1=np.linspace(0.5, 1.5, 32))
-    ds = lagrax.sweep(system, [0.0, 0.0], batch, [0.5, 0.8], t1=10.0)
+    ds = lagrax.sweep(system, [0.5, 0.8], [0.0, 0.0], batch, t1=10.0)
     ds.q.sel(dof=1).plot()   # final θ2 over the (m2, l1) grid
+
+    # an amplitude study: the initial θ1 swept, the rest of the state from q0, qd0
+    amps = lagrax.grid(params, q0_0=np.linspace(-3.0, 3.0, 61), units={"q0_0": "rad"})
+    ds = lagrax.sweep(system, [0.0, 0.0], [0.0, 0.0], amps, t1=2.0)
+    ds.q.sel(dof=0).plot()   # final θ1 against the initial θ1
     ```
     """
     import xarray as xr
@@ -211,6 +218,8 @@ def sweep(
             f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
             f"and {qd0s.shape[1:]}"
         )
+    if batch is not None:  # swept initial-state components (q0_i / qd0_i axes)
+        q0s, qd0s = batch.initial_states(q0s, qd0s)
     dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
     q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
     n = q0s.shape[1]
@@ -393,7 +402,7 @@ def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
         # a swept name is read when any leaf under it is
         names = [_top_name(p) for p in paths]
         names_read = {k for k, r in zip(names, read, strict=True) if r}
-        unused = [k for k in batch.axes if k not in names_read]
+        unused = [k for k in batch.axes if k not in names_read and k not in batch.states]
         all_names = list(dict.fromkeys(names))
     else:
         varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in jtu.tree_leaves(params)]

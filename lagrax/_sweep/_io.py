@@ -29,6 +29,12 @@ def save_sweep(ds: Any, path: str | os.PathLike) -> Path:
                 k: list(v.dims) for k, v in itertools.chain(ds.data_vars.items(), ds.coords.items())
             },
             attrs=dict(ds.attrs),
+            # per-variable attrs (units, long names) of the variables and coordinates
+            var_attrs={
+                k: dict(v.attrs)
+                for k, v in itertools.chain(ds.data_vars.items(), ds.coords.items())
+                if v.attrs
+            },
         )
         meta["sha256"] = checksum(arrays, {})
         arrays["meta"] = np.asarray(json.dumps(meta))
@@ -104,8 +110,13 @@ def _load_npz(xr, path: Path):
     if "sha256" in meta and checksum(arrays, {}) != meta["sha256"]:
         raise _bad(path, "its SHA-256 checksum does not match its arrays (modified or damaged)")
     try:
-        data = {k[4:]: (dims[k[4:]], v) for k, v in arrays.items() if k.startswith("var/")}
-        coords = {k[6:]: (dims[k[6:]], v) for k, v in arrays.items() if k.startswith("coord/")}
+        var_attrs = meta.get("var_attrs", {})
+
+        def entry(k, v):
+            return (dims[k], v, var_attrs.get(k, {}))
+
+        data = {k[4:]: entry(k[4:], v) for k, v in arrays.items() if k.startswith("var/")}
+        coords = {k[6:]: entry(k[6:], v) for k, v in arrays.items() if k.startswith("coord/")}
         ds = xr.Dataset(data, coords=coords, attrs=attrs)
     except Exception as err:  # noqa: BLE001
         raise _bad(
