@@ -588,16 +588,16 @@ def work_precision(
     """The work–precision chart: error against wall time, one line per method.
 
     Two log–log panels (final-state error, and maximum energy error, against the median
-    wall time of a compiled solve) of a study by :func:`lagrax.bench.work_precision`;
-    this is :func:`lagrax.bench.plot_work_precision` under the name of the other plots.
+    wall time of a compiled solve) of a study by `lagrax.bench.work_precision`;
+    this is `lagrax.bench.plot_work_precision` under the name of the other plots.
 
     **Arguments:**
 
-    - ``points``: the study's list of :class:`lagrax.bench.WorkPrecisionPoint`, or the
-      ``(points, reference_error)`` pair that ``lagrax.bench.work_precision`` returns.
-    - ``reference_error``: the reference solution's own error (drawn as a dotted line);
+    - `points`: the study's list of `lagrax.bench.WorkPrecisionPoint`, or the
+      `(points, reference_error)` pair that `lagrax.bench.work_precision` returns.
+    - `reference_error`: the reference solution's own error (drawn as a dotted line);
       taken from the pair when one is given.
-    - ``title``, ``axes``: a title; two axes to draw on (default: a new figure).
+    - `title`, `axes`: a title; two axes to draw on (default: a new figure).
 
     **Returns:** the figure.
     """

@@ -1,4 +1,4 @@
-"""The result of a sweep as an ``xarray.Dataset``."""
+"""The result of a sweep as an `xarray.Dataset`."""
 
 import json
 from collections.abc import Mapping

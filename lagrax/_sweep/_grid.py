@@ -1,4 +1,4 @@
-"""The batch of a sweep: ``Grid``, ``grid`` and ``samples``."""
+"""The batch of a sweep: `Grid`, `grid` and `samples`."""
 
 import math
 import re
@@ -96,7 +96,7 @@ class Grid:
         return f"Grid({kind}, dims={self.dims}, shape={self.shape}, swept={list(self.axes)})"
 
     def columns(self, start: int = 0, stop: int | None = None) -> dict[str, np.ndarray]:
-        """The swept values of members ``start:stop`` (C order over the grid)."""
+        """The swept values of members `start:stop` (C order over the grid)."""
         stop = self.size if stop is None else stop
         if not self.product:
             return {k: v[start:stop] for k, v in self.axes.items()}
@@ -104,7 +104,7 @@ class Grid:
         return {k: v[i] for (k, v), i in zip(self.axes.items(), idx, strict=True)}
 
     def params(self, start: int = 0, stop: int | None = None) -> Any:
-        """Batched parameters of members ``start:stop``: every leaf has a leading axis."""
+        """Batched parameters of members `start:stop`: every leaf has a leading axis."""
         stop = self.size if stop is None else stop
         cols = {k: v for k, v in self.columns(start, stop).items() if k not in self.states}
         n = stop - start
