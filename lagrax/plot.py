@@ -1,20 +1,31 @@
-"""Matplotlib figures for trajectories of lagrax systems.
+"""Matplotlib figures for trajectories and sweeps of lagrax systems.
 
-Every function takes optional ``ax`` and returns the axes (or figure, or animation) it
-drew on, so the result can be restyled:
+Every function takes the result to draw first (a `Solution`, a sweep's
+`xarray.Dataset`, a work–precision study), optional `ax` last, and returns the axes (or
+figure, or animation) it drew on, so the result can be restyled:
 
-- one trajectory: :func:`joint_trajectories`, :func:`phase_portrait`,
-  :func:`energy_error`, :func:`arm_snapshots`, :func:`summary`, :func:`animate`;
-- many: :func:`sweep_heatmap` (a quantity over a 2-D :func:`lagrax.sweep` grid);
-- methods: :func:`work_precision` (the chart of :func:`lagrax.bench.work_precision`).
+- one trajectory: `joint_trajectories`, `phase_portrait`, `energy_error`,
+  `arm_snapshots`, `summary`, `animate`;
+- many: `sweep_heatmap` (a quantity over a 1-D or 2-D `lagrax.sweep` grid);
+- methods: `work_precision` (the chart of `lagrax.bench.work_precision`).
+
+Functions that draw a mechanism take its `geometry`: a function `points(q) -> (k, 2)`
+giving the planar points to join (base, joints, tip) at a configuration `q`, in metres.
+The default is the planar serial chain of the lecture's 2R arm: `θ1` measured from the
++x axis, each further angle relative to the previous link (`planar_chain_points`).
 """
 
-from collections.abc import Sequence
+import warnings
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
+from ._errors import ConfigurationError, ShapeError
 from ._solution import Solution
+
+Geometry = Callable[[Any], Any] | Sequence[float] | Any
+"""What to draw: a function `q -> (k, 2)` points, link lengths, or a chain object."""
 
 
 def _axes(ax):
@@ -25,35 +36,71 @@ def _axes(ax):
     return ax
 
 
-def joint_trajectories(sol: Solution, *, labels: Sequence[str] | None = None, ax=None):
-    """Generalized coordinates ``q(t)`` against time, one line each."""
+def _reached(sol: Solution) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Saved times and states up to where the solve got (a failed solve's tail is inf)."""
+    ts, q, qd = np.asarray(sol.ts), np.asarray(sol.q), np.asarray(sol.qd)
+    keep = np.isfinite(ts) & np.all(np.isfinite(q), axis=-1) & np.all(np.isfinite(qd), axis=-1)
+    return ts[keep], q[keep], qd[keep]
+
+
+def joint_trajectories(
+    sol: Solution, *, labels: Sequence[str] | None = None, unit: str = "rad", ax=None
+):
+    """Generalized coordinates `q(t)` against time, one line each.
+
+    **Arguments:**
+
+    - `sol`: a `lagrax.Solution`.
+    - `labels`: one name per coordinate (default `q1`, `q2`, …).
+    - `unit`: the coordinates' unit for the y label (default `rad`; `m` for lengths,
+      `""` for mixed coordinates).
+    - `ax`: axes to draw on (default: a new figure).
+
+    **Returns:** the axes, one line per coordinate.
+    """
     ax = _axes(ax)
     q = np.asarray(sol.q)
     for i in range(q.shape[1]):
         ax.plot(np.asarray(sol.ts), q[:, i], label=labels[i] if labels else f"q{i + 1}")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("q [rad]")
+    ax.set_ylabel(f"q [{unit}]" if unit else "q")
     ax.legend(loc="best")
     return ax
 
 
 def energy_error(sol: Solution, *, ax=None):
-    """Relative energy error ``|E(t) − E(0)| / |E(0)|`` on a log scale."""
+    """Relative energy error `|E(t) − E(0)| / |E(0)|` against time, on a log scale.
+
+    Times where the error is exactly zero (always `t = 0`, and any step that conserves
+    `E` to the last bit) cannot be drawn on a log axis: they are left out (a gap in the
+    line), so the axis spans the errors that occur rather than reaching down to 1e-16.
+
+    **Arguments:** `sol`, a `lagrax.Solution`; `ax`, axes to draw on (default: a new
+    figure).
+
+    **Returns:** the axes; its one line holds the positive errors.
+    """
     ax = _axes(ax)
+    ts = np.asarray(sol.ts)
     err = np.abs(np.asarray(sol.energy_error))
-    # zero error (at t0, or exactly conserved) is drawn at 1/10 of machine epsilon
-    floor = 0.1 * np.finfo(err.dtype).eps
-    ax.semilogy(np.asarray(sol.ts), np.maximum(err, floor))
+    shown = np.isfinite(err) & (err > 0)
+    ax.plot(ts, np.where(shown, err, np.nan))
+    ax.set_yscale("log")
+    if not shown.any():
+        ax.text(0.5, 0.5, "E(t) = E(0) exactly", transform=ax.transAxes, ha="center")
     ax.set_xlabel("t [s]")
     ax.set_ylabel("|E(t) − E(0)| / |E(0)|")
-    ax.set_ylim(bottom=floor)
     return ax
 
 
 def planar_chain_points(q, lengths) -> np.ndarray:
-    """Joint positions of a planar serial chain with relative angles ``q`` (from +x).
+    """Joint positions of a planar serial chain in the lecture's convention.
 
-    Returns an array ``(..., n + 1, 2)``: the base at the origin, then each link's end.
+    `θ1 = q[0]` is measured from the +x axis, each `θi = q[i − 1]` relative to the
+    previous link, counter-clockwise positive; link `i` has length `lengths[i − 1]`.
+    Joint `k` is at `Σ_{i ≤ k} l_i (cos φ_i, sin φ_i)` with `φ_i = θ1 + … + θi`.
+
+    **Returns:** an array `(..., n + 1, 2)`: the base at the origin, then each link's end.
     """
     q = np.asarray(q)
     angles = np.cumsum(q, axis=-1)
@@ -63,39 +110,144 @@ def planar_chain_points(q, lengths) -> np.ndarray:
     return np.concatenate([base, np.cumsum(steps, axis=-2)], axis=-2)
 
 
-def arm_snapshots(sol: Solution, lengths, *, n_snapshots: int = 12, ax=None):
-    """Stroboscopic drawing of a planar chain: the arm at evenly spaced saved times,
-    fading from light (early) to dark (late), and the path of the tip."""
+def _default_lengths(params: Any, n: int) -> list[float]:
+    """Link lengths for the default geometry: `params["l1"], …` when given, else 1 m."""
+    if isinstance(params, dict) and all(f"l{i + 1}" in params for i in range(n)):
+        return [float(params[f"l{i + 1}"]) for i in range(n)]
+    return [1.0] * n
+
+
+def _chain_points(geometry: Any, q: np.ndarray, params: Any) -> np.ndarray:
+    """Points `(T, k, 2)` to draw at each saved state, from the kinds of geometry."""
+    if geometry is None:
+        pts = planar_chain_points(q, _default_lengths(params, q.shape[-1]))
+    elif hasattr(geometry, "joint_positions"):  # e.g. lagrax.chains.PlanarChain
+        if params is None:
+            raise ConfigurationError(
+                f"drawing a {type(geometry).__name__} needs its parameters: pass params="
+            )
+        import jax
+        import jax.numpy as jnp
+
+        pts = np.asarray(jax.vmap(lambda a: geometry.joint_positions(a, params))(jnp.asarray(q)))
+    elif callable(geometry):
+        pts = np.stack([np.asarray(geometry(a)) for a in q])
+    else:
+        lengths = np.asarray(geometry, dtype=float)
+        if lengths.ndim != 1 or lengths.size != q.shape[-1]:
+            raise ShapeError(
+                f"link lengths {geometry!r} must be one per coordinate ({q.shape[-1]}); for "
+                "another mechanism pass a function geometry(q) -> (k, 2) points"
+            )
+        pts = planar_chain_points(q, lengths)
+    if pts.ndim != 3 or pts.shape[-1] != 2:
+        raise ShapeError(
+            "the geometry must give k planar points per state, shape (k, 2); got shape "
+            f"{pts.shape[1:]} per state"
+        )
+    return pts
+
+
+def _square_limits(ax, pts: np.ndarray, margin: float = 0.55) -> None:
+    """Equal-aspect limits around every drawn point."""
+    flat = pts.reshape(-1, 2)
+    flat = flat[np.all(np.isfinite(flat), axis=1)]
+    lo, hi = flat.min(axis=0), flat.max(axis=0)
+    centre, half = 0.5 * (lo + hi), margin * max(float(np.max(hi - lo)), 1e-9)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_aspect("equal")
+
+
+def arm_snapshots(
+    sol: Solution,
+    geometry: Geometry = None,
+    *,
+    params: Any = None,
+    n_snapshots: int = 12,
+    colorbar: bool = True,
+    ax=None,
+):
+    """Stroboscopic drawing of a planar mechanism: its pose at evenly spaced saved times,
+    coloured by time (viridis: dark purple early, yellow late; a colour bar gives the
+    time in seconds), and the path of its last point (the tip) in grey.
+
+    **Arguments:**
+
+    - `sol`: a `lagrax.Solution`.
+    - `geometry`: the mechanism's points (joints and tip, in metres) at a configuration;
+      one of
+        - a function `points(q) -> (k, 2)` (any planar mechanism, any angle
+          convention: e.g. a pendulum with angles from the downward vertical);
+        - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
+          convention (`θ1` from +x, `θi` relative to link `i − 1`, see
+          `planar_chain_points`);
+        - a chain object with `joint_positions(q, params)` (e.g.
+          `lagrax.chains.PlanarChain`; then pass `params=`);
+        - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
+          `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
+    - `params`: parameters for a chain object, or for the default's link lengths.
+    - `n_snapshots`: how many poses to draw.
+    - `colorbar`: draw the time colour bar next to the axes.
+    - `ax`: axes to draw on (default: a new figure).
+
+    **Returns:** the axes; `ax.lines[0]` is the tip's path, `ax.lines[1:]` the poses
+    (their data are the geometry's points at the drawn times).
+    """
     import matplotlib.pyplot as plt
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
 
     ax = _axes(ax)
-    pts = planar_chain_points(sol.q, lengths)
-    idx = np.linspace(0, len(pts) - 1, n_snapshots).astype(int)
+    ts, q, _ = _reached(sol)
+    pts = _chain_points(geometry, q, params)
+    idx = np.unique(np.linspace(0, len(pts) - 1, n_snapshots).round().astype(int))
     cmap = plt.get_cmap("viridis")
+    norm = Normalize(float(ts[0]), float(ts[-1]) if ts[-1] > ts[0] else float(ts[0]) + 1.0)
     ax.plot(pts[:, -1, 0], pts[:, -1, 1], color="0.7", lw=0.8, label="tip path")
-    for k, i in enumerate(idx):
-        c = cmap(k / max(n_snapshots - 1, 1))
-        ax.plot(pts[i, :, 0], pts[i, :, 1], "-o", color=c, lw=2, ms=3)
-    reach = float(np.sum(lengths))
-    ax.set_xlim(-1.1 * reach, 1.1 * reach)
-    ax.set_ylim(-1.1 * reach, 1.1 * reach)
-    ax.set_aspect("equal")
+    for i in idx:
+        ax.plot(pts[i, :, 0], pts[i, :, 1], "-o", color=cmap(norm(ts[i])), lw=2, ms=3)
+    _square_limits(ax, pts)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="upper right")
+    if colorbar:
+        ax.figure.colorbar(ScalarMappable(norm, cmap), ax=ax, label="t [s]")
     return ax
 
 
-def summary(sol: Solution, lengths, *, title: str | None = None):
-    """Three panels: joint angles, arm snapshots, energy error. Returns the figure."""
+def summary(
+    sol: Solution, geometry: Geometry = None, *, params: Any = None, title: str | None = None
+):
+    """Three panels: joint angles, the mechanism's snapshots, energy error.
+
+    **Arguments:**
+
+    - `sol`: a `lagrax.Solution`.
+    - `geometry`: the mechanism's points (joints and tip, in metres) at a configuration;
+      one of
+        - a function `points(q) -> (k, 2)` (any planar mechanism, any angle
+          convention: e.g. a pendulum with angles from the downward vertical);
+        - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
+          convention (`θ1` from +x, `θi` relative to link `i − 1`, see
+          `planar_chain_points`);
+        - a chain object with `joint_positions(q, params)` (e.g.
+          `lagrax.chains.PlanarChain`; then pass `params=`);
+        - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
+          `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
+    - `params`: parameters for a chain object, or for the default's link lengths.
+    - `title`: a title over the three panels.
+
+    **Returns:** the figure.
+    """
     import matplotlib.pyplot as plt
 
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.4), constrained_layout=True)
     joint_trajectories(sol, labels=[f"θ{i + 1}" for i in range(np.shape(sol.q)[1])], ax=axs[0])
-    arm_snapshots(sol, lengths, ax=axs[1])
+    arm_snapshots(sol, geometry, params=params, ax=axs[1])
     energy_error(sol, ax=axs[2])
     axs[0].set_title("joint angles")
-    axs[1].set_title("arm snapshots")
+    axs[1].set_title("snapshots")
     axs[2].set_title("energy error")
     if title:
         fig.suptitle(title)
@@ -107,62 +259,51 @@ def phase_portrait(
     *,
     dof: int | Sequence[int] | None = None,
     labels: Sequence[str] | None = None,
+    unit: str = "rad",
     ax=None,
 ):
-    """Phase portrait: ``q̇_i`` against ``q_i``, one curve per coordinate.
+    """Phase portrait: `q̇_i` against `q_i`, one curve per coordinate.
 
-    The start of each curve is marked with a dot. A conservative 1-DOF system traces a
-    closed level curve of ``E = T + V``; dissipation makes it spiral in.
+    Each curve starts at a dot (●, at the first saved time) and ends at a square (■, at
+    the last one); the legend's key gives both times. A conservative 1-DOF system
+    traces a closed level curve of `E = T + V`; dissipation makes it spiral in.
 
     **Arguments:**
 
-    - ``sol``: a :class:`lagrax.Solution`.
-    - ``dof``: the coordinate index (or indices) to draw; default all.
-    - ``labels``: one name per drawn coordinate (default ``q1``, ``q2``, …).
-    - ``ax``: axes to draw on (default: a new figure).
+    - `sol`: a `lagrax.Solution`.
+    - `dof`: the coordinate index (or indices) to draw; default all.
+    - `labels`: one name per drawn coordinate (default `q1`, `q2`, …).
+    - `unit`: the coordinates' unit for the axis labels (default `rad`; velocities are
+      in `unit/s`).
+    - `ax`: axes to draw on (default: a new figure).
 
-    **Returns:** the axes; ``ax.lines`` holds one curve per drawn coordinate.
+    **Returns:** the axes; `ax.lines` holds one curve per drawn coordinate.
     """
+    from matplotlib.lines import Line2D
+
     ax = _axes(ax)
-    q, qd = np.asarray(sol.q), np.asarray(sol.qd)
+    ts, q, qd = _reached(sol)
     dofs = list(range(q.shape[1])) if dof is None else [int(i) for i in np.atleast_1d(dof)]
     for k, i in enumerate(dofs):
-        keep = np.isfinite(q[:, i]) & np.isfinite(qd[:, i])  # a failed solve's tail is inf
         name = labels[k] if labels else f"q{i + 1}"
-        (line,) = ax.plot(q[keep, i], qd[keep, i], lw=1, label=name)
-        ax.scatter(q[keep, i][:1], qd[keep, i][:1], color=line.get_color(), s=18, zorder=3)
-    ax.set_xlabel("q [rad]")
-    ax.set_ylabel("q̇ [rad/s]")
-    ax.legend(loc="best")
+        (line,) = ax.plot(q[:, i], qd[:, i], lw=1, label=name)
+        c = line.get_color()
+        ax.scatter(q[:1, i], qd[:1, i], color=c, marker="o", s=22, zorder=3)
+        ax.scatter(q[-1:, i], qd[-1:, i], color=c, marker="s", s=22, zorder=3)
+    key = [
+        Line2D([], [], ls="", marker="o", color="0.3", label=f"start, t = {ts[0]:.3g} s"),
+        Line2D([], [], ls="", marker="s", color="0.3", label=f"end, t = {ts[-1]:.3g} s"),
+    ]
+    handles, _ = ax.get_legend_handles_labels()
+    ax.legend(handles=handles + key, loc="best", fontsize=8)
+    ax.set_xlabel(f"q [{unit}]" if unit else "q")
+    ax.set_ylabel(f"q̇ [{unit}/s]" if unit else "q̇")
     return ax
 
 
-def _chain_points(geometry: Any, q: np.ndarray, params: Any) -> np.ndarray:
-    """Points ``(T, k, 2)`` to draw at each saved state, from the three kinds of geometry."""
-    if hasattr(geometry, "joint_positions"):  # e.g. lagrax.chains.PlanarChain
-        if params is None:
-            raise ValueError(
-                f"animating a {type(geometry).__name__} needs its parameters: pass params="
-            )
-        import jax
-        import jax.numpy as jnp
-
-        pts = np.asarray(jax.vmap(lambda a: geometry.joint_positions(a, params))(jnp.asarray(q)))
-    elif callable(geometry):
-        pts = np.stack([np.asarray(geometry(a)) for a in q])
-    else:
-        pts = planar_chain_points(q, geometry)
-    if pts.ndim != 3 or pts.shape[-1] != 2:
-        raise ValueError(
-            "the geometry must give k planar points per state, shape (k, 2); got shape "
-            f"{pts.shape[1:]} per state"
-        )
-    return pts
-
-
 def animate(
-    geometry: Any,
     sol: Solution,
+    geometry: Geometry = None,
     *,
     params: Any = None,
     max_frames: int = 150,
@@ -171,41 +312,61 @@ def animate(
     title: str | None = None,
     ax=None,
 ):
-    """Animate a planar mechanism along a solution (matplotlib ``FuncAnimation``).
+    """Animate a planar mechanism along a solution (matplotlib `FuncAnimation`).
 
     Each frame draws the mechanism as a polyline through its points (joints and tip) at
     one saved time, the path of the last point so far, and the time.
 
-    In a notebook show it with ``IPython.display.HTML(anim.to_jshtml())`` (no extra
-    software; call ``plt.close()`` first so the empty figure is not shown as well), or
-    ``anim.to_html5_video()`` (needs ffmpeg). On disk: ``anim.save("arm.gif",
-    writer="pillow")`` (Pillow ships with matplotlib) or ``anim.save("arm.mp4")``
-    (ffmpeg).
+    In a notebook show it with `IPython.display.HTML(anim.to_jshtml())` (no extra
+    software; call `plt.close()` first so the empty figure is not shown as well), or
+    `anim.to_html5_video()` (needs ffmpeg). On disk: `anim.save("arm.gif",
+    writer="pillow")` (Pillow ships with matplotlib) or `anim.save("arm.mp4")` (ffmpeg).
+
+    The order before 0.3, `animate(geometry, sol)`, still works with a
+    `DeprecationWarning`.
 
     **Arguments:**
 
-    - ``geometry``: what to draw, one of
-        - link lengths ``[l1, …, ln]`` of a planar serial chain with relative joint angles
-          (``θ1`` from +x, ``θi`` relative to link ``i − 1``; the 2R arm:
-          ``[params["l1"], params["l2"]]``);
-        - a chain object with ``joint_positions(q, params)`` (e.g.
-          :class:`lagrax.chains.PlanarChain`; then pass ``params=``);
-        - a function ``points(q) -> (k, 2)`` for any other planar mechanism.
-    - ``sol``: a :class:`lagrax.Solution` (its saved times are the frames).
-    - ``params``: parameters for a chain object.
-    - ``max_frames``: at most this many frames, evenly spaced over the saved times.
-    - ``speed``: playback speed relative to real time.
-    - ``trail``: draw the path of the last point.
-    - ``title``, ``ax``: a title; axes to draw on (default: a new figure).
+    - `sol`: a `lagrax.Solution` (its saved times are the frames).
+    - `geometry`: the mechanism's points (joints and tip, in metres) at a configuration;
+      one of
+        - a function `points(q) -> (k, 2)` (any planar mechanism, any angle
+          convention: e.g. a pendulum with angles from the downward vertical);
+        - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
+          convention (`θ1` from +x, `θi` relative to link `i − 1`, see
+          `planar_chain_points`);
+        - a chain object with `joint_positions(q, params)` (e.g.
+          `lagrax.chains.PlanarChain`; then pass `params=`);
+        - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
+          `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
+    - `params`: parameters for a chain object, or for the default's link lengths.
+    - `max_frames`: at most this many frames, evenly spaced over the saved times.
+    - `speed`: playback speed relative to real time.
+    - `trail`: draw the path of the last point.
+    - `title`, `ax`: a title; axes to draw on (default: a new figure).
 
-    **Returns:** the ``matplotlib.animation.FuncAnimation``.
+    **Returns:** the `matplotlib.animation.FuncAnimation`.
+
+    **Raises:** `ShapeError` when the geometry's points are not `(k, 2)`, or link
+    lengths do not match the coordinates; `ConfigurationError` for a chain object
+    without `params=`.
     """
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation
 
-    ts = np.asarray(sol.ts)
-    reached = np.isfinite(ts)  # a failed solve stops early: animate what was reached
-    ts, q = ts[reached], np.asarray(sol.q)[reached]
+    if not isinstance(sol, Solution) and isinstance(geometry, Solution):
+        warnings.warn(
+            "animate(geometry, sol) is deprecated: pass the solution first, as to every "
+            "other plot, animate(sol, geometry); the old order stops working in 0.4",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        sol, geometry = geometry, sol
+    if not isinstance(sol, Solution):
+        raise ConfigurationError(
+            f"animate draws a lagrax.Solution (its first argument), got {type(sol).__name__}"
+        )
+    ts, q, _ = _reached(sol)  # a failed solve stops early: animate what was reached
     pts = _chain_points(geometry, q, params)
     frames = np.unique(np.linspace(0, len(ts) - 1, min(len(ts), int(max_frames))).round())
     frames = frames.astype(int)
@@ -216,11 +377,7 @@ def animate(
         fig, ax = plt.subplots(figsize=(5, 5))
     else:
         fig = ax.figure
-    lo, hi = pts.reshape(-1, 2).min(axis=0), pts.reshape(-1, 2).max(axis=0)
-    centre, half = 0.5 * (lo + hi), 0.55 * max(float(np.max(hi - lo)), 1e-9)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_aspect("equal")
+    _square_limits(ax, pts)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     if title:
@@ -258,11 +415,38 @@ def _edges(centres: np.ndarray) -> tuple[np.ndarray, bool]:
     return (np.exp(e) if log else e), log
 
 
+def _coord_label(da: Any, dim: str) -> str:
+    """`name [units]` of a sweep dimension, from its coordinate's attrs."""
+    attrs = da[dim].attrs if dim in da.coords else {}
+    name = attrs.get("long_name", dim)
+    if name != dim:
+        name = f"{name} ({dim})"
+    unit = attrs.get("units")
+    return f"{name} [{unit}]" if unit else name
+
+
+def _value_label(da: Any, name: str, label: str | None, dof: Any = None) -> str:
+    """The label of the drawn value: `label`, else its long name (or name), its
+    coordinate `[dof]` and `[units]` from its attrs."""
+    if label:
+        return label
+    name = da.attrs.get("long_name", name)
+    if dof is not None:
+        name = f"{name}[{dof}]"
+    unit = da.attrs.get("units")
+    return f"{name} [{unit}]" if unit else name
+
+
+def _axis_values(da: Any, dim: str) -> np.ndarray:
+    c = np.asarray(da[dim].values) if dim in da.coords else np.arange(da.sizes[dim])
+    return c if np.issubdtype(c.dtype, np.number) else np.arange(c.size)
+
+
 def sweep_heatmap(
     ds: Any,
     var: Any,
     *,
-    dof: int | None = None,
+    dof: int | str | None = None,
     x: str | None = None,
     y: str | None = None,
     log: bool = False,
@@ -270,27 +454,38 @@ def sweep_heatmap(
     label: str | None = None,
     ax=None,
 ):
-    """A per-member quantity over a 2-D parameter grid from :func:`lagrax.sweep`.
+    """A per-member quantity over a 1-D or 2-D grid from `lagrax.sweep`.
 
-    Cells are centred on the swept values (log-spaced values get a log axis). Members
-    that failed (``ds.ok`` False) or whose value is not finite are drawn grey and
-    hatched, and counted in the legend, so a failure never looks like a number.
+    Over a 2-D grid: a heat map, cells centred on the swept values, with a colour bar.
+    Over a 1-D grid: a line through the members' values against the swept value. Axes
+    are labelled with the swept names and their units (the coordinates'
+    `attrs["units"]`, set by `lagrax.grid(..., units=...)`); log-spaced values get a log
+    axis. Members that failed (`ds.ok` False) or whose value is not finite are drawn
+    grey and hatched (a cell, or a band over a 1-D grid), and counted in the legend, so a
+    failure never looks like a number.
 
     **Arguments:**
 
-    - ``ds``: the ``xarray.Dataset`` of a sweep over a 2-D :func:`lagrax.grid`.
-    - ``var``: a variable name of ``ds`` (``"energy_error"``, ``"num_steps"``, ``"q"``, a
-      ``keep=`` function's output, …) or an ``xarray.DataArray`` over the two sweep
-      dimensions (e.g. ``abs(ds.q.sel(dof=1) - ref)``).
-    - ``dof``: the coordinate to show when ``var`` has a ``"dof"`` dimension.
-    - ``x``, ``y``: which sweep dimension goes on which axis (default: the grid's second
-      dimension on x, its first on y, as ``xarray``'s own ``.plot()``).
-    - ``log``: logarithmic colour scale (non-positive values are then marked as failed).
-    - ``cmap``, ``label``: colour map; colour-bar label (default: the variable's name).
-    - ``ax``: axes to draw on (default: a new figure).
+    - `ds`: the `xarray.Dataset` of a sweep over a `lagrax.grid` of one or two names.
+    - `var`: a variable name of `ds` (`"energy_error"`, `"num_steps"`, `"q"`, a `keep=`
+      function's output, …) or an `xarray.DataArray` over the sweep dimensions (e.g.
+      `abs(ds.q.sel(dof=1) - ref)`).
+    - `dof`: the coordinate to show when `var` has a `"dof"` dimension.
+    - `x`, `y`: which sweep dimension goes on which axis of a 2-D grid (default: the
+      grid's second dimension on x, its first on y, as `xarray`'s own `.plot()`).
+    - `log`: logarithmic colour scale (2-D) or y axis (1-D); non-positive values are
+      then marked as failed.
+    - `cmap`, `label`: colour map; label of the value (default: the variable's name and
+      its `attrs["units"]`).
+    - `ax`: axes to draw on (default: a new figure).
 
-    **Returns:** the axes; its first collection is the ``QuadMesh`` whose array has the
-    grid's shape ``(len(y), len(x))``.
+    **Returns:** the axes. 2-D: its first collection is the `QuadMesh` whose array has
+    the grid's shape `(len(y), len(x))`. 1-D: `ax.lines[0]` holds the values against the
+    swept values (failed members left out).
+
+    **Raises:** `ShapeError` when `var` has more than the sweep dimensions left (the
+    message names the dimensions to select or reduce), or a `"dof"` dimension and no
+    `dof=`.
     """
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
@@ -300,58 +495,86 @@ def sweep_heatmap(
     name = var if isinstance(var, str) else (da.name or "value")
     if "dof" in da.dims:
         if dof is None:
-            raise ValueError(f"{name!r} has a 'dof' dimension: choose a coordinate with dof=")
+            raise ShapeError(
+                f"{name!r} has a 'dof' dimension: choose a coordinate with dof= (one of "
+                f"{list(np.asarray(da['dof'].values))})"
+            )
         da = da.sel(dof=dof)
-        name = f"{name}[{dof}]"
-    if da.ndim != 2:
-        raise ValueError(
-            f"sweep_heatmap draws a 2-D grid; {name!r} has dimensions {da.dims} (select "
-            "a time or reduce the others first, e.g. ds.q.isel(time=-1))"
+    if da.ndim not in (1, 2):
+        extra = [d for d in da.dims if d == "time" or "_dim_" in d]
+        if "time" in extra:
+            hint = f"select a time first, e.g. ds[{name!r}].isel(time=-1)"
+        elif extra:
+            hint = f"select or reduce {extra} first, e.g. .isel({extra[0]}=0)"
+        else:
+            hint = f"select values of all but one or two of them first, e.g. .sel({da.dims[0]}=...)"
+        raise ShapeError(
+            f"sweep_heatmap draws a 1-D or 2-D grid; {name!r} has dimensions {da.dims}: {hint}"
         )
-    if x is None and y is None:
-        y, x = da.dims
-    elif x is None or y is None:
-        x = x if x is not None else next(d for d in da.dims if d != y)
-        y = y if y is not None else next(d for d in da.dims if d != x)
-    da = da.transpose(y, x)
-    values = np.asarray(da.values, dtype=float)
-    bad = ~np.isfinite(values)
-    if "ok" in getattr(ds, "data_vars", {}) and set(ds["ok"].dims) == {x, y}:
-        bad |= ~np.asarray(ds["ok"].transpose(y, x).values, dtype=bool)
-    if log:
-        with np.errstate(invalid="ignore"):
-            bad |= ~(values > 0)
-    data = np.ma.masked_array(values, bad)
+    bad_of = None
+    if "ok" in getattr(ds, "data_vars", {}) and set(ds["ok"].dims) == set(da.dims):
+        bad_of = ds["ok"]
 
     ax = _axes(ax)
-    coords = []
-    for d in (x, y):
-        c = np.asarray(da[d].values) if d in da.coords else np.arange(da.sizes[d])
-        if not np.issubdtype(c.dtype, np.number):
-            c = np.arange(c.size)
-        coords.append(c)
-    (xe, xlog), (ye, ylog) = _edges(coords[0]), _edges(coords[1])
-    colours = plt.get_cmap(cmap).with_extremes(bad="0.8")
-    norm = LogNorm() if log and not bad.all() else None
-    mesh = ax.pcolormesh(xe, ye, data, cmap=colours, norm=norm, shading="flat")
-    ax.figure.colorbar(mesh, ax=ax, label=label or name)
-    if xlog:
-        ax.set_xscale("log")
-    if ylog:
-        ax.set_yscale("log")
     hatch = dict(facecolor="0.8", edgecolor="0.35", hatch="///", lw=0)
-    for j, i in zip(*np.nonzero(bad), strict=True):
-        ax.add_patch(Rectangle((xe[i], ye[j]), xe[i + 1] - xe[i], ye[j + 1] - ye[j], **hatch))
+    if da.ndim == 1:
+        (xd,) = da.dims
+        values = np.asarray(da.values, dtype=float)
+        bad = ~np.isfinite(values)
+        if bad_of is not None:
+            bad |= ~np.asarray(bad_of.values, dtype=bool)
+        if log:
+            with np.errstate(invalid="ignore"):
+                bad |= ~(values > 0)
+        xs = _axis_values(da, xd)
+        xe, xlog = _edges(xs)
+        ax.plot(xs[~bad], values[~bad], "-o", ms=3, lw=1.2)
+        for i in np.nonzero(bad)[0]:
+            ax.axvspan(xe[i], xe[i + 1], **hatch)
+        if xlog:
+            ax.set_xscale("log")
+        if log:
+            ax.set_yscale("log")
+        ax.set_xlim(xe[0], xe[-1])
+        ax.set_xlabel(_coord_label(da, xd))
+        ax.set_ylabel(_value_label(da, name, label, dof))
+        ax.grid(True, alpha=0.3)
+    else:
+        if x is None and y is None:
+            y, x = da.dims
+        elif x is None or y is None:
+            x = x if x is not None else next(d for d in da.dims if d != y)
+            y = y if y is not None else next(d for d in da.dims if d != x)
+        da = da.transpose(y, x)
+        values = np.asarray(da.values, dtype=float)
+        bad = ~np.isfinite(values)
+        if bad_of is not None:
+            bad |= ~np.asarray(bad_of.transpose(y, x).values, dtype=bool)
+        if log:
+            with np.errstate(invalid="ignore"):
+                bad |= ~(values > 0)
+        data = np.ma.masked_array(values, bad)
+        (xe, xlog), (ye, ylog) = _edges(_axis_values(da, x)), _edges(_axis_values(da, y))
+        colours = plt.get_cmap(cmap).with_extremes(bad="0.8")
+        norm = LogNorm() if log and not bad.all() else None
+        mesh = ax.pcolormesh(xe, ye, data, cmap=colours, norm=norm, shading="flat")
+        ax.figure.colorbar(mesh, ax=ax, label=_value_label(da, name, label, dof))
+        if xlog:
+            ax.set_xscale("log")
+        if ylog:
+            ax.set_yscale("log")
+        for j, i in zip(*np.nonzero(bad), strict=True):
+            ax.add_patch(Rectangle((xe[i], ye[j]), xe[i + 1] - xe[i], ye[j + 1] - ye[j], **hatch))
+        ax.set_xlim(xe[0], xe[-1])
+        ax.set_ylim(ye[0], ye[-1])
+        ax.set_xlabel(_coord_label(da, x))
+        ax.set_ylabel(_coord_label(da, y))
     if bad.any():
         ax.legend(
             handles=[Patch(**hatch, label=f"failed ({int(bad.sum())} of {bad.size})")],
             loc="upper right",
             fontsize=8,
         )
-    ax.set_xlim(xe[0], xe[-1])
-    ax.set_ylim(ye[0], ye[-1])
-    ax.set_xlabel(x)
-    ax.set_ylabel(y)
     return ax
 
 
@@ -365,16 +588,16 @@ def work_precision(
     """The work–precision chart: error against wall time, one line per method.
 
     Two log–log panels (final-state error, and maximum energy error, against the median
-    wall time of a compiled solve) of a study by :func:`lagrax.bench.work_precision`;
-    this is :func:`lagrax.bench.plot_work_precision` under the name of the other plots.
+    wall time of a compiled solve) of a study by `lagrax.bench.work_precision`;
+    this is `lagrax.bench.plot_work_precision` under the name of the other plots.
 
     **Arguments:**
 
-    - ``points``: the study's list of :class:`lagrax.bench.WorkPrecisionPoint`, or the
-      ``(points, reference_error)`` pair that ``lagrax.bench.work_precision`` returns.
-    - ``reference_error``: the reference solution's own error (drawn as a dotted line);
+    - `points`: the study's list of `lagrax.bench.WorkPrecisionPoint`, or the
+      `(points, reference_error)` pair that `lagrax.bench.work_precision` returns.
+    - `reference_error`: the reference solution's own error (drawn as a dotted line);
       taken from the pair when one is given.
-    - ``title``, ``axes``: a title; two axes to draw on (default: a new figure).
+    - `title`, `axes`: a title; two axes to draw on (default: a new figure).
 
     **Returns:** the figure.
     """

@@ -56,6 +56,7 @@ def arm_traj(arm, arm_grid):
 
 
 def test_sweep_equals_loop_of_simulate(arm, arm_grid, arm_traj):
+    assert arm_traj.time.attrs["units"] == "s"
     system, params = arm
     ds = arm_traj
     assert ds.q.dims == ("m2", "l1", "time", "dof") and ds.q.shape == (3, 2, 11, 2)
@@ -397,3 +398,69 @@ def test_constrained_system_sweep_matches_simulate():
         )
         np.testing.assert_allclose(ds.q.values[i], sol.q_end, atol=1e-9)
         assert float(np.hypot(*ds.q.values[i])) == pytest.approx(length, rel=1e-8)
+
+
+def _pendulum():
+    """A hand-written simple pendulum, angle from the downward vertical."""
+
+    def kinetic(q, qd, p):
+        return 0.5 * p["m"] * p["l"] ** 2 * qd[0] ** 2
+
+    def potential(q, p):
+        return -p["m"] * p["g"] * p["l"] * jnp.cos(q[0])
+
+    return lx.LagrangianSystem(kinetic, potential, n_dof=1), {"m": 1.0, "l": 1.0, "g": 9.81}
+
+
+@pytest.fixture(scope="module")
+def amplitude_study():
+    system, params = _pendulum()
+    batch = lx.grid(
+        params,
+        q0_0=np.linspace(0.2, 3.0, 5),
+        l=np.array([0.5, 1.0]),
+        units={"q0_0": "rad", "l": "m"},
+    )
+    return system, params, batch, lx.sweep(system, [0.0], [0.0], batch, t1=1.5, progress=False)
+
+
+def test_amplitude_study_matches_simulate(amplitude_study):
+    system, params, batch, ds = amplitude_study
+    # one labelled dimension per swept quantity, no anonymous "member"
+    assert ds.q.dims == ("q0_0", "l", "dof") and "member" not in ds.dims
+    np.testing.assert_array_equal(ds.q0_0.values, np.linspace(0.2, 3.0, 5))
+    assert ds.q0_0.attrs == {"units": "rad", "long_name": "initial q[0]"}
+    assert ds.l.attrs["units"] == "m" and ds.t_end.attrs["units"] == "s"
+    assert batch.states == {"q0_0": ("q0", 0)}
+    for a in ds.q0_0.values:
+        for length in ds.l.values:
+            sol = lx.simulate(system, [a], [0.0], {**params, "l": length}, t1=1.5)
+            member = ds.sel(q0_0=a, l=length)
+            np.testing.assert_allclose(member.q.values, sol.q[-1], rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(member.qd.values, sol.qd[-1], rtol=1e-9, atol=1e-12)
+    # and against the closed form of the pendulum released from rest at θ0, any amplitude:
+    # sin(θ/2) = k cd(ω t | k²), k = sin(θ0/2), ω = sqrt(g/l) (Jacobi elliptic functions)
+    from scipy.special import ellipj
+
+    for length in ds.l.values:
+        k = np.sin(ds.q0_0.values / 2)
+        sn, cn, dn, _ = ellipj(np.sqrt(9.81 / length) * 1.5, k**2)
+        theta = 2 * np.arcsin(k * cn / dn)
+        np.testing.assert_allclose(ds.q.sel(l=length, dof=0).values, theta, atol=1e-6)
+
+
+def test_samples_of_velocities_and_bad_state_axes():
+    system, params = _pendulum()
+    qd0s = np.array([0.5, -1.0, 2.0])
+    batch = lx.samples(params, qd0_0=qd0s, m=np.array([1.0, 2.0, 3.0]))
+    ds = lx.sweep(system, [0.1], [0.0], batch, t1=0.5, progress=False)
+    assert ds.q.dims == ("member", "dof") and list(ds.qd0_0.values) == list(qd0s)
+    for i, v in enumerate(qd0s):
+        sol = lx.simulate(system, [0.1], [v], {**params, "m": float(i + 1)}, t1=0.5)
+        np.testing.assert_allclose(ds.q.values[i], sol.q[-1], rtol=1e-9, atol=1e-12)
+    with pytest.raises(lx.ShapeError, match=r"q0_3.*1 coordinates"):
+        lx.sweep(system, [0.1], [0.0], lx.grid(params, q0_3=[0.1, 0.2]), t1=0.5)
+    with pytest.raises(lx.ConfigurationError, match="'r2'"):
+        lx.grid(params, q0_0=[0.1, 0.2], units={"r2": "m"})
+    # a parameter that happens to be called q0_0 stays a parameter
+    assert lx.grid({**params, "q0_0": 1.0}, q0_0=[0.1, 0.2]).states == {}

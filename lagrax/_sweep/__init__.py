@@ -1,10 +1,10 @@
-"""Many trajectories: ``sweep`` over parameter sets, with ``grid`` and ``samples``.
+"""Many trajectories: `sweep` over parameter sets, with `grid` and `samples`.
 
-One concept a module: ``_grid`` (the batch), ``_chunk`` (the compiled chunk), ``_checkpoint``
-(fingerprints, verified chunk files, the checkpoint directory), ``_devices`` (mesh,
-transfers), ``_defaults`` (chunk size and lanes for the device), ``_progress``,
-``_dataset`` (the xarray result), ``_io`` (files), ``_unused`` (swept parameters nothing
-reads) and ``_driver`` (``sweep`` itself).
+One concept a module: `_grid` (the batch), `_chunk` (the compiled chunk), `_checkpoint`
+(fingerprints, verified chunk files, the checkpoint directory), `_devices` (mesh,
+transfers), `_defaults` (chunk size and lanes for the device), `_progress`,
+`_dataset` (the xarray result), `_io` (files), `_unused` (swept parameters nothing
+reads) and `_driver` (`sweep` itself).
 """
 
 from ._driver import sweep as sweep

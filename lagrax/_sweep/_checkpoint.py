@@ -1,13 +1,13 @@
 """Checkpoints of a sweep: fingerprints of its definition, atomic files, and chunk files
 that carry their sweep's fingerprint and a checksum of their arrays.
 
-A checkpoint directory holds ``manifest.json`` (the sweep's fingerprint, chunk size and
-format version) and one ``chunk_NNNNNN.npz`` per finished chunk. Each chunk file stores,
-beside its arrays, a JSON header ``__lagrax__``: the format version, the sweep fingerprint,
+A checkpoint directory holds `manifest.json` (the sweep's fingerprint, chunk size and
+format version) and one `chunk_NNNNNN.npz` per finished chunk. Each chunk file stores,
+beside its arrays, a JSON header `__lagrax__`: the format version, the sweep fingerprint,
 the chunk size, the chunk's index and member range, and a SHA-256 of the header's other
 fields and of every array (name, dtype, shape, bytes). On resume a chunk is loaded only if
 its header parses, its checksum matches and it belongs to this sweep at this index; any
-other chunk file is never loaded (see :func:`prepare`).
+other chunk file is never loaded (see `prepare`).
 """
 
 import hashlib
@@ -38,12 +38,12 @@ _ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")
 
 
 def stable_repr(obj: Any) -> str:
-    """``repr`` without memory addresses (they change from one process to the next)."""
+    """`repr` without memory addresses (they change from one process to the next)."""
     return _ADDRESS.sub("", repr(obj))
 
 
 def code_fingerprint(obj: Any, h: "hashlib._Hash") -> None:
-    """Feed what identifies a function (name, bytecode, constants) into ``h``."""
+    """Feed what identifies a function (name, bytecode, constants) into `h`."""
     h.update(repr(getattr(obj, "__qualname__", type(obj).__name__)).encode())
     code = obj if isinstance(obj, types.CodeType) else getattr(obj, "__code__", None)
     if code is None:
@@ -110,7 +110,7 @@ def chunk_path(directory: Path, index: int) -> Path:
 
 
 def checksum(arrays: Mapping[str, Any], header: Mapping[str, Any]) -> str:
-    """SHA-256 of a header (without its ``sha256`` field) and of named arrays: every
+    """SHA-256 of a header (without its `sha256` field) and of named arrays: every
     array's name, dtype, shape and bytes, in name order."""
     h = hashlib.sha256()
     fields = {k: v for k, v in header.items() if k != "sha256"}
@@ -123,7 +123,7 @@ def checksum(arrays: Mapping[str, Any], header: Mapping[str, Any]) -> str:
 
 
 def write_chunk(path: Path, arrays: Mapping[str, Any], **identity: Any) -> None:
-    """Write a chunk file atomically: its arrays and a header with ``identity`` (the sweep
+    """Write a chunk file atomically: its arrays and a header with `identity` (the sweep
     fingerprint, chunk size, index, member range) and the checksum of both."""
     if HEADER_KEY in arrays:
         raise ValueError(f"{HEADER_KEY} is reserved")  # pragma: no cover - internal
@@ -134,7 +134,7 @@ def write_chunk(path: Path, arrays: Mapping[str, Any], **identity: Any) -> None:
 
 
 class UntrustedChunk(Exception):
-    """A chunk file that must not be loaded; ``str(err)`` says why."""
+    """A chunk file that must not be loaded; `str(err)` says why."""
 
 
 def _header(z: Any) -> dict[str, Any]:
@@ -158,7 +158,7 @@ def _header(z: Any) -> dict[str, Any]:
 
 
 def read_header(path: Path) -> dict[str, Any] | None:
-    """A chunk file's header without reading (or verifying) its arrays; ``None`` when it
+    """A chunk file's header without reading (or verifying) its arrays; `None` when it
     has none that can be read."""
     try:
         with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
@@ -174,7 +174,7 @@ def _unreadable(path: Path, err: BaseException) -> str:
 
 
 def read_chunk(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """``(header, arrays)`` of a chunk file whose checksum matches, or ``UntrustedChunk``
+    """`(header, arrays)` of a chunk file whose checksum matches, or `UntrustedChunk`
     saying why it cannot be loaded (unreadable, truncated, no header, bad checksum)."""
     try:
         # our own file handle: NumPy leaves its own open when the archive is damaged
@@ -199,7 +199,7 @@ def read_chunk(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
 
 def stored_chunk_size(directory: Path) -> int | None:
     """The chunk size a checkpoint directory was written with (from its manifest, else
-    from the first chunk file with a readable header), or ``None``."""
+    from the first chunk file with a readable header), or `None`."""
     try:
         size = json.loads((directory / MANIFEST).read_text()).get("chunk_size")
         if isinstance(size, int) and size > 0:
@@ -224,7 +224,7 @@ def _warn(message: str) -> None:
 
 
 def _probe_writable(directory: Path) -> None:
-    """Create and remove a file in ``directory``, or raise ``CheckpointError``."""
+    """Create and remove a file in `directory`, or raise `CheckpointError`."""
     try:
         directory.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=directory, prefix=".lagrax-probe.", suffix=".tmp")
@@ -243,18 +243,18 @@ def prepare(
 ) -> dict[int, dict[str, np.ndarray]]:
     """Check a checkpoint directory before any work and read the chunks it can trust.
 
-    - A ``manifest.json`` of another sweep (or chunk size) or of an older format: refused
-      (``CheckpointError``). An unreadable manifest: a ``CheckpointWarning``, then the
+    - A `manifest.json` of another sweep (or chunk size) or of an older format: refused
+      (`CheckpointError`). An unreadable manifest: a `CheckpointWarning`, then the
       chunk files decide.
     - Chunk files of another sweep (a valid checksum, another fingerprint or chunk size)
-      with no manifest of this sweep: the directory is refused (``CheckpointError``). With
+      with no manifest of this sweep: the directory is refused (`CheckpointError`). With
       this sweep's manifest they are strays: recomputed, with a warning.
     - A chunk file that cannot be read, is truncated or empty, has no header (older
       format) or whose checksum or index does not match: never loaded; a
-      ``CheckpointWarning`` names it and the reason, and its chunk is computed again
+      `CheckpointWarning` names it and the reason, and its chunk is computed again
       (the file is replaced when it is written).
     - A directory that cannot be written while something is left to write:
-      ``CheckpointError`` (before any chunk is computed).
+      `CheckpointError` (before any chunk is computed).
 
     **Returns:** chunk index → its arrays, for the chunks that can be loaded.
     """

@@ -25,9 +25,9 @@ _EVENT = int(code_of(RESULTS.event_occurred))
 
 class Setup(eqx.Module):
     """What fixes the compiled chunk function: the solve's configuration (its controller
-    always given), the ``keep=`` reduction, the lane count and the schedule.
+    always given), the `keep=` reduction, the lane count and the schedule.
 
-    ``n_lanes``, ``refill`` and ``tail_lanes`` (see ``_lanes.run_lanes``) change how
+    `n_lanes`, `refill` and `tail_lanes` (see `_lanes.run_lanes`) change how
     members are scheduled onto lanes, not their steps or values (bitwise, but for a
     single lane's round-off): they are left out of the repr, and so out of a checkpoint's
     fingerprint, so that a sweep resumes on another kind of device, whose default lanes
@@ -42,7 +42,7 @@ class Setup(eqx.Module):
 
 
 def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOutput:
-    """Plain ``vmap`` of ``simulate``'s solve: every member steps until the slowest is done."""
+    """Plain `vmap` of `simulate`'s solve: every member steps until the slowest is done."""
     rtol = atol = jnp.asarray(0.0, t0.dtype)  # unused: the controller is always given
     save_ts = ts if ts.shape[0] else t1[None]
 
@@ -106,7 +106,7 @@ def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
 
 @eqx.filter_jit
 def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
-    """Solve one chunk of members (sharded over ``mesh`` when given) and post-process it."""
+    """Solve one chunk of members (sharded over `mesh` when given) and post-process it."""
     if mesh is None:
         out = _per_device(setup, members, y0s, tau_const, t0, t1, dt0, ts)
     else:
@@ -191,7 +191,7 @@ def _initial_states(system, q0s, qd0s, members, t0):
 
 
 def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt):
-    """Run one chunk (padded to ``size`` members so every chunk reuses one compilation)."""
+    """Run one chunk (padded to `size` members so every chunk reuses one compilation)."""
     m = q0s.shape[0]
     members = jtu.tree_map(lambda x: np.asarray(x), members)
     # every process computes the whole chunk's initial states (not sharded: no gather)

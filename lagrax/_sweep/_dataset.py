@@ -1,4 +1,4 @@
-"""The result of a sweep as an ``xarray.Dataset``."""
+"""The result of a sweep as an `xarray.Dataset`."""
 
 import json
 from collections.abc import Mapping
@@ -90,15 +90,31 @@ def dataset(
         data["first_event_time"] = (sweep_dims + ["event"], shaped(cat["first_event_time"]))
     for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
         data[k] = (sweep_dims, shaped(cat[k]))
+    data["t_end"] = (sweep_dims, shaped(cat["t_end"]), {"units": "s"})
+    # names for plots' labels (units only where lagrax knows them)
+    when = "final " if final else ""
+    for k, long_name in (
+        ("q", f"{when}q"),
+        ("qd", f"{when}q̇"),
+        ("energy", f"{when}energy h"),
+        ("energy_error", "relative energy error"),
+        ("num_steps", "solver steps"),
+    ):
+        if k in data:
+            data[k] = data[k][:2] + (
+                {**(data[k][2] if len(data[k]) > 2 else {}), "long_name": long_name},
+            )
     # the system's coordinate names (a tree's joint names) label the dof axis
     coords = {"dof": np.arange(n) if names is None else np.asarray(names, dtype=str)}
     if not final and not callable(keep):
-        coords["time"] = ts
+        coords["time"] = ("time", ts, {"units": "s"})
     if batch is not None:
-        if batch.product:
-            coords.update({k: v for k, v in batch.axes.items()})
-        else:
-            coords.update({k: ("member", v) for k, v in batch.axes.items()})
+        for k, v in batch.axes.items():
+            attrs = {"units": batch.units[k]} if k in batch.units else {}
+            if k in batch.states:
+                which, i = batch.states[k]
+                attrs["long_name"] = f"initial {'q' if which == 'q0' else 'q̇'}[{i}]"
+            coords[k] = (k if batch.product else "member", v, attrs)
     else:
         coords["member"] = np.arange(n_members)
         if isinstance(raw_params, Mapping):  # per-member scalar parameters label the members

@@ -1,7 +1,7 @@
 """How a sweep cuts its batch: members per chunk and lanes per device, from the device.
 
-A pure function of a few numbers (:func:`plan`), so that the choice is unit-tested
-without the device it is made for; :func:`device_info` reads those numbers from JAX.
+A pure function of a few numbers (`plan`), so that the choice is unit-tested
+without the device it is made for; `device_info` reads those numbers from JAX.
 
 - **CPU** (the choices tuned on a 2-core laptop, as before the device defaults):
   chunks of up to 8,192 members (fewer when the kept output is large: about 64 MiB of it
@@ -9,17 +9,17 @@ without the device it is made for; :func:`device_info` reads those numbers from 
   refilled a sixteenth of the lanes at a time. A CPU core runs one lane after another,
   so more lanes only add idle padding and memory.
 - **GPU / TPU**: a step costs about the same on a few thousand lanes as on one, so lanes
-  should fill the device: up to :data:`MAX_LANES` per device (on an H100 the 2R arm's
+  should fill the device: up to `MAX_LANES` per device (on an H100 the 2R arm's
   throughput still grew from 32k to 131k lanes, and barely beyond), fewer when the
-  device memory (``memory_stats()["bytes_limit"]``; :data:`FALLBACK_MEMORY` when JAX
+  device memory (`memory_stats()["bytes_limit"]`; `FALLBACK_MEMORY` when JAX
   does not say) or the members cannot fill them. A chunk holds
-  :data:`MEMBERS_PER_LANE` members per lane, so that freed lanes have members to take
+  `MEMBERS_PER_LANE` members per lane, so that freed lanes have members to take
   (the whole batch in one chunk, when it is smaller); refills are a 32nd of the lanes,
-  and from :data:`TAIL_MIN_LANES` lanes on, the last members finish on a quarter of the
-  lanes (``tail_lanes``). With these, the 2R arm's sweep of 524k members (131k lanes)
+  and from `TAIL_MIN_LANES` lanes on, the last members finish on a quarter of the
+  lanes (`tail_lanes`). With these, the 2R arm's sweep of 524k members (131k lanes)
   idles about 11 % of its lane-steps, against 22 % with the CPU's refill and no tail
   loop (counted from its members' step counts by
-  ``benchmarks/bench_sweep_gpu.py --schedule``).
+  `benchmarks/bench_sweep_gpu.py --schedule`).
 """
 
 import dataclasses
@@ -50,8 +50,8 @@ _CPU_MEMBERS_PER_LANE = 8
 
 @dataclasses.dataclass(frozen=True)
 class DeviceInfo:
-    """What the defaults depend on: the platform (``"cpu"``, ``"gpu"``, ``"tpu"``), the
-    memory of one device in bytes (``None``: unknown) and the number of devices the
+    """What the defaults depend on: the platform (`"cpu"`, `"gpu"`, `"tpu"`), the
+    memory of one device in bytes (`None`: unknown) and the number of devices the
     batch is sharded over."""
 
     platform: str
@@ -61,9 +61,9 @@ class DeviceInfo:
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
-    """The chosen cut: ``chunk_size`` members per compiled call (a whole number per
-    device), ``n_lanes`` lanes per device, ``refill`` members started per refill and the
-    width of the tail loop (``tail_lanes``; 0: none), see ``_lanes.run_lanes``."""
+    """The chosen cut: `chunk_size` members per compiled call (a whole number per
+    device), `n_lanes` lanes per device, `refill` members started per refill and the
+    width of the tail loop (`tail_lanes`; 0: none), see `_lanes.run_lanes`."""
 
     chunk_size: int
     n_lanes: int
@@ -72,7 +72,7 @@ class Plan:
 
 
 def device_info(devices: Sequence[Any]) -> DeviceInfo:
-    """:class:`DeviceInfo` of ``devices`` (JAX devices, all of one kind)."""
+    """`DeviceInfo` of `devices` (JAX devices, all of one kind)."""
     first = devices[0]
     platform = str(getattr(first, "platform", "cpu")).lower()
     if platform in ("cuda", "rocm"):
@@ -91,7 +91,7 @@ def device_info(devices: Sequence[Any]) -> DeviceInfo:
 
 def lane_bytes(n_dof: int, n_params: int, itemsize: int) -> int:
     """A generous estimate of the device memory one lane needs: its solver state and
-    stages (about 40 vectors of the state's ``2n`` entries), the ``n x n`` matrices of
+    stages (about 40 vectors of the state's `2n` entries), the `n x n` matrices of
     the dynamics (mass matrix, its factor, autodiff temporaries), its parameters; twice,
     for the loop's double buffering, and twice again for XLA's temporaries."""
     words = 40 * n_dof + 10 * n_dof * n_dof + n_params + 32
@@ -107,18 +107,18 @@ def plan(
     chunk_size: int | None = None,
     n_lanes: int | None = None,
 ) -> Plan:
-    """Members per chunk and lanes per device for a sweep of ``n_members`` on ``info``.
+    """Members per chunk and lanes per device for a sweep of `n_members` on `info`.
 
     **Arguments:**
 
-    - ``info``: the devices (:func:`device_info`).
-    - ``n_members``: members in the sweep.
-    - ``member_bytes``: memory per member of a chunk's inputs and kept output.
-    - ``lane_bytes``: memory per lane (:func:`lane_bytes`).
-    - ``chunk_size``, ``n_lanes``: the user's choices (already validated), kept as given
-      (``chunk_size`` at most the members, rounded up to a whole number per device).
+    - `info`: the devices (`device_info`).
+    - `n_members`: members in the sweep.
+    - `member_bytes`: memory per member of a chunk's inputs and kept output.
+    - `lane_bytes`: memory per lane (`lane_bytes`).
+    - `chunk_size`, `n_lanes`: the user's choices (already validated), kept as given
+      (`chunk_size` at most the members, rounded up to a whole number per device).
 
-    **Returns:** a :class:`Plan`.
+    **Returns:** a `Plan`.
     """
     count = max(1, info.count)
     per_device_members = -(-n_members // count)
@@ -155,7 +155,7 @@ def plan(
 
 
 def _lanes_fit(budget: int, lane_bytes: int) -> int:
-    """Lanes that fit ``budget`` bytes, at most :data:`MAX_LANES` (a power of two when
+    """Lanes that fit `budget` bytes, at most `MAX_LANES` (a power of two when
     memory bounds it, so that lanes divide chunks evenly)."""
     fit = max(1, budget // max(1, lane_bytes))
     if fit >= MAX_LANES:

@@ -9,7 +9,7 @@ import numpy as np
 
 
 def device_list(devices) -> list:
-    """The devices a sweep runs on: ``None`` (all of ``jax.devices()``), a count or a list."""
+    """The devices a sweep runs on: `None` (all of `jax.devices()`), a count or a list."""
     if devices is None:
         return jax.devices()
     if isinstance(devices, (int, np.integer)):

@@ -1,4 +1,4 @@
-"""``sweep``: many trajectories, chunk by chunk, with checkpoints and progress."""
+"""`sweep`: many trajectories, chunk by chunk, with checkpoints and progress."""
 
 import math
 import os
@@ -68,106 +68,108 @@ def sweep(
     allow_unused: bool = False,
     events: Any = None,
 ):
-    """Simulate ``system`` for many parameter sets (and initial states) at once.
+    """Simulate `system` for many parameter sets (and initial states) at once.
 
-    Each member is the solve ``simulate(system, q0[i], qd0[i], params[i], t1=t1, ...)``;
-    the arguments come in ``simulate``'s order.
+    Each member is the solve `simulate(system, q0[i], qd0[i], params[i], t1=t1, ...)`;
+    the arguments come in `simulate`'s order.
     The batch is cut into chunks (bounding memory; the unit of progress and of
-    checkpoints); each chunk is one compiled call, sharded over ``devices``. Inside a
-    chunk, members are integrated on ``n_lanes`` vectorized lanes as a work queue: a lane
+    checkpoints); each chunk is one compiled call, sharded over `devices`. Inside a
+    chunk, members are integrated on `n_lanes` vectorized lanes as a work queue: a lane
     whose member is done takes the next member, so fast members do not wait for slow ones
-    (``schedule="queue"``). How many of each is chosen for the device (a CPU, a GPU or a
-    TPU: see ``chunk_size`` and ``n_lanes``), and does not change any member's numbers.
-    ``schedule="lockstep"`` is a plain ``vmap`` of ``simulate`` instead (bitwise the same
-    numbers as ``simulate``, but every member of a chunk steps until the slowest is done).
+    (`schedule="queue"`). How many of each is chosen for the device (a CPU, a GPU or a
+    TPU: see `chunk_size` and `n_lanes`), and does not change any member's numbers.
+    `schedule="lockstep"` is a plain `vmap` of `simulate` instead (bitwise the same
+    numbers as `simulate`, but every member of a chunk steps until the slowest is done).
 
     A member that fails (step budget, blow-up, invalid input) is flagged in the result's
-    ``ok`` / ``result`` / ``status`` and never stops the sweep; its values past the failure
-    are ``inf``, as in :class:`Solution`.
+    `ok` / `result` / `status` and never stops the sweep; its values past the failure
+    are `inf`, as in `Solution`.
 
     **Arguments:**
 
-    - ``system``: a :class:`LagrangianSystem`, or a :class:`ConstrainedSystem` (each
+    - `system`: a `LagrangianSystem`, or a `ConstrainedSystem` (each
       member's initial state is first projected onto its constraints, as in
-      ``simulate``; the result then also has ``constraint_violation``, ``max |φ(q)|`` at
+      `simulate`; the result then also has `constraint_violation`, `max |φ(q)|` at
       the end).
-    - ``q0``, ``qd0``: initial state, ``(n,)`` for all members, or one per member
-      (``(members, n)``, or the grid's shape + ``(n,)``).
-    - ``params``: a :class:`Grid` from :func:`grid` / :func:`samples`, or a pytree whose
+    - `q0`, `qd0`: initial state, `(n,)` for all members, or one per member
+      (`(members, n)`, or the grid's shape + `(n,)`).
+    - `params`: a `Grid` from `grid` / `samples`, or a pytree whose
       every leaf has a leading batch axis (one entry per member).
-    - ``t1``, ``t0``: time interval (shared).
-    - ``keep``: what to keep per member: ``"final"`` (the state at ``t1``; default),
-      ``"trajectory"`` (``n_save`` evenly spaced times), an array of times, or a function
-      ``reduce(solution) -> pytree of arrays`` applied to each member's
-      :class:`Solution` (saved at ``n_save`` times) inside the compiled call, so only its
-      output is kept, e.g. ``lambda s: jnp.max(jnp.abs(s.energy_error))``.
-    - ``tau``, ``solver``, ``rtol``, ``atol``, ``dt``, ``dt0``, ``max_steps``,
-      ``stepsize_controller``: as for :func:`lagrax.simulate` (shared by all members).
-    - ``chunk_size``: members per compiled call. Default, from the device: on a CPU, up
+    - `t1`, `t0`: time interval (shared).
+    - `keep`: what to keep per member: `"final"` (the state at `t1`; default),
+      `"trajectory"` (`n_save` evenly spaced times), an array of times, or a function
+      `reduce(solution) -> pytree of arrays` applied to each member's
+      `Solution` (saved at `n_save` times) inside the compiled call, so only its
+      output is kept, e.g. `lambda s: jnp.max(jnp.abs(s.energy_error))`.
+    - `tau`, `solver`, `rtol`, `atol`, `dt`, `dt0`, `max_steps`,
+      `stepsize_controller`: as for `lagrax.simulate` (shared by all members).
+    - `chunk_size`: members per compiled call. Default, from the device: on a CPU, up
       to 8,192 (fewer when the kept output is large: about 64 MiB of it per chunk); on a
       GPU or TPU, four members a lane (the whole batch when it is smaller), within half
       the device's memory.
-    - ``n_lanes``: members integrated at once inside a chunk, per device. Default, from
+    - `n_lanes`: members integrated at once inside a chunk, per device. Default, from
       the device: on a CPU, an eighth of the chunk's members per device, at most 1,024;
       on a GPU or TPU, enough to fill it: as many as there are members, up to 131,072,
       fewer for a model whose lanes would not fit in a quarter of the device's memory.
-      The result's ``attrs`` say what was chosen (``chunk_size``, ``n_lanes``); to
-      override, pass ``chunk_size=`` and/or ``n_lanes=`` (e.g. ``n_lanes=4096`` to try
+      The result's `attrs` say what was chosen (`chunk_size`, `n_lanes`); to
+      override, pass `chunk_size=` and/or `n_lanes=` (e.g. `n_lanes=4096` to try
       fewer lanes on a small GPU, or a CPU's smaller lanes on a GPU shared with other
       work).
-    - ``schedule``: ``"queue"`` (default) or ``"lockstep"``, see above.
-    - ``devices``: devices to shard the batch over: ``None`` (all of ``jax.devices()``),
-      a count, or a list. On a multi-host run (after ``jax.distributed.initialize()``)
+    - `schedule`: `"queue"` (default) or `"lockstep"`, see above.
+    - `devices`: devices to shard the batch over: `None` (all of `jax.devices()`),
+      a count, or a list. On a multi-host run (after `jax.distributed.initialize()`)
       every process makes the same call; each gets the whole result.
-    - ``checkpoint``: a directory. Each finished chunk is written there atomically, with
+    - `checkpoint`: a directory. Each finished chunk is written there atomically, with
       the sweep's fingerprint (a SHA-256 of the model, parameters, states, solver
-      settings and ``keep``) and a SHA-256 checksum of its arrays; the same call again
+      settings and `keep`) and a SHA-256 checksum of its arrays; the same call again
       resumes, computing only what is missing. A chunk file that cannot be trusted
       (unreadable, truncated, empty, a checksum or index that does not match, an older
-      format) is never loaded: a :class:`lagrax.CheckpointWarning` names it and why, and
+      format) is never loaded: a `lagrax.CheckpointWarning` names it and why, and
       its members are computed again. A directory of a different sweep definition
-      (by its ``manifest.json``, or without one by its chunk files) is refused.
-    - ``progress``: show a progress bar (tqdm; members/s). Default: on in a terminal or
+      (by its `manifest.json`, or without one by its chunk files) is refused.
+    - `progress`: show a progress bar (tqdm; members/s). Default: on in a terminal or
       notebook, off otherwise.
-    - ``events``: a :class:`lagrax.Event` or a sequence of them, as for
-      :func:`lagrax.simulate`. Each member's events are located as in ``simulate`` (a
-      terminal event ends that member at its root; its ``ok`` stays true); the result
-      gains ``event_count`` and ``first_event_time`` (dimensions: the members' and
-      ``"event"``; ``inf`` where an event did not occur). A sweep with events runs
-      ``schedule="lockstep"`` (the lane queue has no event handling).
-    - ``allow_unused``: sweep parameters that nothing the solve evaluates reads (energies,
-      force, ``tau``, constraints, initial-state projection); by default that is an error,
+    - `events`: a `lagrax.Event` or a sequence of them, as for
+      `lagrax.simulate`. Each member's events are located as in `simulate` (a
+      terminal event ends that member at its root; its `ok` stays true); the result
+      gains `event_count` and `first_event_time` (dimensions: the members' and
+      `"event"`; `inf` where an event did not occur). A sweep with events runs
+      `schedule="lockstep"` (the lane queue has no event handling).
+    - `allow_unused`: sweep parameters that nothing the solve evaluates reads (energies,
+      force, `tau`, constraints, initial-state projection); by default that is an error,
       since a misspelt grid name would otherwise sweep nothing. The test is structural
       (the traced data flow, whichever branch a member takes).
 
-    **Returns:** an ``xarray.Dataset`` with dimensions the grid's (or ``"member"``),
-    ``"time"`` (when kept) and ``"dof"`` (labelled by the system's ``coordinate_names``
-    where it has them, e.g. a URDF robot's joint names; else ``0 … n−1``); variables
-    ``q``, ``qd``, ``energy`` (at the kept times, or at ``t1`` for ``keep="final"``; the
-    Jacobi integral ``h``, see ``Solution.energy``), ``energy_error`` (relative change of
-    ``h`` from ``t0`` to the end; NaN for a time-dependent system, whose ``h`` changes by
-    the work of ``−∂L/∂t`` along the path: reduce each member's ``Solution.energy_error``
-    with ``keep=``), ``ok``, ``result``
-    (code of ``lagrax.RESULTS``), ``status`` (its message), ``t_end``, ``num_steps``,
-    ``num_accepted_steps``, ``num_rejected_steps`` (or the outputs of ``reduce``); swept
-    parameters as coordinates; ``attrs`` with the failure count, how the batch was cut
-    (``platform``, ``chunk_size``, ``n_lanes``, and the queue's ``refill_lanes`` and
-    ``tail_lanes``) and the share of lane-steps that were idle (``lane_idle_fraction``).
-    Save it with :func:`save_sweep`.
+    **Returns:** an `xarray.Dataset` with dimensions the grid's (or `"member"`),
+    `"time"` (when kept) and `"dof"` (labelled by the system's `coordinate_names`
+    where it has them, e.g. a URDF robot's joint names; else `0 … n−1`); variables
+    `q`, `qd`, `energy` (at the kept times, or at `t1` for `keep="final"`; the
+    Jacobi integral `h`, see `Solution.energy`), `energy_error` (relative change of
+    `h` from `t0` to the end; NaN for a time-dependent system, whose `h` changes by
+    the work of `−∂L/∂t` along the path: reduce each member's `Solution.energy_error`
+    with `keep=`), `ok`, `result`
+    (code of `lagrax.RESULTS`), `status` (its message), `t_end`, `num_steps`,
+    `num_accepted_steps`, `num_rejected_steps` (or the outputs of `reduce`); swept
+    parameters and state components as coordinates (with the grid's `units` as their
+    `attrs["units"]`; `time` and `t_end` in `s`); `attrs` with the failure
+    count, how the batch was cut (`platform`, `chunk_size`, `n_lanes`, and the
+    queue's `refill_lanes` and `tail_lanes`) and the share of lane-steps that were
+    idle (`lane_idle_fraction`).
+    Save it with `save_sweep`.
 
     **Raises:**
 
-    - ``ConfigurationError``: an option with an unusable value (``t1 <= t0``, a
-      non-finite time, ``dt``/``dt0 <= 0``, negative tolerances or both zero with an
-      adaptive step, ``chunk_size``/``n_lanes``/``max_steps``/``n_save`` not a positive
-      integer, ``n_lanes`` above the members of a chunk per device, an unknown ``keep``
-      or ``schedule`` name, a device count JAX does not have), or a swept parameter that
-      nothing reads (see ``allow_unused``).
-    - ``ArgumentTypeError``: an option or argument of the wrong kind (a string where a
+    - `ConfigurationError`: an option with an unusable value (`t1 <= t0`, a
+      non-finite time, `dt`/`dt0 <= 0`, negative tolerances or both zero with an
+      adaptive step, `chunk_size`/`n_lanes`/`max_steps`/`n_save` not a positive
+      integer, `n_lanes` above the members of a chunk per device, an unknown `keep`
+      or `schedule` name, a device count JAX does not have), or a swept parameter that
+      nothing reads (see `allow_unused`).
+    - `ArgumentTypeError`: an option or argument of the wrong kind (a string where a
       number goes, a non-numeric parameter, ...).
-    - ``ShapeError``: batched ``params`` without members, with scalar leaves or leading
+    - `ShapeError`: batched `params` without members, with scalar leaves or leading
       axes that disagree; states of the wrong shape.
-    - ``CheckpointError``: ``checkpoint`` is a file, cannot be written (raised before any
+    - `CheckpointError`: `checkpoint` is a file, cannot be written (raised before any
       chunk is computed), or holds another sweep's results or an older format's.
 
     **Example:**
@@ -175,8 +177,13 @@ def sweep(
     ```python
     system, params = lagrax.models.planar_2r()
     batch = lagrax.grid(params, m2=np.linspace(0.5, 2, 32), l1=np.linspace(0.5, 1.5, 32))
-    ds = lagrax.sweep(system, [0.0, 0.0], batch, [0.5, 0.8], t1=10.0)
+    ds = lagrax.sweep(system, [0.5, 0.8], [0.0, 0.0], batch, t1=10.0)
     ds.q.sel(dof=1).plot()   # final θ2 over the (m2, l1) grid
+
+    # an amplitude study: the initial θ1 swept, the rest of the state from q0, qd0
+    amps = lagrax.grid(params, q0_0=np.linspace(-3.0, 3.0, 61), units={"q0_0": "rad"})
+    ds = lagrax.sweep(system, [0.0, 0.0], [0.0, 0.0], amps, t1=2.0)
+    ds.q.sel(dof=0).plot()   # final θ1 against the initial θ1
     ```
     """
     import xarray as xr
@@ -219,6 +226,8 @@ def sweep(
             f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
             f"and {qd0s.shape[1:]}"
         )
+    if batch is not None:  # swept initial-state components (q0_i / qd0_i axes)
+        q0s, qd0s = batch.initial_states(q0s, qd0s)
     dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
     q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
     n = q0s.shape[1]
@@ -362,8 +371,8 @@ def sweep(
 
 
 def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
-    """How the batch was cut, for the result's ``attrs`` (pass ``chunk_size`` and
-    ``n_lanes`` back to ``sweep`` to repeat it)."""
+    """How the batch was cut, for the result's `attrs` (pass `chunk_size` and
+    `n_lanes` back to `sweep` to repeat it)."""
     lockstep = schedule == "lockstep"  # then a chunk's members all step at once
     return dict(
         platform=info.platform,
@@ -384,7 +393,7 @@ def _coordinate_names(system, n: int) -> tuple[str, ...] | None:
 
 
 def _top_name(path: tuple) -> str:
-    """The top-level entry of ``params`` a leaf lies under (a dict key or a field)."""
+    """The top-level entry of `params` a leaf lies under (a dict key or a field)."""
     key = path[0] if path else None
     for attr in ("key", "name", "idx"):
         if hasattr(key, attr):
@@ -393,9 +402,9 @@ def _top_name(path: tuple) -> str:
 
 
 def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
-    """A ``ConfigurationError`` when a swept parameter is read by nothing the solve
-    evaluates (see ``_unused``): for a :class:`Grid`, its swept names; for batched
-    ``params``, the leaves whose values differ between members."""
+    """A `ConfigurationError` when a swept parameter is read by nothing the solve
+    evaluates (see `_unused`): for a `Grid`, its swept names; for batched
+    `params`, the leaves whose values differ between members."""
     if batch is not None:
         member = jtu.tree_map(lambda x: x[0], batch.params(0, 1))
     else:
@@ -408,7 +417,7 @@ def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
         # a swept name is read when any leaf under it is
         names = [_top_name(p) for p in paths]
         names_read = {k for k, r in zip(names, read, strict=True) if r}
-        unused = [k for k in batch.axes if k not in names_read]
+        unused = [k for k in batch.axes if k not in names_read and k not in batch.states]
         all_names = list(dict.fromkeys(names))
     else:
         varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in jtu.tree_leaves(params)]
@@ -430,7 +439,7 @@ def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
 
 
 def _is_state(x: Any) -> bool:
-    """Whether ``x`` reads as an array of numbers (an initial state), not a parameter set."""
+    """Whether `x` reads as an array of numbers (an initial state), not a parameter set."""
     if isinstance(x, Grid | Mapping) or hasattr(x, "_fields"):
         return False
     try:
@@ -440,8 +449,8 @@ def _is_state(x: Any) -> bool:
 
 
 def _argument_order(system, q0, qd0, params):
-    """``(system, q0, qd0, params)``, accepting the order before 0.2,
-    ``sweep(system, params, q0, qd0)``, with a ``DeprecationWarning``."""
+    """`(system, q0, qd0, params)`, accepting the order before 0.2,
+    `sweep(system, params, q0, qd0)`, with a `DeprecationWarning`."""
     if not isinstance(system, AbstractSystem):
         raise ArgumentTypeError(
             "sweep needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) as "

@@ -1,4 +1,4 @@
-"""Sweep results on disk: ``save_sweep`` and ``load_sweep``."""
+"""Sweep results on disk: `save_sweep` and `load_sweep`."""
 
 import itertools
 import json
@@ -13,11 +13,11 @@ from ._checkpoint import atomic_write, checksum
 
 
 def save_sweep(ds: Any, path: str | os.PathLike) -> Path:
-    """Save a sweep result: ``.nc`` (netCDF), ``.zarr`` or ``.npz``, by the file suffix.
+    """Save a sweep result: `.nc` (netCDF), `.zarr` or `.npz`, by the file suffix.
 
-    netCDF needs ``netCDF4``, ``h5netcdf`` or SciPy; zarr needs ``zarr``; ``.npz`` needs
-    nothing beyond NumPy and is read back by :func:`load_sweep`; it carries a SHA-256
-    checksum of its arrays, which :func:`load_sweep` verifies. The file is written atomically.
+    netCDF needs `netCDF4`, `h5netcdf` or SciPy; zarr needs `zarr`; `.npz` needs
+    nothing beyond NumPy and is read back by `load_sweep`; it carries a SHA-256
+    checksum of its arrays, which `load_sweep` verifies. The file is written atomically.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -29,6 +29,12 @@ def save_sweep(ds: Any, path: str | os.PathLike) -> Path:
                 k: list(v.dims) for k, v in itertools.chain(ds.data_vars.items(), ds.coords.items())
             },
             attrs=dict(ds.attrs),
+            # per-variable attrs (units, long names) of the variables and coordinates
+            var_attrs={
+                k: dict(v.attrs)
+                for k, v in itertools.chain(ds.data_vars.items(), ds.coords.items())
+                if v.attrs
+            },
         )
         meta["sha256"] = checksum(arrays, {})
         arrays["meta"] = np.asarray(json.dumps(meta))
@@ -43,11 +49,11 @@ def save_sweep(ds: Any, path: str | os.PathLike) -> Path:
 
 
 def load_sweep(path: str | os.PathLike):
-    """Read a sweep result written by :func:`save_sweep` (any of its formats).
+    """Read a sweep result written by `save_sweep` (any of its formats).
 
-    **Raises:** ``FileNotFoundError`` for a missing file; ``CheckpointError`` (naming the
+    **Raises:** `FileNotFoundError` for a missing file; `CheckpointError` (naming the
     path and what is wrong) for a file that is truncated, damaged, fails its checksum,
-    or is not a sweep result; ``ConfigurationError`` for an unknown suffix.
+    or is not a sweep result; `ConfigurationError` for an unknown suffix.
     """
     import xarray as xr
 
@@ -104,8 +110,13 @@ def _load_npz(xr, path: Path):
     if "sha256" in meta and checksum(arrays, {}) != meta["sha256"]:
         raise _bad(path, "its SHA-256 checksum does not match its arrays (modified or damaged)")
     try:
-        data = {k[4:]: (dims[k[4:]], v) for k, v in arrays.items() if k.startswith("var/")}
-        coords = {k[6:]: (dims[k[6:]], v) for k, v in arrays.items() if k.startswith("coord/")}
+        var_attrs = meta.get("var_attrs", {})
+
+        def entry(k, v):
+            return (dims[k], v, var_attrs.get(k, {}))
+
+        data = {k[4:]: entry(k[4:], v) for k, v in arrays.items() if k.startswith("var/")}
+        coords = {k[6:]: entry(k[6:], v) for k, v in arrays.items() if k.startswith("coord/")}
         ds = xr.Dataset(data, coords=coords, attrs=attrs)
     except Exception as err:  # noqa: BLE001
         raise _bad(

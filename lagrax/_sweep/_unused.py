@@ -1,15 +1,15 @@
 """Swept parameters that nothing reads: a misspelt grid name would sweep nothing.
 
-Which leaves of ``params`` a member's results can depend on is read off the jaxpr of
-everything the solve evaluates with them: the vector field ``(q̇, q̈)`` (``T``, ``V``,
-``D``, the force, ``tau``, constraints), the initial state (a constrained system's
+Which leaves of `params` a member's results can depend on is read off the jaxpr of
+everything the solve evaluates with them: the vector field `(q̇, q̈)` (`T`, `V`,
+`D`, the force, `tau`, constraints), the initial state (a constrained system's
 projection), the energy and the observables. A leaf is *read* when some output depends
 on it through the data flow of that jaxpr (a backward pass over its equations).
 
-Calls into nested jaxprs (``jit``/``pjit``, custom derivatives, checkpointing) are
-followed input by input; any other primitive with sub-jaxprs (``cond``, ``while``,
-``scan``, …) counts every operand as read. So a parameter read inside one branch of a
-``lax.cond`` or a ``jnp.where`` counts as read whichever branch the base member takes:
+Calls into nested jaxprs (`jit`/`pjit`, custom derivatives, checkpointing) are
+followed input by input; any other primitive with sub-jaxprs (`cond`, `while`,
+`scan`, …) counts every operand as read. So a parameter read inside one branch of a
+`lax.cond` or a `jnp.where` counts as read whichever branch the base member takes:
 the test is structural, never a numerical derivative that a branch or a zero state could
 hide. Its limit: a parameter read only in Python control flow on concrete values cannot
 be traced at all; if tracing fails, nothing is reported (the solve then raises its own
@@ -65,15 +65,15 @@ def _used_inputs(jaxpr: Any, used_outputs: Sequence[bool]) -> list[bool]:
 
 
 def read_leaves(fn: Callable[[Any], Any], tree: Any) -> tuple[bool, ...]:
-    """Per leaf of ``tree``: whether some output of ``fn(tree)`` depends on it."""
+    """Per leaf of `tree`: whether some output of `fn(tree)` depends on it."""
     leaves, treedef = jtu.tree_flatten(tree)
     closed = jax.make_jaxpr(lambda *xs: fn(jtu.tree_unflatten(treedef, xs)))(*leaves)
     return tuple(_used_inputs(closed.jaxpr, [True] * len(closed.jaxpr.outvars)))
 
 
 def read_params(system: Any, tau_fn: Any, q: Any, qd: Any, params: Any, tau: Any) -> Any:
-    """Per leaf of one member's ``params``: whether the solve reads it (``None`` when the
-    functions cannot be traced). Cached per system, ``tau`` and parameter structure."""
+    """Per leaf of one member's `params`: whether the solve reads it (`None` when the
+    functions cannot be traced). Cached per system, `tau` and parameter structure."""
     leaves, treedef = jtu.tree_flatten(params)
     avals = tuple((jnp.shape(x), jnp.result_type(x)) for x in leaves)
     key = (system, tau_fn, treedef, avals, jnp.shape(q), jnp.result_type(q), tau is None)

@@ -185,12 +185,22 @@ def write_csv(points: Sequence[WorkPrecisionPoint], path) -> Path:
     return path
 
 
+def _setting_label(setting: str, value: float) -> str:
+    """A point's tolerance or step, as printed next to it: `1e-8`, `dt 0.005`."""
+    if setting == "dt":
+        return f"{value:g}"
+    return f"{value:.0e}".replace("e-0", "e-").replace("e+0", "e")
+
+
 def plot_work_precision(
     points: Sequence[WorkPrecisionPoint], *, reference_error: float, title: str = "", axes=None
 ):
     """Two log–log panels: final-state error vs time, and max energy error vs time.
 
-    One line per method (markers at each tolerance/step). Returns the figure.
+    One line per method, a marker at each tolerance or step, labelled with it (adaptive
+    methods: `rtol` = `atol`; fixed-step ones: `dt` in seconds), so the tolerance a
+    target error needs can be read off. Errors that are exactly zero are not drawn (a
+    log axis has no zero). Returns the figure.
     """
     import matplotlib.pyplot as plt
 
@@ -199,15 +209,32 @@ def plot_work_precision(
     else:
         fig = axes[0].figure
     methods = list(dict.fromkeys(p.method for p in points))
-    for m in methods:
+    for k, m in enumerate(methods):
         rows = [p for p in points if p.method == m and p.ok]
         if not rows:
             continue
-        style = "--s" if rows[0].setting == "dt" else "-o"
-        label = f"{m} ({'fixed dt' if rows[0].setting == 'dt' else 'adaptive'})"
+        fixed = rows[0].setting == "dt"
+        style = "--s" if fixed else "-o"
+        label = f"{m} ({'fixed step; labels: dt [s]' if fixed else 'adaptive; labels: rtol'})"
         t = np.array([p.time_s for p in rows]) * 1e3
-        axes[0].loglog(t, [max(p.final_error, 1e-17) for p in rows], style, label=label, ms=4)
-        axes[1].loglog(t, [max(p.max_energy_error, 1e-17) for p in rows], style, label=label, ms=4)
+        for ax, errs in (
+            (axes[0], np.array([p.final_error for p in rows])),
+            (axes[1], np.array([p.max_energy_error for p in rows])),
+        ):
+            shown = errs > 0
+            (line,) = ax.loglog(
+                t, np.where(shown, errs, np.nan), style, label=label, ms=4, color=f"C{k}"
+            )
+            for p, ti, e in zip(rows, t, errs, strict=True):
+                if e > 0 and np.isfinite(e):
+                    ax.annotate(
+                        _setting_label(p.setting, p.value),
+                        (ti, e),
+                        xytext=(4, 3),
+                        textcoords="offset points",
+                        fontsize=6.5,
+                        color=line.get_color(),
+                    )
     axes[0].axhline(reference_error, color="0.5", lw=0.8, ls=":")
     axes[0].text(
         0.01,
@@ -218,7 +245,7 @@ def plot_work_precision(
         color="0.3",
     )
     axes[0].set_xlabel("wall time per solve [ms] (after compilation)")
-    axes[0].set_ylabel("state error at t1 (max norm)")
+    axes[0].set_ylabel("state error at t1 (max norm over q, q̇)")
     axes[1].set_xlabel("wall time per solve [ms] (after compilation)")
     axes[1].set_ylabel("max |E(t) − E(0)| / |E(0)|")
     axes[0].legend(fontsize=8)
