@@ -1,4 +1,4 @@
-"""The ``lagrax`` command."""
+"""The `lagrax` command."""
 
 import argparse
 import sys
