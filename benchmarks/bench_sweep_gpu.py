@@ -39,6 +39,9 @@ import numpy as np
 import lagrax as lx
 
 sys.path.insert(0, os.path.dirname(__file__))
+from _optional import available  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(__file__))
 from _lane_schedule import idle_fraction  # noqa: E402
 
 Q0 = (-math.pi / 2 + 1.4, 0.8)
@@ -135,7 +138,7 @@ def final_error(q, qd, ref_q, ref_qd):
     return np.max(np.abs(np.concatenate([q - ref_q, qd - ref_qd], axis=-1)), axis=-1)
 
 
-def compare(args) -> None:
+def compare(args, have_mjx: bool = True) -> None:
     system, params = lx.models.planar_2r()
     device = jax.devices()[0]
     print(f"device: {device.device_kind} ({device.platform}), jax {jax.__version__}")
@@ -162,8 +165,8 @@ def compare(args) -> None:
         ds = lagrax_run(m2_all[pick], l1_all[pick])()
         err_lx = final_error(ds.q.values, ds.qd.values, ref.q.values, ref.qd.values)
         dt, err_mjx = None, None
-        run_mjx = mjx_sweep(params, dtype)
-        for cand in RK4_STEPS:
+        run_mjx = mjx_sweep(params, dtype) if have_mjx else None
+        for cand in RK4_STEPS if run_mjx is not None else ():
             q, qd = run_mjx(m2_all[pick], l1_all[pick], cand)
             e = final_error(np.asarray(q), np.asarray(qd), ref.q.values, ref.qd.values)
             if np.median(e) <= np.median(err_lx):
@@ -171,7 +174,9 @@ def compare(args) -> None:
                 break
         print(f"\n{name}: final-state error vs Dopri8 1e-12 (64 members): median / max")
         print(f"  lagrax Tsit5 {tol:g}  {np.median(err_lx):.2e} / {np.max(err_lx):.2e}")
-        if dt is None:
+        if run_mjx is None:
+            pass
+        elif dt is None:
             print(f"  MJX RK4: no step in {RK4_STEPS} matches; using the finest")
             dt = RK4_STEPS[-1]
         else:
@@ -184,12 +189,14 @@ def compare(args) -> None:
         for n in args.sizes:
             m2, l1, _ = members(n)
             ds, first, t = timed(lagrax_run(m2, l1), args.repeats)
-            _, first_mjx, t_mjx = timed(partial(run_mjx, m2, l1, dt), args.repeats)
             a = ds.attrs
+            mjx_cols = f"{'—':>11} {'—':>10} {'—':>10}"
+            if run_mjx is not None:
+                _, first_mjx, t_mjx = timed(partial(run_mjx, m2, l1, dt), args.repeats)
+                mjx_cols = f"{len(m2) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>10.1f}"
             print(
                 f"{len(m2):>8} {a['chunk_size']:>8} {a['n_lanes']:>7} "
-                f"{a['lane_idle_fraction']:>6.1%} {len(m2) / t:>14,.0f} {first:>10.1f} "
-                f"{len(m2) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>10.1f}"
+                f"{a['lane_idle_fraction']:>6.1%} {len(m2) / t:>14,.0f} {first:>10.1f} " + mjx_cols
             )
 
 
@@ -229,10 +236,21 @@ def schedule(args) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--dtypes", nargs="+", default=["float64", "float32"], choices=list(TOL))
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument(
+        "--sizes", type=int, nargs="+", default=list(SIZES), help="batch sizes (members)"
+    )
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median)")
+    ap.add_argument(
+        "--dtypes",
+        nargs="+",
+        default=["float64", "float32"],
+        choices=list(TOL),
+        help="precisions to run",
+    )
     ap.add_argument("--schedule", action="store_true", help="count idle lane-steps (no GPU)")
     ap.add_argument("--side", type=int, default=64, help="--schedule: grid side of the sweep")
     ap.add_argument("--allow-cpu", action="store_true", help=argparse.SUPPRESS)
@@ -248,7 +266,7 @@ def main(argv=None) -> int:
             "work queue's idle lane-steps without one.)"
         )
         return 0
-    compare(args)
+    compare(args, have_mjx=available("mujoco.mjx", "the MuJoCo MJX baseline"))
     return 0
 
 
