@@ -23,9 +23,12 @@ from lagrax.bench._stability import energy_trend
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--t1", type=float, default=1e4)
-    ap.add_argument("--repeats", type=int, default=3)
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument("--t1", type=float, default=1e4, help="simulated time [s]")
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median)")
     args = ap.parse_args(argv)
 
     system, params = lx.models.planar_2r()

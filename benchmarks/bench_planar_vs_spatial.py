@@ -58,11 +58,14 @@ def timed(fn, *args):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     ap.add_argument("--n", type=int, default=2, help="number of links")
-    ap.add_argument("--batch", type=int, default=4096)
-    ap.add_argument("--repeats", type=int, default=51)
-    ap.add_argument("--sim-repeats", type=int, default=11)
+    ap.add_argument("--batch", type=int, default=4096, help="states per vmapped call")
+    ap.add_argument("--repeats", type=int, default=51, help="timed calls (median)")
+    ap.add_argument("--sim-repeats", type=int, default=11, help="timed simulate calls")
     ap.add_argument("--t1", type=float, default=2.0, help="simulated time span")
     args = ap.parse_args(argv)
 

@@ -25,7 +25,9 @@ Writes a log-log chart of cost against n with ``--chart PATH``.
 
 import argparse
 import dataclasses
+import os
 import statistics
+import sys
 import time
 
 import jax
@@ -34,6 +36,9 @@ import numpy as np
 
 import lagrax as lx
 from lagrax.chains import PlanarChain, SpatialChain
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _optional import available  # noqa: E402
 
 B = 4096
 ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
@@ -267,19 +272,27 @@ def urdf_arm(repeats):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="n = 2, 7, 20 only (default: all)")
-    ap.add_argument("--repeats", type=int, default=5, help="timing repeats (default: 5)")
-    ap.add_argument("--chart", default=None, help="write a log-log chart here (default: none)")
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument(
+        "--quick", action="store_true", help="n = 2, 7, 20 only (instead of 2, 4, 7, 10, 20)"
+    )
+    ap.add_argument("--repeats", type=int, default=5, help="timing repeats")
+    ap.add_argument("--chart", default=None, help="write a log-log chart to this path")
     ap.add_argument(
         "--sections",
         type=int,
         nargs="+",
         default=[1, 2, 3],
         choices=[1, 2, 3],
-        help="which sections to run (default: 1 2 3)",
+        help="which sections to run",
     )
     args = ap.parse_args(argv)
+    # optional baselines, checked before any work (their rows and lines say so again)
+    available("pinocchio", "Pinocchio ABA baseline")
+    available("mujoco", "mujoco.rollout trajectories")
     sizes = (2, 7, 20) if args.quick else (2, 4, 7, 10, 20)
     if 1 in args.sections:
         table = forward_dynamics(sizes, args.repeats)

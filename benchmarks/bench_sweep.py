@@ -43,6 +43,7 @@ from lagrax._lanes import run_lanes
 
 sys.path.insert(0, os.path.dirname(__file__))
 from _closed_form import forward_dynamics_2r  # noqa: E402
+from _optional import available  # noqa: E402
 
 Q0 = (-math.pi / 2 + 1.4, 0.8)
 T1 = 10.0
@@ -186,13 +187,19 @@ print(json.dumps(dict(t1=out[1][0], t2=out[2][0], diff=close, n=len(jax.devices(
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     ap.add_argument("--side", type=int, default=64, help="grid side (members = side²)")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median)")
     ap.add_argument("--subset", type=int, default=16, help="SciPy members (extrapolated)")
-    ap.add_argument("--memory", action="store_true")
-    ap.add_argument("--devices", action="store_true")
+    ap.add_argument("--memory", action="store_true", help="peak RSS of 10⁴ and 10⁵ members")
+    ap.add_argument("--devices", action="store_true", help="2 simulated CPU devices against 1")
     args = ap.parse_args(argv)
+    # optional baselines, checked before any work
+    have_numba = available("numba", "numba RK4 baseline")
+    have_scipy = available("scipy", "SciPy solve_ivp loops")
 
     system, params = lx.models.planar_2r()
     batch = the_grid(params, args.side)
@@ -223,22 +230,23 @@ def main(argv=None):
     err_lagrax = final_error(q, qd, ref.q.values, ref.qd.values)
 
     # numba RK4 at the largest step matching lagrax's median error
-    rk4 = numba_rk4(flat)
-    sub_rk4 = numba_rk4({k: v[pick] for k, v in flat.items()})
-    target = float(np.median(err_lagrax))
-    dt, err_rk4 = None, None
-    for cand in (1e-2, 5e-3, 2.5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5):
-        y = sub_rk4(cand)
-        e = final_error(y[:, :2], y[:, 2:], ref.q.values, ref.qd.values)
-        if np.median(e) <= target:
-            dt, err_rk4 = cand, e
-            break
-    _, c_numba, t_numba = timed(lambda: rk4(dt), max(1, args.repeats - 1))
+    dt, err_rk4, t_numba, c_numba = None, None, None, None
+    if have_numba:
+        rk4 = numba_rk4(flat)
+        sub_rk4 = numba_rk4({k: v[pick] for k, v in flat.items()})
+        target = float(np.median(err_lagrax))
+        for cand in (1e-2, 5e-3, 2.5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5):
+            y = sub_rk4(cand)
+            e = final_error(y[:, :2], y[:, 2:], ref.q.values, ref.qd.values)
+            if np.median(e) <= target:
+                dt, err_rk4 = cand, e
+                break
+        _, c_numba, t_numba = timed(lambda: rk4(dt), max(1, args.repeats - 1))
 
     # SciPy loop on a subset
     plist = [{k: v[i] for k, v in flat.items()} for i in pick[: args.subset]]
     t_scipy = {}
-    for method in ("DOP853", "RK45"):
+    for method in ("DOP853", "RK45") if have_scipy else ():
         _, _, t_sub = timed(scipy_loop(plist, method), 1)
         t_scipy[method] = t_sub * n / args.subset
 
@@ -246,8 +254,10 @@ def main(argv=None):
         ("lagrax sweep, autodiff, work queue", t_queue, c_queue),
         ("lagrax sweep, autodiff, lock-step vmap", t_lock, c_lock),
         ("lagrax work queue, closed-form RHS", t_closed, c_closed),
-        (f"numba RK4, closed form, 1 thread, dt={dt:g}", t_numba, c_numba),
-    ] + [
+    ]
+    if t_numba is not None:
+        rows.append((f"numba RK4, closed form, 1 thread, dt={dt:g}", t_numba, c_numba))
+    rows += [
         (f"SciPy {m} loop ({args.subset} members, extrapolated)", t, float("nan"))
         for m, t in t_scipy.items()
     ]
@@ -256,7 +266,8 @@ def main(argv=None):
     for name, t, c in rows:
         print(f"{name:<52} {t:9.3f} {n / t:9.0f} {c:16.2f}")
     print("\nratios (throughput of the autodiff work-queue sweep over ...)")
-    print(f"  numba RK4 (1 thread)            {t_numba / t_queue:6.2f}x")
+    if t_numba is not None:
+        print(f"  numba RK4 (1 thread)            {t_numba / t_queue:6.2f}x")
     for m, t in t_scipy.items():
         print(f"  SciPy {m} loop{'':<{21 - len(m)}}{t / t_queue:6.1f}x")
     print(f"  lock-step vmap                  {t_lock / t_queue:6.2f}x")
@@ -266,7 +277,8 @@ def main(argv=None):
     print(f"  work queue      {idle_queue:6.1%}")
     print("\nfinal-state error vs Dopri8 1e-12 (64 members): median / max")
     print(f"  lagrax Tsit5 1e-8   {np.median(err_lagrax):.2e} / {np.max(err_lagrax):.2e}")
-    print(f"  numba RK4 dt={dt:g}  {np.median(err_rk4):.2e} / {np.max(err_rk4):.2e}")
+    if err_rk4 is not None:
+        print(f"  numba RK4 dt={dt:g}  {np.median(err_rk4):.2e} / {np.max(err_rk4):.2e}")
 
     if args.memory:
         print("\npeak RSS, final state only (fresh process each, t1 = 1 s)")

@@ -1,4 +1,4 @@
-"""The 2R sweep on a GPU: lagrax at its defaults against MuJoCo MJX, at matched accuracy.
+"""Sweeps on a GPU (the 2R arm; --model arm7: the 7-DOF arm): lagrax at its defaults against MuJoCo MJX, at matched accuracy.
 
 The sweep of ``bench_sweep.py`` (a grid of m2 ∈ [0.5, 2] kg × l1 ∈ [0.5, 1.5] m, the
 chaotic start θ = (−π/2 + 1.4, 0.8) at rest, 10 s, final state kept), at batch sizes from
@@ -46,6 +46,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import lagrax as lx
+
+sys.path.insert(0, os.path.dirname(__file__))
+from _optional import available  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(__file__))
 from _lane_schedule import idle_fraction  # noqa: E402
@@ -231,7 +234,7 @@ def final_error(q, qd, ref_q, ref_qd):
     return np.max(np.abs(np.concatenate([q - ref_q, qd - ref_qd], axis=-1)), axis=-1)
 
 
-def compare(args) -> None:
+def compare(args, have_mjx: bool = True) -> None:
     model = MODELS[args.model]()
     system, params, n = model.system, model.params, len(model.q0)
     device = jax.devices()[0]
@@ -267,8 +270,8 @@ def compare(args) -> None:
         ds = lagrax_run(a_all[pick], b_all[pick])()
         err_lx = final_error(ds.q.values, ds.qd.values, ref.q.values, ref.qd.values)
         dt, err_mjx = None, None
-        run_mjx = mjx_sweep(model, dtype)
-        for cand in RK4_STEPS:
+        run_mjx = mjx_sweep(model, dtype) if have_mjx else None
+        for cand in RK4_STEPS if run_mjx is not None else ():
             q, qd = run_mjx(a_all[pick], b_all[pick], cand)
             e = final_error(np.asarray(q), np.asarray(qd), ref.q.values, ref.qd.values)
             if np.median(e) <= np.median(err_lx):
@@ -276,7 +279,9 @@ def compare(args) -> None:
                 break
         print(f"\n{name}: final-state error vs Dopri8 1e-12 (64 members): median / max")
         print(f"  lagrax Tsit5 {tol:g}  {np.median(err_lx):.2e} / {np.max(err_lx):.2e}")
-        if dt is None:
+        if run_mjx is None:
+            pass
+        elif dt is None:
             print(f"  MJX RK4: no step in {RK4_STEPS} matches; using the finest")
             dt = RK4_STEPS[-1]
         else:
@@ -289,12 +294,14 @@ def compare(args) -> None:
         for size in args.sizes:
             a, b, _ = members(size, model.ranges)
             ds, first, t = timed(lagrax_run(a, b), args.repeats)
-            _, first_mjx, t_mjx = timed(partial(run_mjx, a, b, dt), args.repeats)
             at = ds.attrs
+            mjx_cols = f"{'—':>11} {'—':>10} {'—':>15}"
+            if run_mjx is not None:
+                _, first_mjx, t_mjx = timed(partial(run_mjx, a, b, dt), args.repeats)
+                mjx_cols = f"{len(a) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>15.2f}"
             print(
                 f"{len(a):>8} {at['chunk_size']:>8} {at['n_lanes']:>7} "
-                f"{at['lane_idle_fraction']:>6.1%} {len(a) / t:>14,.0f} {first:>10.1f} "
-                f"{len(a) / t_mjx:>11,.0f} {first_mjx:>10.1f} {t_mjx / t:>15.2f}"
+                f"{at['lane_idle_fraction']:>6.1%} {len(a) / t:>14,.0f} {first:>10.1f} " + mjx_cols
             )
 
 
@@ -334,14 +341,25 @@ def schedule(args) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--model", choices=list(MODELS), default="2r", help="the mechanism")
-    ap.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
-    ap.add_argument(
-        "--tol", type=float, default=None, help="lagrax rtol = atol (default: 1e-8 / 1e-6)"
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--dtypes", nargs="+", default=["float64", "float32"], choices=list(TOL))
+    ap.add_argument("--model", choices=list(MODELS), default="2r", help="the mechanism")
+    ap.add_argument(
+        "--sizes", type=int, nargs="+", default=list(SIZES), help="batch sizes (members)"
+    )
+    ap.add_argument(
+        "--tol", type=float, default=None, help="lagrax rtol = atol (None: 1e-8 / 1e-6 by dtype)"
+    )
+    ap.add_argument("--repeats", type=int, default=3, help="timed runs (median)")
+    ap.add_argument(
+        "--dtypes",
+        nargs="+",
+        default=["float64", "float32"],
+        choices=list(TOL),
+        help="precisions to run",
+    )
     ap.add_argument("--schedule", action="store_true", help="count idle lane-steps (no GPU)")
     ap.add_argument("--side", type=int, default=64, help="--schedule: grid side of the sweep")
     ap.add_argument("--allow-cpu", action="store_true", help=argparse.SUPPRESS)
@@ -357,7 +375,7 @@ def main(argv=None) -> int:
             "work queue's idle lane-steps without one.)"
         )
         return 0
-    compare(args)
+    compare(args, have_mjx=available("mujoco.mjx", "the MuJoCo MJX baseline"))
     return 0
 
 

@@ -29,9 +29,9 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import lagrax as lx
+from _optional import available
 
 Q0 = (-math.pi / 2 + 1.4, 0.8)
 T1 = 10.0
@@ -129,9 +129,17 @@ def mujoco_run(model, dt):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=5)
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument("--repeats", type=int, default=5, help="timed runs per point (median)")
     args = ap.parse_args(argv)
+    if not available("scipy", "the whole benchmark (SciPy solve_ivp is its baseline)"):
+        return
+    from scipy.integrate import solve_ivp
+
+    have_mujoco = available("mujoco", "MuJoCo RK4 (part 3)")
 
     system, params = lx.models.planar_2r()
     q0, qd0 = jnp.array(Q0), jnp.zeros(2)
@@ -235,11 +243,7 @@ def main(argv=None):
         )
 
     mujoco_runs = []
-    try:
-        model = mujoco_model(params)
-    except ImportError:
-        model = None
-        print("\n3. MuJoCo not installed (pip install mujoco): skipped")
+    model = mujoco_model(params) if have_mujoco else None
     if model is not None:
         print("\n3. MuJoCo RK4 at fixed steps (same arm; Python loop over mj_step)")
         for dt in (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4):

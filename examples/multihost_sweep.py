@@ -19,11 +19,14 @@ import numpy as np
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--coordinator", default="localhost:12355")
-    ap.add_argument("--num-processes", type=int, default=1)
-    ap.add_argument("--process-id", type=int, default=0)
-    ap.add_argument("--out", default="multihost_sweep.npz")
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument("--coordinator", default="localhost:12355", help="host:port of process 0")
+    ap.add_argument("--num-processes", type=int, default=1, help="processes in all")
+    ap.add_argument("--process-id", type=int, default=0, help="this process's index")
+    ap.add_argument("--out", default="multihost_sweep.npz", help="result file")
     args = ap.parse_args()
 
     # CPU processes exchange data through gloo (no effect on GPU/TPU devices)

@@ -1,14 +1,14 @@
 """lagrax: equations of motion of mechanical systems from their energies, with JAX.
 
-Write a kinetic energy ``T(q, qd, params)`` and a potential ``V(q, params)``; lagrax forms
-``M(q) q̈ + C(q, q̇) q̇ + G(q) = τ`` by automatic differentiation and integrates it with
+Write a kinetic energy `T(q, qd, params)` and a potential `V(q, params)`; lagrax forms
+`M(q) q̈ + C(q, q̇) q̇ + G(q) = τ` by automatic differentiation and integrates it with
 diffrax.
 
-lagrax enables JAX's 64-bit mode on import (``jax_enable_x64``): float64 is the default
+lagrax enables JAX's 64-bit mode on import (`jax_enable_x64`): float64 is the default
 for accuracy. Arrays you pass in float32 stay float32. It also lets XLA:CPU compile small
-solver loops into single kernels (an ``XLA_FLAGS`` entry, added only if JAX has not
-started yet and you have not set ``xla_backend_extra_options``; ``LAGRAX_XLA_FLAGS=0``
-opts out): see ``lagrax/_xla_flags.py``.
+solver loops into single kernels (an `XLA_FLAGS` entry, added only if JAX has not
+started yet and you have not set `xla_backend_extra_options`; `LAGRAX_XLA_FLAGS=0`
+opts out): see `lagrax/_xla_flags.py`.
 """
 
 import importlib.metadata

@@ -1,4 +1,4 @@
-"""``AbstractSystem``: what ``simulate``, ``sweep``, the vector field and the integrators
+"""`AbstractSystem`: what `simulate`, `sweep`, the vector field and the integrators
 may ask of any mechanical system."""
 
 import abc
@@ -14,29 +14,35 @@ from ._typing import Coordinates, Matrix, Params, Scalar, Time, Vector, Velociti
 class AbstractSystem(eqx.Module):
     r"""The interface every kind of mechanical system implements.
 
-    A system has ``n`` generalized coordinates ``q`` and velocities ``q̇`` and defines
-    accelerations ``q̈(t, q, q̇; params, τ)``. ``simulate`` and ``sweep`` integrate the
-    first-order system ``(q, q̇)' = (q̇, q̈)`` through this interface only, so a new kind
+    A system has `n` generalized coordinates `q` and velocities `q̇` and defines
+    accelerations `q̈(t, q, q̇; params, τ)`. `simulate` and `sweep` integrate the
+    first-order system `(q, q̇)' = (q̇, q̈)` through this interface only, so a new kind
     of system (a constrained one, one that knows its rigid bodies …) is a subclass that
     fills in the abstract members below; nothing in the solve and sweep paths asks which
     kind it is.
 
     Following equinox's abstract/final rule, this class is never instantiated and its
-    concrete subclasses (:class:`lagrax.LagrangianSystem`,
-    :class:`lagrax.ConstrainedSystem`) are never subclassed.
+    concrete subclasses ([`lagrax.LagrangianSystem`][],
+    [`lagrax.ConstrainedSystem`][]) are never subclassed.
 
     **Abstract attributes:**
 
-    - ``n_dof``: the number of generalized coordinates, or ``None`` if not fixed.
-    - ``name``: a label for messages and plots.
+    - `n_dof`: the number of generalized coordinates, or `None` if not fixed.
+    - `name`: a label for messages and plots.
 
-    **Abstract methods** (each documented below): :meth:`energy`, :meth:`mass_matrix`,
-    :meth:`forward_dynamics` (checked, raising), :meth:`accelerations` (unchecked, for
-    inside a solver loop), :meth:`check_state`.
+    **Abstract methods** (each documented below): [`energy`][lagrax.AbstractSystem.energy],
+    [`mass_matrix`][lagrax.AbstractSystem.mass_matrix],
+    [`forward_dynamics`][lagrax.AbstractSystem.forward_dynamics] (checked, raising),
+    [`accelerations`][lagrax.AbstractSystem.accelerations] (unchecked, for inside a solver loop),
+    [`check_state`][lagrax.AbstractSystem.check_state].
 
-    **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
-    :meth:`components` (none), :meth:`failure_hint` (none), :meth:`jacobi_integral`
-    (:meth:`energy`), :meth:`explicit_power` (none).
+    **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
+    [`observables`][lagrax.AbstractSystem.observables] (none),
+    [`components`][lagrax.AbstractSystem.components] (none),
+    [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none),
+    [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]
+    ([`energy`][lagrax.AbstractSystem.energy]),
+    [`explicit_power`][lagrax.AbstractSystem.explicit_power] (none).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -45,11 +51,11 @@ class AbstractSystem(eqx.Module):
     # ------------------------------------------------------------------ the interface
     @abc.abstractmethod
     def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
-        """The mechanical energy ``T + V``."""
+        """The mechanical energy `T + V`."""
 
     @abc.abstractmethod
     def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
-        """``M(q) = ∂²T/∂q̇²``, shape ``(n, n)``; ``simulate`` and ``sweep`` check that it is
+        """`M(q) = ∂²T/∂q̇²`, shape `(n, n)`; `simulate` and `sweep` check that it is
         positive-definite at the initial state."""
 
     @abc.abstractmethod
@@ -61,45 +67,45 @@ class AbstractSystem(eqx.Module):
         tau: Velocities | None = None,
         t: Time = 0.0,
     ) -> Vector:
-        """Accelerations ``q̈``, with every input checked (raises a ``LagraxError``)."""
+        """Accelerations `q̈`, with every input checked (raises a `LagraxError`)."""
 
     @abc.abstractmethod
     def accelerations(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Vector:
-        """Accelerations ``q̈`` of already-checked 1-D arrays, never raising: NaN where they
+        """Accelerations `q̈` of already-checked 1-D arrays, never raising: NaN where they
         are undefined (a singular mass matrix, …). This is what a solver integrates;
-        ``tau`` is the input generalized force or ``None``."""
+        `tau` is the input generalized force or `None`."""
 
     @abc.abstractmethod
     def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
-        """Validate a state eagerly (outside ``jit``), raising a ``LagraxError`` that names
-        the problem and the values (at time ``t`` for a time-dependent system)."""
+        """Validate a state eagerly (outside `jit`), raising a `LagraxError` that names
+        the problem and the values (at time `t` for a time-dependent system)."""
 
     # ------------------------------------------------------------------ hooks
     def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
-        """``(q, q̇, ok)``: the state a solve starts from, given the user's initial state.
+        """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
 
-        The default returns it unchanged with ``ok = True``; a constrained system projects
-        it onto its constraints (``ok`` false where that fails). Never raises.
+        The default returns it unchanged with `ok = True`; a constrained system projects
+        it onto its constraints (`ok` false where that fails). Never raises.
         """
         return q, qd, jnp.asarray(True)
 
     def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """The energy reported along a solution (``Solution.energy``): the Jacobi integral
-        ``h = q̇·∂L/∂q̇ − L`` at time ``t`` (``T + V`` when ``T`` is quadratic in ``q̇``).
-        Default: :meth:`energy`. Never raises."""
+        """The energy reported along a solution (`Solution.energy`): the Jacobi integral
+        `h = q̇·∂L/∂q̇ − L` at time `t` (`T + V` when `T` is quadratic in `q̇`).
+        Default: [`energy`][lagrax.AbstractSystem.energy]. Never raises."""
         return self.energy(q, qd, params)
 
     def explicit_power(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """``−∂L/∂t`` at one state, the rate at which an explicit time dependence changes
-        :meth:`jacobi_integral`; ``None`` (the default) for an autonomous system, whose
-        ``h`` only inputs and dissipation change. Never raises."""
+        """`−∂L/∂t` at one state, the rate at which an explicit time dependence changes
+        [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None` (the default) for an
+        autonomous system, whose `h` only inputs and dissipation change. Never raises."""
         return None
 
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
     ) -> dict[str, Any]:
         """Extra quantities this kind reports at one state of a solution, by
-        :class:`lagrax.Solution` field name (default none). Never raises."""
+        [`lagrax.Solution`][] field name (default none). Never raises."""
         return {}
 
     def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
@@ -110,8 +116,8 @@ class AbstractSystem(eqx.Module):
         return {}
 
     def failure_hint(self, q: Any, params: Params) -> str | None:
-        """Eagerly, a sentence on why the accelerations may be undefined at ``q`` beyond a
-        singular mass matrix (``None``: nothing to add). Used in failure messages."""
+        """Eagerly, a sentence on why the accelerations may be undefined at `q` beyond a
+        singular mass matrix (`None`: nothing to add). Used in failure messages."""
         return None
 
     # ------------------------------------------------------------------ input shapes
@@ -119,7 +125,7 @@ class AbstractSystem(eqx.Module):
         return coords(q, name, self.n_dof, self.name, host=host)
 
     def _state(self, q: Coordinates, qd: Velocities | None = None, **others: Any):
-        """``q`` (and ``qd``, …) as 1-D arrays of one shape and dtype, or a ``ShapeError``."""
+        """`q` (and `qd`, …) as 1-D arrays of one shape and dtype, or a `ShapeError`."""
         q = self._coords(q, "q")
         out = [q]
         named = {"qd": qd, **others} if qd is not None else dict(others)
@@ -133,7 +139,7 @@ class AbstractSystem(eqx.Module):
         return out
 
     def _host_state(self, q: Coordinates, qd: Velocities):
-        """``(q, q̇)`` as NumPy arrays, with ``_state``'s checks and no device transfer."""
+        """`(q, q̇)` as NumPy arrays, with `_state`'s checks and no device transfer."""
         q, qd = self._coords(q, "q", host=True), self._coords(qd, "qd", host=True)
         same_shape("qd", qd, q)
         return q, qd

@@ -2,27 +2,27 @@ r"""Structure-aware equations of motion for chains of rigid bodies: O(n) recursi
 
 A chain knows more than its energies: every link is a rigid body whose velocity is its
 parent's plus one joint's motion. Featherstone's recursions use that to form the
-Euler–Lagrange equations ``M q̈ + C q̇ + G = f`` without differentiating ``T`` twice:
+Euler–Lagrange equations `M q̈ + C q̇ + G = f` without differentiating `T` twice:
 
-- the **articulated-body algorithm** (ABA) gives ``q̈`` in O(n), with no matrix to factor;
-- the **composite-rigid-body algorithm** (CRBA) gives ``M`` in O(n²);
-- the **recursive Newton–Euler algorithm** (RNEA) gives ``M q̈ + C q̇ + G`` in O(n).
+- the **articulated-body algorithm** (ABA) gives `q̈` in O(n), with no matrix to factor;
+- the **composite-rigid-body algorithm** (CRBA) gives `M` in O(n²);
+- the **recursive Newton–Euler algorithm** (RNEA) gives `M q̈ + C q̇ + G` in O(n).
 
 All spatial quantities are written in world coordinates at the world origin
 (Featherstone, *Rigid Body Dynamics Algorithms*, 2008, §2 and §7 with a fixed frame): a
-motion vector is ``(ω, v_O)`` with ``v_O`` the velocity of the body point now at the origin,
-a force vector is ``(n_O, f)``, and a joint's motion subspace ``S_i`` (a revolute joint of
-world axis ``z`` through ``p``: ``S = (z, p × z)``; a prismatic one: ``(0, z)``) moves with
-its link, so ``Ṡ_i = v_i × S_i``. Nothing is transformed between link frames. Planar
-chains use the planar restriction: 3-vectors ``(ω, v_x, v_y)``.
+motion vector is `(ω, v_O)` with `v_O` the velocity of the body point now at the origin,
+a force vector is `(n_O, f)`, and a joint's motion subspace `S_i` (a revolute joint of
+world axis `z` through `p`: `S = (z, p × z)`; a prismatic one: `(0, z)`) moves with
+its link, so `Ṡ_i = v_i × S_i`. Nothing is transformed between link frames. Planar
+chains use the planar restriction: 3-vectors `(ω, v_x, v_y)`.
 
 Every vector and matrix is a tuple of JAX scalars, and structural zeros stay Python
-``0.0`` so no work is spent on them. Under ``vmap`` each scalar becomes a batch array; in a
+`0.0` so no work is spent on them. Under `vmap` each scalar becomes a batch array; in a
 solver loop the whole recursion is straight-line elementwise code that XLA fuses, with no
-LAPACK call (a ``q̈`` costs a few hundred flops per link). These recursions are fast paths:
+LAPACK call (a `q̈` costs a few hundred flops per link). These recursions are fast paths:
 the energies remain the definition, and the tests hold every path to the generic
 autodiff Lagrangian and to the independent Newton–Euler oracle of
-:mod:`lagrax.newton_euler`.
+[`lagrax.newton_euler`][].
 """
 
 from collections.abc import Callable
@@ -42,7 +42,7 @@ def _zero(x: Any) -> bool:
 
 
 def mul(a: Any, b: Any) -> Any:
-    """``a b``, skipping structural zeros and ones."""
+    """`a b`, skipping structural zeros and ones."""
     if _zero(a) or _zero(b):
         return 0.0
     if isinstance(a, float) and a == 1.0:
@@ -100,7 +100,7 @@ def cross(a: Vec, b: Vec) -> Vec:
 
 
 def sym_rank1_sub(m: Mat, u: Vec, s: Any) -> Mat:
-    """``m − s u uᵀ`` for symmetric ``m`` (the upper triangle is computed once)."""
+    """`m − s u uᵀ` for symmetric `m` (the upper triangle is computed once)."""
     k = len(u)
     su = vscale(u, s)
     rows = [[None] * k for _ in range(k)]
@@ -143,8 +143,8 @@ SPATIAL = Algebra(_crm_spatial, _crf_spatial)
 
 
 def planar_inertia(m: Any, inertia: Any, c: Vec) -> Mat:
-    """A planar body's inertia at the origin, ``(ω, v_x, v_y)`` ordering, from its mass,
-    its inertia about the centre of mass and the centre of mass ``c = (c_x, c_y)``."""
+    """A planar body's inertia at the origin, `(ω, v_x, v_y)` ordering, from its mass,
+    its inertia about the centre of mass and the centre of mass `c = (c_x, c_y)`."""
     mx, my = mul(m, c[0]), mul(m, c[1])
     return (
         (add(inertia, add(mul(mx, c[0]), mul(my, c[1]))), -my, mx),
@@ -155,7 +155,7 @@ def planar_inertia(m: Any, inertia: Any, c: Vec) -> Mat:
 
 def spatial_inertia(m: Any, inertia_w: Mat, c: Vec) -> Mat:
     """A rigid body's spatial inertia at the origin: ``[[Ī + m(|c|²1 − c cᵀ), m[c]×],
-    [m[c]×ᵀ, m 1]]`` with ``Ī`` its inertia about the centre of mass in world axes."""
+    [m[c]×ᵀ, m 1]]` with `Ī`` its inertia about the centre of mass in world axes."""
     mc = vscale(c, m)
     cc = [[mul(mc[i], c[j]) for j in range(3)] for i in range(3)]
     trace = add(add(cc[0][0], cc[1][1]), cc[2][2])
@@ -193,7 +193,7 @@ def _leaf_scalars(x: Any) -> Any:
 
 
 def scalars(x: Any) -> Any:
-    """Every leaf of a per-link pytree as scalars (see :func:`_leaf_scalars`)."""
+    """Every leaf of a per-link pytree as scalars (see `_leaf_scalars`)."""
     return jax.tree_util.tree_map(_leaf_scalars, x)
 
 
@@ -202,21 +202,21 @@ def _as_arrays(x: Any, dtype: Any) -> Any:
 
 
 class Passes:
-    """How a recursion runs over the ``n`` bodies of a chain or a tree: written out body
-    by body (``scan=False``: straight-line code, structural zeros skipped, fastest to run
-    for short chains) or as ``lax.scan`` (``scan=True``: one body's code, compile time
-    independent of ``n``).
+    """How a recursion runs over the `n` bodies of a chain or a tree: written out body
+    by body (`scan=False`: straight-line code, structural zeros skipped, fastest to run
+    for short chains) or as `lax.scan` (`scan=True`: one body's code, compile time
+    independent of `n`).
 
-    ``parents`` gives each body's parent (``−1``: the base), with ``parents[i] < i``;
-    ``None`` is a chain (``parents[i] = i − 1``). An outward pass hands body ``i`` its
+    `parents` gives each body's parent (`−1`: the base), with `parents[i] < i`;
+    `None` is a chain (`parents[i] = i − 1`). An outward pass hands body `i` its
     parent's carry (the initial carry for a body on the base); an inward pass hands it the
     initial carry plus the sum of its children's carries (every inward recursion sums over
     children: composite and articulated inertias, bias forces, joint forces). A scan over
     a tree keeps the carries of all bodies in an array with one more slot for the base,
-    read (outward) and accumulated (inward, ``.at[parent].add``) by parent index.
+    read (outward) and accumulated (inward, `.at[parent].add`) by parent index.
 
-    A pass is ``step(carry, x) -> (carry, y)``; per-body inputs ``xs`` are a list of
-    per-body pytrees (unrolled) or one pytree of stacked arrays (scan), and :meth:`run`
+    A pass is `step(carry, x) -> (carry, y)`; per-body inputs `xs` are a list of
+    per-body pytrees (unrolled) or one pytree of stacked arrays (scan), and `run`
     returns the per-body outputs in the same form.
     """
 
@@ -227,7 +227,7 @@ class Passes:
         self.parents = None if parents is None else tuple(int(p) for p in parents)
 
     def ancestors(self) -> np.ndarray:
-        """``(n, n)`` booleans: ``[j, i]`` is true where body ``j`` is body ``i`` or on its
+        """`(n, n)` booleans: `[j, i]` is true where body `j` is body `i` or on its
         path to the base (upper-triangular for a chain)."""
         if self.parents is None:
             return np.triu(np.ones((self.n, self.n), bool))
@@ -240,7 +240,7 @@ class Passes:
         return out
 
     def links(self, per_link: Any) -> Any:
-        """Per-body data given as a pytree of arrays with a leading axis ``n``."""
+        """Per-body data given as a pytree of arrays with a leading axis `n`."""
         if self.scan:
             return per_link
         return [
@@ -332,15 +332,15 @@ class Passes:
         return tuple(list(c) for c in zip(*ys, strict=True))
 
     def column(self, ys: Any) -> Any:
-        """Per-body vector outputs as an ``(n, k)`` array."""
+        """Per-body vector outputs as an `(n, k)` array."""
         if self.scan:
             return jnp.stack(jax.tree_util.tree_leaves(ys), axis=-1).reshape(self.n, -1)
         return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
 
 
 class Chain:
-    """A chain at one configuration: its :class:`Passes`, algebra, per-link motion
-    subspaces ``S_i`` and inertias ``I_i`` at the origin, and base acceleration ``a_0 = −g``."""
+    """A chain at one configuration: its `Passes`, algebra, per-link motion
+    subspaces `S_i` and inertias `I_i` at the origin, and base acceleration `a_0 = −g`."""
 
     def __init__(self, passes: Passes, algebra: Algebra, s: Any, inertia: Any, a0: Vec):
         self.passes, self.algebra, self.s, self.inertia, self.a0 = passes, algebra, s, inertia, a0
@@ -352,8 +352,8 @@ class Chain:
         return tuple(self._zero() for _ in self.a0)
 
     def velocities(self, qd: Any) -> Any:
-        """Outward: ``v_i = v_{i−1} + S_i q̇_i``, the velocity-product acceleration
-        ``c_i = (v_i × S_i) q̇_i`` and the bias force ``p_i = v_i ×* I_i v_i``."""
+        """Outward: `v_i = v_{i−1} + S_i q̇_i`, the velocity-product acceleration
+        `c_i = (v_i × S_i) q̇_i` and the bias force `p_i = v_i ×* I_i v_i`."""
         alg = self.algebra
 
         def step(v, x):
@@ -366,13 +366,13 @@ class Chain:
 
 
 def aba(chain: Chain, qd: Any, force: Any) -> Any:
-    """Featherstone's articulated-body algorithm: ``q̈`` of ``M q̈ + C q̇ + G = force``.
+    """Featherstone's articulated-body algorithm: `q̈` of `M q̈ + C q̇ + G = force`.
 
     Three passes: velocities and bias forces outward; articulated inertias
-    ``I^A_i = I_i + (I^A_{i+1} − U Uᵀ/D)`` and bias forces inward (``U = I^A S``,
-    ``D = Sᵀ U``, ``u = τ − Sᵀ p^A``); accelerations outward, ``q̈_i = (u_i − Uᵀ a') / D_i``.
-    A non-positive ``D_i`` (a massless tip, a singular chain) gives NaN, never a finite
-    wrong answer. ``qd`` and ``force`` are per-link sequences (``force`` may be ``None``).
+    `I^A_i = I_i + (I^A_{i+1} − U Uᵀ/D)` and bias forces inward (`U = I^A S`,
+    `D = Sᵀ U`, `u = τ − Sᵀ p^A`); accelerations outward, `q̈_i = (u_i − Uᵀ a') / D_i`.
+    A non-positive `D_i` (a massless tip, a singular chain) gives NaN, never a finite
+    wrong answer. `qd` and `force` are per-link sequences (`force` may be `None`).
     """
     passes = chain.passes
     vel = chain.velocities(qd)
@@ -405,8 +405,8 @@ def aba(chain: Chain, qd: Any, force: Any) -> Any:
 
 
 def crba(chain: Chain) -> jax.Array:
-    """The composite-rigid-body algorithm: ``M_ji = S_jᵀ I^c_i S_i`` for ``j ≤ i``, with
-    ``I^c_i`` the inertia of links ``i…n`` together (an inward sum)."""
+    """The composite-rigid-body algorithm: `M_ji = S_jᵀ I^c_i S_i` for `j ≤ i`, with
+    `I^c_i` the inertia of links `i…n` together (an inward sum)."""
     passes = chain.passes
 
     def inward(comp, x):
@@ -425,9 +425,9 @@ def crba(chain: Chain) -> jax.Array:
 
 
 def rnea(chain: Chain, qd: Any, qdd: Any) -> Any:
-    """The recursive Newton–Euler algorithm: ``τ = M q̈ + C q̇ + G`` (``qdd=None``: the
-    bias ``C q̇ + G``). Outward ``a_i = a_{i−1} + S_i q̈_i + c_i``, ``f_i = I_i a_i + p_i``;
-    inward ``τ_i = S_iᵀ f_i``, ``f_{i−1} += f_i``."""
+    """The recursive Newton–Euler algorithm: `τ = M q̈ + C q̇ + G` (`qdd=None`: the
+    bias `C q̇ + G`). Outward `a_i = a_{i−1} + S_i q̈_i + c_i`, `f_i = I_i a_i + p_i`;
+    inward `τ_i = S_iᵀ f_i`, `f_{i−1} += f_i`."""
     passes = chain.passes
     vel = chain.velocities(qd)
     if qdd is None:
@@ -449,8 +449,8 @@ def rnea(chain: Chain, qd: Any, qdd: Any) -> Any:
 
 
 def stack(values: Any, like: Any) -> Any:
-    """Per-link scalars (a list, some perhaps Python ``0.0``; or already an array from a
-    scan) as one array of ``like``'s dtype."""
+    """Per-link scalars (a list, some perhaps Python `0.0`; or already an array from a
+    scan) as one array of `like`'s dtype."""
     if not isinstance(values, (list, tuple)):
         return values.astype(like.dtype)
     # Not ``jnp.stack``: XLA:CPU fuses the whole recursion into the concatenation and

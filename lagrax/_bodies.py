@@ -1,8 +1,8 @@
-"""Bodies, springs and dampers as energy terms; a ``Scene`` sums them into a system.
+"""Bodies, springs and dampers as energy terms; a `Scene` sums them into a system.
 
-Every element is an ``equinox.Module`` that only *describes* a piece of the scene; its
+Every element is an `equinox.Module` that only *describes* a piece of the scene; its
 energy is computed from the user's kinematics by JAX forward-mode differentiation
-(``jax.jvp``), so no velocity is ever written by hand.
+(`jax.jvp`), so no velocity is ever written by hand.
 """
 
 import abc
@@ -21,20 +21,20 @@ from ._system import DissipationFn, ForceFn, KineticFn, LagrangianSystem, Potent
 from ._typing import Params, Point, Rotation, Scalar, Vector
 
 ParamLike = Any
-"""A parameter-valued field: a constant (number or array), or a callable ``params -> value``
-(for example :class:`Param`), evaluated each time the energy is."""
+"""A parameter-valued field: a constant (number or array), or a callable `params -> value`
+(for example [`Param`][lagrax.bodies.Param]), evaluated each time the energy is."""
 
 PointFn = Callable[[Vector, Params], Point]
-"""``(q, params) -> (d,)`` or ``(k, d)``: a point (or ``k`` points) as a function of ``q``."""
+"""`(q, params) -> (d,)` or `(k, d)`: a point (or `k` points) as a function of `q`."""
 
 
 def _value(x: ParamLike, params: Params) -> Any:
-    """Resolve a parameter-valued field: call it on ``params`` if callable."""
+    """Resolve a parameter-valued field: call it on `params` if callable."""
     return x(params) if callable(x) else x
 
 
 def _point(x: PointFn | Any, q: Vector, params: Params) -> Point:
-    """A point given as a function of ``(q, params)`` or as a constant (a fixed anchor)."""
+    """A point given as a function of `(q, params)` or as a constant (a fixed anchor)."""
     if callable(x):
         return jnp.asarray(x(q, params))
     return jnp.asarray(x, dtype=jnp.result_type(q))
@@ -68,7 +68,7 @@ def _sum(x) -> Scalar:
 
 
 def _dot(a, b):
-    """``Σ_i a[..., i] b[..., i]`` over the (short) last axis, written out."""
+    """`Σ_i a[..., i] b[..., i]` over the (short) last axis, written out."""
     terms = [a[..., i] * b[..., i] for i in range(a.shape[-1])]
     total = terms[0]
     for term in terms[1:]:
@@ -77,22 +77,22 @@ def _dot(a, b):
 
 
 def _sq(a):
-    """``‖a‖²`` over the last axis."""
+    """`‖a‖²` over the last axis."""
     return _dot(a, a)
 
 
 class Param(eqx.Module):
-    """A parameter looked up by name: ``Param("m")(params)`` is ``params["m"]``.
+    """A parameter looked up by name: `Param("m")(params)` is `params["m"]`.
 
-    Works for a mapping (``params[key]``) and for a NamedTuple / equinox Module / any object
-    (``getattr(params, key)``). Use it wherever a field takes a parameter-valued
-    :data:`ParamLike`; unlike a ``lambda`` it compares equal to another ``Param`` of the same
-    key, so rebuilding a scene does not recompile jitted code. A missing key is reported by
-    the system as a ``ParameterError``.
+    Works for a mapping (`params[key]`) and for a NamedTuple / equinox Module / any object
+    (`getattr(params, key)`). Use it wherever a field takes a parameter-valued
+    [`ParamLike`][lagrax.bodies.ParamLike]; unlike a `lambda` it compares equal to another `Param`
+    of the same key, so rebuilding a scene does not recompile jitted code. A missing key is reported
+    by the system as a `ParameterError`.
 
     **Arguments:**
 
-    - ``key``: the name of the entry.
+    - `key`: the name of the entry.
     """
 
     key: str = eqx.field(static=True)
@@ -104,7 +104,7 @@ class Param(eqx.Module):
 
 
 def _items(x, base_ndim: int):
-    """The per-body values of a kinematic output: a list for a list/tuple of ``k`` bodies
+    """The per-body values of a kinematic output: a list for a list/tuple of `k` bodies
     (or a single body), or the array itself when it holds the bodies along axis 0."""
     if isinstance(x, (list, tuple)):
         return [jnp.asarray(e) for e in x]
@@ -115,16 +115,16 @@ def _items(x, base_ndim: int):
 
 
 def _pick(value, base_ndim: int, i: int):
-    """Body ``i``'s parameter: shared if it has the base rank, else indexed along axis 0."""
+    """Body `i`'s parameter: shared if it has the base rank, else indexed along axis 0."""
     return value if jnp.ndim(value) == base_ndim else value[i]
 
 
 def _over_bodies(fn, params: list, kinematics: list) -> Scalar:
-    """``Σ_bodies fn(params_i..., kinematics_i...)``.
+    """`Σ_bodies fn(params_i..., kinematics_i...)`.
 
-    ``params``: ``(value, base_ndim)`` pairs (shared, or one per body along axis 0);
-    ``kinematics``: ``(output, base_ndim)`` pairs of the pose (lists, or arrays with the
-    bodies along axis 0). Lists are summed body by body in scalar code (fast under ``vmap``
+    `params`: `(value, base_ndim)` pairs (shared, or one per body along axis 0);
+    `kinematics`: `(output, base_ndim)` pairs of the pose (lists, or arrays with the
+    bodies along axis 0). Lists are summed body by body in scalar code (fast under `vmap`
     and nested derivatives); many bodies in one array are summed vectorized.
     """
     parts = [_items(x, nd) for x, nd in kinematics]
@@ -142,14 +142,14 @@ def _over_bodies(fn, params: list, kinematics: list) -> Scalar:
 
 
 def _check_shape(items, shape: tuple, who: str, what: str) -> None:
-    """Each body's value (a list item, or an array row) must have ``shape``."""
+    """Each body's value (a list item, or an array row) must have `shape`."""
     got = items[0].shape if isinstance(items, list) else items.shape[1:]
     if got != shape:
         raise ShapeError(f"{who}: {what} must give shape {shape} per body, got {got}")
 
 
 def _gravity_energy(mass, x, gravity, who: str) -> Scalar:
-    """``V = −Σ m g⃗·x``; a scalar ``g`` means ``g⃗ = −g e_last`` (−y in 2-D, −z in 3-D)."""
+    """`V = −Σ m g⃗·x`; a scalar `g` means `g⃗ = −g e_last` (−y in 2-D, −z in 3-D)."""
     g = jnp.asarray(gravity) if not isinstance(gravity, (int, float)) else gravity
     if jnp.ndim(g) == 0:
         return _over_bodies(lambda m, x: m * g * x[..., -1], [(mass, 0)], [(x, 1)])
@@ -165,10 +165,10 @@ def _gravity_energy(mass, x, gravity, who: str) -> Scalar:
 
 # ---------------------------------------------------------------------------------- bodies
 def _check_body(body: Any, kind: str) -> None:
-    """Constant masses and inertias of a body, checked when it is built: masses ``> 0``,
-    inertias physical (:func:`lagrax.bodies.check_inertia`; semidefinite, so slender rods
-    and point-like bodies pass). Parameter-valued ones (callables such as :class:`Param`)
-    are read from ``params`` later and are not checked here."""
+    """Constant masses and inertias of a body, checked when it is built: masses `> 0`,
+    inertias physical ([`lagrax.bodies.check_inertia`][]; semidefinite, so slender rods
+    and point-like bodies pass). Parameter-valued ones (callables such as
+    [`Param`][lagrax.bodies.Param]) are read from `params` later and are not checked here."""
     if not callable(body.mass) and not is_traced(body.mass):
         physical(body.mass, f"{kind} mass", positive=True, item="body")
     inertia = getattr(body, "inertia", None)
@@ -182,12 +182,12 @@ def _check_body(body: Any, kind: str) -> None:
 class AbstractBody(eqx.Module):
     """A massive body: a kinetic energy and a gravity potential of its centre of mass.
 
-    A body may stand for ``k`` bodies at once: parameters with a leading axis of length
-    ``k`` (or shared), and kinematics returning ``k`` positions (and angles / rotations),
-    either as a list of ``k`` values or as one array with the bodies along axis 0. Their
+    A body may stand for `k` bodies at once: parameters with a leading axis of length
+    `k` (or shared), and kinematics returning `k` positions (and angles / rotations),
+    either as a list of `k` values or as one array with the bodies along axis 0. Their
     energies are summed. A list is faster for a few bodies (the energy is then straight-line
-    scalar code, which XLA fuses under ``vmap``; stacking and re-slicing tiny arrays is
-    not); an array suits many bodies. The chains in :mod:`lagrax.chains` describe all
+    scalar code, which XLA fuses under `vmap`; stacking and re-slicing tiny arrays is
+    not); an array suits many bodies. The chains in [`lagrax.chains`][] describe all
     their links with one forward-kinematics function returning lists.
     """
 
@@ -196,34 +196,34 @@ class AbstractBody(eqx.Module):
 
     @abc.abstractmethod
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        """Kinetic energy ``T(q, q̇)`` of the body (summed over ``k`` if batched)."""
+        """Kinetic energy `T(q, q̇)` of the body (summed over `k` if batched)."""
 
     def com_position(self, q: Vector, params: Params) -> Any:
-        """Centre of mass ``x_c(q)``: ``(d,)``, or ``k`` of them (a list or ``(k, d)``)."""
+        """Centre of mass `x_c(q)`: `(d,)`, or `k` of them (a list or `(k, d)`)."""
         return _point(self.position, q, params)
 
     def potential_energy(self, q: Vector, params: Params, gravity: Any) -> Scalar:
-        """Gravity potential ``V = −m g⃗·x_c``.
+        """Gravity potential `V = −m g⃗·x_c`.
 
-        ``gravity`` is a scalar magnitude ``g`` acting along the negative last axis (−y for a
-        planar position, −z for a spatial one) or a full vector ``g⃗``.
+        `gravity` is a scalar magnitude `g` acting along the negative last axis (−y for a
+        planar position, −z for a spatial one) or a full vector `g⃗`.
         """
         x = self.com_position(q, params)
         return _gravity_energy(_value(self.mass, params), x, gravity, type(self).__name__)
 
 
 class PointMass(AbstractBody):
-    r"""A point mass at ``x(q)``: ``T = ½ m ‖ẋ‖²`` with ``ẋ = (∂x/∂q) q̇`` by ``jax.jvp``.
+    r"""A point mass at `x(q)`: `T = ½ m ‖ẋ‖²` with `ẋ = (∂x/∂q) q̇` by `jax.jvp`.
 
-    Works in any dimension ``d`` (1, 2 or 3); gravity acts along the negative last axis.
+    Works in any dimension `d` (1, 2 or 3); gravity acts along the negative last axis.
 
     **Arguments:**
 
-    - ``mass``: ``m``, a constant or a callable of ``params`` (:data:`ParamLike`).
-    - ``position``: ``x(q, params) -> (d,)``; for ``k`` masses, a list of ``k`` such points
-      or a ``(k, d)`` array, with ``mass`` shared or of shape ``(k,)``.
+    - `mass`: `m`, a constant or a callable of `params` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `position`: `x(q, params) -> (d,)`; for `k` masses, a list of `k` such points
+      or a `(k, d)` array, with `mass` shared or of shape `(k,)`.
 
-    **Example:** a simple pendulum of length ``l`` hanging from the origin:
+    **Example:** a simple pendulum of length `l` hanging from the origin:
 
     ```python
     bob = PointMass(Param("m"), lambda q, p: p["l"] * jnp.stack([jnp.sin(q[0]), -jnp.cos(q[0])]))
@@ -251,23 +251,23 @@ class PointMass(AbstractBody):
 class PlanarBody(AbstractBody):
     r"""A rigid body moving in the (x, y) plane.
 
-    ``T = ½ m ‖v_c‖² + ½ I_c θ̇²`` with ``v_c = (∂x_c/∂q) q̇`` and ``θ̇ = (∂θ/∂q) q̇``, both
-    from one ``jax.jvp`` of the user's ``(position, angle)``. Gravity acts along −y
-    (``V = m g y_c``) unless a gravity vector is given.
+    `T = ½ m ‖v_c‖² + ½ I_c θ̇²` with `v_c = (∂x_c/∂q) q̇` and `θ̇ = (∂θ/∂q) q̇`, both
+    from one `jax.jvp` of the user's `(position, angle)`. Gravity acts along −y
+    (`V = m g y_c`) unless a gravity vector is given.
 
     **Arguments:**
 
-    - ``mass``: ``m`` (:data:`ParamLike`).
-    - ``inertia``: ``I_c``, the moment of inertia about the z axis through the centre of
-      mass (:data:`ParamLike`).
-    - ``position``: ``x_c(q, params) -> (2,)``, the centre of mass in the fixed frame.
-    - ``angle``: ``θ(q, params) -> ()``, the body's orientation from the fixed x axis
-      (counter-clockwise). ``None``: ``position`` returns the pair ``(x_c, θ)`` (one
+    - `mass`: `m` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `inertia`: `I_c`, the moment of inertia about the z axis through the centre of
+      mass ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `position`: `x_c(q, params) -> (2,)`, the centre of mass in the fixed frame.
+    - `angle`: `θ(q, params) -> ()`, the body's orientation from the fixed x axis
+      (counter-clockwise). `None`: `position` returns the pair `(x_c, θ)` (one
       function for both, when they share work).
 
-    ``k`` bodies at once: ``(k,)`` masses and inertias (or shared ones), ``position``
-    returning a list of ``k`` points or a ``(k, 2)`` array, ``angle`` a list of ``k`` angles
-    or a ``(k,)`` array.
+    `k` bodies at once: `(k,)` masses and inertias (or shared ones), `position`
+    returning a list of `k` points or a `(k, 2)` array, `angle` a list of `k` angles
+    or a `(k,)` array.
     """
 
     mass: ParamLike
@@ -299,10 +299,10 @@ class PlanarBody(AbstractBody):
 
 
 def _body_rates(rot, rot_dot):
-    """Body-frame angular velocity from ``ω̂ = Rᵀ Ṙ`` (its skew part ``½ (ω̂ − ω̂ᵀ)``).
+    """Body-frame angular velocity from `ω̂ = Rᵀ Ṙ` (its skew part `½ (ω̂ − ω̂ᵀ)`).
 
-    Returns the three components (each of shape ``rot.shape[:-2]``) as a list;
-    ``ω̂_ij = Σ_k R_ki Ṙ_kj`` is written out (see ``_UNROLL``).
+    Returns the three components (each of shape `rot.shape[:-2]`) as a list;
+    `ω̂_ij = Σ_k R_ki Ṙ_kj` is written out (see `_UNROLL`).
     """
 
     def hat(i, j):
@@ -316,7 +316,7 @@ def _body_rates(rot, rot_dot):
 
 
 def _spatial_energy(m, inertia, v, rot, rot_dot):
-    """``m ‖v‖² + ω_Bᵀ I ω_B`` (twice the kinetic energy), written out."""
+    """`m ‖v‖² + ω_Bᵀ I ω_B` (twice the kinetic energy), written out."""
     omega = _body_rates(rot, rot_dot)
     total = m * _sq(v)
     for i in range(3):
@@ -328,28 +328,30 @@ def _spatial_energy(m, inertia, v, rot, rot_dot):
 class SpatialBody(AbstractBody):
     r"""A rigid body moving in space.
 
-    With ``R(q)`` the rotation from body to world components and ``x_c(q)`` the centre of
-    mass in the world frame, one ``jax.jvp`` gives ``v_c = ẋ_c`` and ``Ṙ``; the angular
-    velocity in the body frame is read off ``ω̂_B = Rᵀ Ṙ`` (skew-symmetric because
-    ``RᵀR = 1``), and
+    With `R(q)` the rotation from body to world components and `x_c(q)` the centre of
+    mass in the world frame, one `jax.jvp` gives `v_c = ẋ_c` and `Ṙ`; the angular
+    velocity in the body frame is read off `ω̂_B = Rᵀ Ṙ` (skew-symmetric because
+    `RᵀR = 1`), and
 
-    .. math:: T = ½ m ‖v_c‖² + ½ ω_Bᵀ I_c ω_B
+    $$
+    T = ½ m ‖v_c‖² + ½ ω_Bᵀ I_c ω_B
+    $$
 
-    with ``I_c`` the inertia about the centre of mass in body axes (constant). Gravity acts
-    along −z (``V = m g z_c``) unless a gravity vector is given.
+    with `I_c` the inertia about the centre of mass in body axes (constant). Gravity acts
+    along −z (`V = m g z_c`) unless a gravity vector is given.
 
     **Arguments:**
 
-    - ``mass``: ``m`` (:data:`ParamLike`).
-    - ``inertia``: ``I_c``, ``(3, 3)`` about the centre of mass in body axes
-      (:data:`ParamLike`; see :func:`check_inertia`).
-    - ``position``: ``x_c(q, params) -> (3,)``.
-    - ``rotation``: ``R(q, params) -> (3, 3)``, a rotation matrix (body → world).
-      ``None``: ``position`` returns the pair ``(x_c, R)`` (one function for both, e.g. a
+    - `mass`: `m` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `inertia`: `I_c`, `(3, 3)` about the centre of mass in body axes
+      ([`ParamLike`][lagrax.bodies.ParamLike]; see [`check_inertia`][lagrax.bodies.check_inertia]).
+    - `position`: `x_c(q, params) -> (3,)`.
+    - `rotation`: `R(q, params) -> (3, 3)`, a rotation matrix (body → world).
+      `None`: `position` returns the pair `(x_c, R)` (one function for both, e.g. a
       chain's forward kinematics, traced once instead of twice).
 
-    ``k`` bodies at once: ``(k,)`` masses and ``(k, 3, 3)`` inertias (or shared ones),
-    positions and rotations as lists of ``k`` or arrays ``(k, 3)``, ``(k, 3, 3)``.
+    `k` bodies at once: `(k,)` masses and `(k, 3, 3)` inertias (or shared ones),
+    positions and rotations as lists of `k` or arrays `(k, 3)`, `(k, 3, 3)`.
     """
 
     mass: ParamLike
@@ -382,7 +384,7 @@ class SpatialBody(AbstractBody):
 
 # ------------------------------------------------------------------- springs and dampers
 class AbstractSpring(eqx.Module):
-    """A conservative element: a potential energy ``V(q)``."""
+    """A conservative element: a potential energy `V(q)`."""
 
     @abc.abstractmethod
     def potential_energy(self, q: Vector, params: Params) -> Scalar:
@@ -395,18 +397,18 @@ def _safe_norm(d2):
 
 
 class LinearSpring(AbstractSpring):
-    r"""A linear spring between two points: ``V = ½ k (‖x_a − x_b‖ − L₀)²``.
+    r"""A linear spring between two points: `V = ½ k (‖x_a − x_b‖ − L₀)²`.
 
-    With ``L₀ = 0`` (the default) this is ``V = ½ k ‖x_a − x_b‖²``, smooth everywhere; with
-    ``L₀ > 0`` the force direction is undefined when the points meet (the gradient is taken
+    With `L₀ = 0` (the default) this is `V = ½ k ‖x_a − x_b‖²`, smooth everywhere; with
+    `L₀ > 0` the force direction is undefined when the points meet (the gradient is taken
     as zero there).
 
     **Arguments:**
 
-    - ``stiffness``: ``k`` (:data:`ParamLike`).
-    - ``a``: the first end, ``x_a(q, params) -> (d,)`` or a constant point (a fixed anchor).
-    - ``b``: the second end, likewise; default the origin.
-    - ``rest_length``: ``L₀`` (:data:`ParamLike`, default 0).
+    - `stiffness`: `k` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `a`: the first end, `x_a(q, params) -> (d,)` or a constant point (a fixed anchor).
+    - `b`: the second end, likewise; default the origin.
+    - `rest_length`: `L₀` ([`ParamLike`][lagrax.bodies.ParamLike], default 0).
     """
 
     stiffness: ParamLike
@@ -427,14 +429,14 @@ class LinearSpring(AbstractSpring):
 
 
 class TorsionalSpring(AbstractSpring):
-    r"""A spring on one coordinate (or any scalar function of ``q``): ``V = ½ k (θ − θ₀)²``.
+    r"""A spring on one coordinate (or any scalar function of `q`): `V = ½ k (θ − θ₀)²`.
 
     **Arguments:**
 
-    - ``stiffness``: ``k`` (:data:`ParamLike`).
-    - ``coordinate``: the index ``i`` of ``θ = q_i``, or a function ``θ(q, params)`` (e.g. a
-      relative angle ``q[1] − q[0]``).
-    - ``rest_angle``: ``θ₀`` (:data:`ParamLike`, default 0).
+    - `stiffness`: `k` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `coordinate`: the index `i` of `θ = q_i`, or a function `θ(q, params)` (e.g. a
+      relative angle `q[1] − q[0]`).
+    - `rest_angle`: `θ₀` ([`ParamLike`][lagrax.bodies.ParamLike], default 0).
     """
 
     stiffness: ParamLike
@@ -448,7 +450,7 @@ class TorsionalSpring(AbstractSpring):
 
 
 class AbstractDamper(eqx.Module):
-    """A dissipative element: a Rayleigh function ``D(q, q̇)``; its force is ``−∂D/∂q̇``."""
+    """A dissipative element: a Rayleigh function `D(q, q̇)`; its force is `−∂D/∂q̇`."""
 
     @abc.abstractmethod
     def dissipation(self, q: Vector, qd: Vector, params: Params) -> Scalar:
@@ -456,22 +458,22 @@ class AbstractDamper(eqx.Module):
 
 
 class LinearDamper(AbstractDamper):
-    r"""A viscous damper between two points, by their relative velocity ``w = ẋ_a − ẋ_b``.
+    r"""A viscous damper between two points, by their relative velocity `w = ẋ_a − ẋ_b`.
 
-    - ``axial=False`` (default): ``D = ½ c ‖w‖²``, a force ``−c w`` opposing the whole
-      relative velocity (viscous drag; with ``b`` omitted, drag against the fixed frame).
-    - ``axial=True``: a dashpot along the line between the points,
-      ``D = ½ c L̇²`` with ``L̇ = (x_a − x_b)·w / ‖x_a − x_b‖``; it resists only changes of
+    - `axial=False` (default): `D = ½ c ‖w‖²`, a force `−c w` opposing the whole
+      relative velocity (viscous drag; with `b` omitted, drag against the fixed frame).
+    - `axial=True`: a dashpot along the line between the points,
+      `D = ½ c L̇²` with `L̇ = (x_a − x_b)·w / ‖x_a − x_b‖`; it resists only changes of
       length (undefined when the points meet; taken as zero there).
 
-    Velocities come from ``jax.jvp`` of the point functions.
+    Velocities come from `jax.jvp` of the point functions.
 
     **Arguments:**
 
-    - ``coefficient``: ``c`` (:data:`ParamLike`).
-    - ``a``, ``b``: the ends, functions ``(q, params) -> (d,)`` or constants; ``b`` defaults
+    - `coefficient`: `c` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `a`, `b`: the ends, functions `(q, params) -> (d,)` or constants; `b` defaults
       to a fixed point (the origin).
-    - ``axial``: see above.
+    - `axial`: see above.
     """
 
     coefficient: ParamLike
@@ -495,13 +497,13 @@ class LinearDamper(AbstractDamper):
 
 
 class TorsionalDamper(AbstractDamper):
-    r"""A viscous damper on one coordinate (or scalar function of ``q``): ``D = ½ c θ̇²``.
+    r"""A viscous damper on one coordinate (or scalar function of `q`): `D = ½ c θ̇²`.
 
     **Arguments:**
 
-    - ``coefficient``: ``c`` (:data:`ParamLike`).
-    - ``coordinate``: the index ``i`` of ``θ = q_i``, or a function ``θ(q, params)``
-      (its rate ``θ̇`` by ``jax.jvp``).
+    - `coefficient`: `c` ([`ParamLike`][lagrax.bodies.ParamLike]).
+    - `coordinate`: the index `i` of `θ = q_i`, or a function `θ(q, params)`
+      (its rate `θ̇` by `jax.jvp`).
     """
 
     coefficient: ParamLike
@@ -528,41 +530,45 @@ def _check_members(items, kind, name: str) -> None:
 class Scene(eqx.Module):
     r"""A mechanical scene: the sum of its bodies, springs, dampers and hand-written terms.
 
-    .. math::
+    $$
+    T = Σ_{bodies} T_b + T_{extra},\qquad
+    V = Σ_{bodies} (−m_b g⃗·x_b) + Σ_{springs} V_s + V_{extra},\qquad
+    D = Σ_{dampers} D_d + D_{extra}
+    $$
 
-        T = Σ_{bodies} T_b + T_{extra},\qquad
-        V = Σ_{bodies} (−m_b g⃗·x_b) + Σ_{springs} V_s + V_{extra},\qquad
-        D = Σ_{dampers} D_d + D_{extra}
-
-    :meth:`system` turns it into a :class:`lagrax.LagrangianSystem` with these energies.
+    [`system`][lagrax.bodies.Scene.system] turns it into a [`lagrax.LagrangianSystem`][] with these
+    energies.
 
     **Arguments:**
 
-    - ``bodies``: :class:`PointMass`, :class:`PlanarBody`, :class:`SpatialBody` (any mix).
-    - ``springs``: :class:`LinearSpring`, :class:`TorsionalSpring` (potential terms).
-    - ``dampers``: :class:`LinearDamper`, :class:`TorsionalDamper` (Rayleigh terms).
-    - ``gravity``: the gravitational acceleration: a magnitude ``g`` (default 9.81 m/s²)
+    - `bodies`: [`PointMass`][lagrax.bodies.PointMass], [`PlanarBody`][lagrax.bodies.PlanarBody],
+      [`SpatialBody`][lagrax.bodies.SpatialBody] (any mix).
+    - `springs`: [`LinearSpring`][lagrax.bodies.LinearSpring],
+      [`TorsionalSpring`][lagrax.bodies.TorsionalSpring] (potential terms).
+    - `dampers`: [`LinearDamper`][lagrax.bodies.LinearDamper],
+      [`TorsionalDamper`][lagrax.bodies.TorsionalDamper] (Rayleigh terms).
+    - `gravity`: the gravitational acceleration: a magnitude `g` (default 9.81 m/s²)
       acting along each body's negative last axis (−y for planar positions, −z for spatial
-      ones), or a vector ``g⃗`` of the bodies' dimension; a constant or a callable of
-      ``params`` (e.g. ``Param("g")``, so sweeps can vary it); ``None`` for none.
-    - ``kinetic``, ``potential``, ``dissipation``: hand-written extra terms with the
-      signatures of :class:`lagrax.LagrangianSystem` (``T(q, qd, params)``,
-      ``V(q, params)``, ``D(q, qd, params)``).
-    - ``force``: applied generalized force ``F(t, q, qd, params)``, passed on to the system.
-    - ``n_dof``: number of generalized coordinates (recommended: shapes are then checked).
-    - ``name``: a label for messages and plots.
-    - ``equations``: how :meth:`system` evaluates the equations of motion. ``"poses"``:
-      from the bodies' pose maps (``M = Σ m J_vᵀJ_v + J_ωᵀ I J_ω`` from one forward-mode
+      ones), or a vector `g⃗` of the bodies' dimension; a constant or a callable of
+      `params` (e.g. `Param("g")`, so sweeps can vary it); `None` for none.
+    - `kinetic`, `potential`, `dissipation`: hand-written extra terms with the
+      signatures of [`lagrax.LagrangianSystem`][] (`T(q, qd, params)`,
+      `V(q, params)`, `D(q, qd, params)`).
+    - `force`: applied generalized force `F(t, q, qd, params)`, passed on to the system.
+    - `n_dof`: number of generalized coordinates (recommended: shapes are then checked).
+    - `name`: a label for messages and plots.
+    - `equations`: how [`system`][lagrax.bodies.Scene.system] evaluates the equations of motion.
+      `"poses"`: from the bodies' pose maps (`M = Σ m J_vᵀJ_v + J_ωᵀ I J_ω` from one forward-mode
       Jacobian of the poses, the velocity products from one second-order derivative
-      along ``q̇``, Newton's and Euler's equations of each body projected on the
-      coordinates; no second derivatives of ``T``). ``"energies"``: by differentiating
-      ``T`` and ``V`` (the definition; both agree to round-off). ``"auto"`` (default):
-      ``"poses"`` when the scene has a :class:`SpatialBody` or ``n_dof >= 4`` and no
-      hand-written ``kinetic`` term, else ``"energies"``.
-    - ``scalar_derivatives``: passed to :class:`lagrax.LagrangianSystem`. Default ``None``:
-      ``False`` when the scene has a :class:`SpatialBody` (the energy of rotation matrices
-      is large; forward-over-reverse derivatives compiled 2–10× faster and ran about as
-      fast or faster in ``benchmarks/bench_planar_vs_spatial.py``), else the system's
+      along `q̇`, Newton's and Euler's equations of each body projected on the
+      coordinates; no second derivatives of `T`). `"energies"`: by differentiating
+      `T` and `V` (the definition; both agree to round-off). `"auto"` (default):
+      `"poses"` when the scene has a [`SpatialBody`][lagrax.bodies.SpatialBody] or `n_dof >= 4` and
+      no hand-written `kinetic` term, else `"energies"`.
+    - `scalar_derivatives`: passed to [`lagrax.LagrangianSystem`][]. Default `None`:
+      `False` when the scene has a [`SpatialBody`][lagrax.bodies.SpatialBody] (the energy of
+      rotation matrices is large; forward-over-reverse derivatives compiled 2–10× faster and ran
+      about as fast or faster in `benchmarks/bench_planar_vs_spatial.py`), else the system's
       default.
 
     **Example:** a damped pendulum on a torsional spring:
@@ -607,14 +613,14 @@ class Scene(eqx.Module):
             raise ValueError("a Scene needs at least one body or a hand-written kinetic energy")
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        """``T = Σ T_b + T_extra``."""
+        """`T = Σ T_b + T_extra`."""
         total = sum(b.kinetic_energy(q, qd, params) for b in self.bodies)
         if self.kinetic is not None:
             total = total + self.kinetic(q, qd, params)
         return jnp.asarray(total)
 
     def potential_energy(self, q: Vector, params: Params) -> Scalar:
-        """``V = Σ gravity of bodies + Σ springs + V_extra``."""
+        """`V = Σ gravity of bodies + Σ springs + V_extra`."""
         total = jnp.zeros((), jnp.result_type(q))
         if self.gravity is not None and self.bodies:
             g = _value(self.gravity, params)
@@ -627,7 +633,7 @@ class Scene(eqx.Module):
         return total
 
     def dissipation_function(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        """``D = Σ D_d + D_extra``."""
+        """`D = Σ D_d + D_extra`."""
         total = jnp.zeros((), jnp.result_type(q))
         for damper in self.dampers:
             total = total + damper.dissipation(q, qd, params)
@@ -636,7 +642,7 @@ class Scene(eqx.Module):
         return total
 
     def system(self) -> LagrangianSystem:
-        """The :class:`lagrax.LagrangianSystem` of this scene.
+        """The [`lagrax.LagrangianSystem`][] of this scene.
 
         Terms the scene does not have are left out (no potential without gravity, springs
         or an extra potential; no dissipation without dampers), so they cost nothing.
@@ -664,7 +670,8 @@ class Scene(eqx.Module):
         )
 
     def _use_poses(self) -> bool:
-        """Whether :meth:`system` evaluates the equations from the bodies' pose maps."""
+        """Whether [`system`][lagrax.bodies.Scene.system] evaluates the equations from the
+        bodies' pose maps."""
         if self.equations == "energies" or not self.bodies:
             return False
         if self.kinetic is not None:

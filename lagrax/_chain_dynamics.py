@@ -1,6 +1,6 @@
-"""Chains' structure-aware equations: their kinematics as a :class:`~._articulated.Chain`,
-and :class:`ChainEquations`, which a chain's ``LagrangianSystem`` evaluates instead of
-differentiating its energies (see :mod:`lagrax._articulated`)."""
+"""Chains' structure-aware equations: their kinematics as a `Chain`,
+and `ChainEquations`, which a chain's `LagrangianSystem` evaluates instead of
+differentiating its energies (see `lagrax._articulated`)."""
 
 from typing import Any
 
@@ -37,8 +37,8 @@ def _planar_link(carry, x):
 
 
 def planar_chain(n: int, q, params: Params, scan: bool | None = None) -> a.Chain:
-    """A planar chain (joint ``i`` at ``p_i``, link angle ``φ_i = q_1 + … + q_i``): motion
-    subspaces ``S_i = (1, p_iy, −p_ix)`` and link inertias at the origin."""
+    """A planar chain (joint `i` at `p_i`, link angle `φ_i = q_1 + … + q_i`): motion
+    subspaces `S_i = (1, p_iy, −p_ix)` and link inertias at the origin."""
     _check(n, q)
     scan = n > UNROLL_MAX_PLANAR if scan is None else scan
     passes = a.Passes(n, scan, q.dtype)
@@ -76,11 +76,11 @@ def _spatial_link(carry, x):
 
 
 def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.Chain:
-    """A spatial chain or tree (a :class:`~lagrax.chains.Tree`: body ``i`` hangs from
-    body ``parents[i]``, and every pass runs over parents): world joint axes
-    ``z_i = R_i axis_i`` through the joint origins ``o_i``, ``S_i = (z_i, o_i × z_i)``
-    (revolute) or ``(0, z_i)`` (prismatic), and link inertias at the origin,
-    ``R_i Ī_i R_iᵀ`` about the centre of mass ``o_i + R_i com_i``."""
+    """A spatial chain or tree (a [`Tree`][lagrax.chains.Tree]: body `i` hangs from
+    body `parents[i]`, and every pass runs over parents): world joint axes
+    `z_i = R_i axis_i` through the joint origins `o_i`, `S_i = (z_i, o_i × z_i)`
+    (revolute) or `(0, z_i)` (prismatic), and link inertias at the origin,
+    `R_i Ī_i R_iᵀ` about the centre of mass `o_i + R_i com_i`."""
     n = chain.n
     _check(n, q)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
@@ -99,24 +99,24 @@ def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.
 
 
 class ChainEquations(eqx.Module):
-    """The equations of a chain's or a tree's ``LagrangianSystem`` from Featherstone's recursions:
-    ``q̈`` by the articulated-body algorithm (O(n)), ``M`` by the composite-rigid-body
-    algorithm, ``M q̈ + C q̇ + G`` by recursive Newton–Euler. They equal the autodiff
+    """The equations of a chain's or a tree's `LagrangianSystem` from Featherstone's recursions:
+    `q̈` by the articulated-body algorithm (O(n)), `M` by the composite-rigid-body
+    algorithm, `M q̈ + C q̇ + G` by recursive Newton–Euler. They equal the autodiff
     Lagrangian of the chain's energies to round-off (tested against it and against
-    :func:`lagrax.newton_euler.rnea`)."""
+    [`lagrax.newton_euler.rnea`][])."""
 
     chain: Any  # PlanarChain | SpatialChain | Tree: structure only (static fields)
 
     scan: bool | None = eqx.field(default=None, static=True)
 
     def at(self, q, params: Params) -> a.Chain:
-        """The chain's motion subspaces and inertias at ``q``."""
+        """The chain's motion subspaces and inertias at `q`."""
         if hasattr(self.chain, "joint_types"):
             return spatial_chain(self.chain, q, params, self.scan)
         return planar_chain(self.chain.n, q, params, self.scan)
 
     def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
-        """``q̈`` solving ``M q̈ + C q̇ + G = force`` (``force`` ``None`` means zero); NaN
+        """`q̈` solving `M q̈ + C q̇ + G = force` (`force` `None` means zero); NaN
         where the chain's articulated inertias are not positive."""
         chain = self.at(q, params)
         links = chain.passes.links
@@ -127,13 +127,13 @@ class ChainEquations(eqx.Module):
         return a.crba(self.at(q, params))
 
     def mass_and_bias(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """``M`` and the bias ``C q̇ + G`` from one evaluation of the kinematics."""
+        """`M` and the bias `C q̇ + G` from one evaluation of the kinematics."""
         chain = self.at(q, params)
         bias = a.rnea(chain, chain.passes.links(qd.astype(q.dtype)), None)
         return a.crba(chain), a.stack(bias, q)
 
     def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
-        """``M q̈ + C q̇ + G`` (``qdd=None``: the bias ``C q̇ + G``)."""
+        """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`)."""
         chain = self.at(q, params)
         links = chain.passes.links
         qdd = None if qdd is None else links(qdd.astype(q.dtype))

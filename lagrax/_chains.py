@@ -1,10 +1,10 @@
 """Serial chains: planar n-link arms and spatial revolute/prismatic chains.
 
 A chain object holds the *structure* (number of links, joint types, axes, fixed rotations);
-the numbers a sweep may vary (masses, lengths, offsets, inertias, g) live in ``params`` as
-arrays with a leading axis of length ``n``. The chain's energies are built from the bodies
-of :mod:`lagrax.bodies` (one batched body for all links) and its structure is what
-:func:`lagrax.newton_euler.rnea` reads for the independent recursive Newton–Euler oracle.
+the numbers a sweep may vary (masses, lengths, offsets, inertias, g) live in `params` as
+arrays with a leading axis of length `n`. The chain's energies are built from the bodies
+of [`lagrax.bodies`][] (one batched body for all links) and its structure is what
+[`lagrax.newton_euler.rnea`][] reads for the independent recursive Newton–Euler oracle.
 """
 
 import dataclasses
@@ -56,22 +56,23 @@ def _float_dtype(dtype: Any) -> Any:
 
 # ------------------------------------------------------------------------------ planar
 class PlanarChain(eqx.Module):
-    r"""A planar serial chain of ``n`` links joined by revolute joints (the lecture's 2R arm,
+    r"""A planar serial chain of `n` links joined by revolute joints (the lecture's 2R arm,
     generalized).
 
-    Joint 1 is fixed at the origin. ``q_1`` is link 1's angle from the x axis and ``q_i``
-    (``i > 1``) is link ``i``'s angle relative to link ``i − 1``, so link ``i`` points along
-    ``u_i = (cos φ_i, sin φ_i)`` with ``φ_i = q_1 + … + q_i``. Link ``i`` has mass ``m_i``,
-    length ``l_i`` (joint ``i`` to joint ``i + 1``), its centre of mass on the link at distance
-    ``r_i`` from joint ``i`` and z-inertia ``I_i`` about that centre of mass. Gravity acts
-    along −y with magnitude ``g``.
+    Joint 1 is fixed at the origin. `q_1` is link 1's angle from the x axis and `q_i`
+    (`i > 1`) is link `i`'s angle relative to link `i − 1`, so link `i` points along
+    `u_i = (cos φ_i, sin φ_i)` with `φ_i = q_1 + … + q_i`. Link `i` has mass `m_i`,
+    length `l_i` (joint `i` to joint `i + 1`), its centre of mass on the link at distance
+    `r_i` from joint `i` and z-inertia `I_i` about that centre of mass. Gravity acts
+    along −y with magnitude `g`.
 
-    ``params`` (from :meth:`params`) is a dict of arrays ``m, l, r, I: (n,)`` and ``g: ()``.
-    For ``n = 2`` this is :func:`lagrax.models.planar_2r` with ``m1 = m[0]``, ``r2 = r[1]``...
+    `params` (from [`params`][lagrax.chains.PlanarChain.params]) is a dict of arrays `m, l, r, I:
+    (n,)` and `g: ()`. For `n = 2` this is [`lagrax.models.planar_2r`][] with `m1 = m[0]`, `r2 =
+    r[1]`...
 
     **Arguments:**
 
-    - ``n``: the number of links (and joints).
+    - `n`: the number of links (and joints).
 
     **Example:**
 
@@ -98,17 +99,17 @@ class PlanarChain(eqx.Module):
         g: Any = 9.81,
         dtype: Any = None,
     ) -> dict[str, jnp.ndarray]:
-        """Parameters as arrays: scalars are broadcast to all ``n`` links.
+        """Parameters as arrays: scalars are broadcast to all `n` links.
 
-        Defaults: uniform 1 kg, 1 m rods (``r = l/2``, ``I = m l²/12``), ``g = 9.81``.
+        Defaults: uniform 1 kg, 1 m rods (`r = l/2`, `I = m l²/12`), `g = 9.81`.
 
-        **Arguments:** ``m``, ``l``, ``r``, ``I`` (scalars or ``(n,)``), ``g`` (scalar),
-        ``dtype`` (default float64 with x64).
+        **Arguments:** `m`, `l`, `r`, `I` (scalars or `(n,)`), `g` (scalar),
+        `dtype` (default float64 with x64).
 
-        **Returns:** ``{"m", "l", "r", "I": (n,), "g": ()}``.
+        **Returns:** `{"m", "l", "r", "I": (n,), "g": ()}`.
 
-        **Raises:** ``ShapeError`` if a value does not broadcast to ``(n,)``;
-        ``ParameterError`` for a negative mass or inertia (naming the link).
+        **Raises:** `ShapeError` if a value does not broadcast to `(n,)`;
+        `ParameterError` for a negative mass or inertia (naming the link).
         """
         dtype = _float_dtype(dtype)
         shape = (self.n,)
@@ -124,7 +125,7 @@ class PlanarChain(eqx.Module):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this chain")
 
     def link_angles(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Absolute link angles ``φ_i = q_1 + … + q_i`` from the x axis, shape ``(n,)``."""
+        """Absolute link angles `φ_i = q_1 + … + q_i` from the x axis, shape `(n,)`."""
         self._check_q(q)
         return jnp.cumsum(q)
 
@@ -133,20 +134,20 @@ class PlanarChain(eqx.Module):
         return phi, jnp.stack([jnp.cos(phi), jnp.sin(phi)], axis=-1)
 
     def joint_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Joints ``1…n`` and the tip, shape ``(n + 1, 2)``; joint 1 is the origin."""
+        """Joints `1…n` and the tip, shape `(n + 1, 2)`; joint 1 is the origin."""
         self._check_q(q)
         _, u = self._directions(q)
         ends = jnp.cumsum(params["l"][:, None] * u, axis=0)
         return jnp.concatenate([jnp.zeros((1, 2), ends.dtype), ends], axis=0)
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass ``x_ci = joint_i + r_i u_i``, shape ``(n, 2)``."""
+        """Centres of mass `x_ci = joint_i + r_i u_i`, shape `(n, 2)`."""
         return jnp.stack(list(self._pose(q, params)[0]))
 
     def _pose(self, q, params):
         """Every link's centre of mass and angle in one pass along the chain: lists of
-        ``n`` ``(2,)`` points and ``n`` angles, written out link by link in scalars (see
-        ``_UNROLL_MAX``); arrays ``(n, 2)``, ``(n,)`` by cumulative sums for very long
+        `n` `(2,)` points and `n` angles, written out link by link in scalars (see
+        `_UNROLL_MAX`); arrays `(n, 2)`, `(n,)` by cumulative sums for very long
         chains."""
         self._check_q(q)
         length, r = jnp.asarray(params["l"]), jnp.asarray(params["r"])
@@ -192,15 +193,15 @@ class PlanarChain(eqx.Module):
         return jnp.stack([zero, -g, zero])
 
     def scene(self, *, bodies: BodyKind = "planar") -> Scene:
-        """The chain as a :class:`lagrax.bodies.Scene`.
+        """The chain as a [`lagrax.bodies.Scene`][].
 
         **Arguments:**
 
-        - ``bodies``: ``"planar"`` (default): one batched :class:`~lagrax.bodies.PlanarBody`
+        - `bodies`: `"planar"` (default): one batched [`PlanarBody`][lagrax.bodies.PlanarBody]
           for all links: 2 position components and one angle per link, the smallest
-          description. ``"spatial"``: the same links as a batched
-          :class:`~lagrax.bodies.SpatialBody` in the z = 0 plane (rotation about z,
-          inertia ``I_i`` about every axis, gravity ``(0, −g, 0)``) — identical equations,
+          description. `"spatial"`: the same links as a batched
+          [`SpatialBody`][lagrax.bodies.SpatialBody] in the z = 0 plane (rotation about z,
+          inertia `I_i` about every axis, gravity `(0, −g, 0)`) — identical equations,
           more work; kept to measure what the planar description saves.
         """
         if bodies == "planar":
@@ -214,12 +215,13 @@ class PlanarChain(eqx.Module):
         return Scene([body], gravity=gravity, n_dof=self.n, name=f"planar {self.n}-link chain")
 
     def system(self, *, bodies: BodyKind = "planar") -> LagrangianSystem:
-        """The chain's :class:`lagrax.LagrangianSystem` (see :meth:`scene`).
+        """The chain's [`lagrax.LagrangianSystem`][] (see
+        [`scene`][lagrax.chains.PlanarChain.scene]).
 
-        With ``bodies="planar"`` and ``n >= 4`` its equations are evaluated by Featherstone's
-        recursions (``q̈`` by the articulated-body algorithm, O(n)); up to 3 links the scalar
-        autodiff of the energies is faster (measured in ``benchmarks/bench_scale.py``: 0.06
-        against 0.27 µs per state at n = 2) and is kept. ``bodies="spatial"`` keeps the
+        With `bodies="planar"` and `n >= 4` its equations are evaluated by Featherstone's
+        recursions (`q̈` by the articulated-body algorithm, O(n)); up to 3 links the scalar
+        autodiff of the energies is faster (measured in `benchmarks/bench_scale.py`: 0.06
+        against 0.27 µs per state at n = 2) and is kept. `bodies="spatial"` keeps the
         autodiff of the spatial embedding's energies, for comparison.
         """
         system = self.scene(bodies=bodies).system()
@@ -228,17 +230,17 @@ class PlanarChain(eqx.Module):
         return system
 
     def to_spatial(self, params: Params) -> tuple["SpatialChain", dict]:
-        """The same chain as a :class:`SpatialChain` and its parameters.
+        """The same chain as a [`SpatialChain`][lagrax.chains.SpatialChain] and its parameters.
 
-        All joints revolute about z, joint ``i + 1`` at ``(l_i, 0, 0)`` in link ``i``'s
-        frame, centres of mass at ``(r_i, 0, 0)``, inertia ``diag(I_i, I_i, I_i)`` (only the
-        z entry acts in plane motion) and ``up = (0, 1, 0)`` so that gravity is along −y.
+        All joints revolute about z, joint `i + 1` at `(l_i, 0, 0)` in link `i`'s
+        frame, centres of mass at `(r_i, 0, 0)`, inertia `diag(I_i, I_i, I_i)` (only the
+        z entry acts in plane motion) and `up = (0, 1, 0)` so that gravity is along −y.
         Its equations equal this chain's; it costs more to compile and run (see
-        ``benchmarks/bench_planar_vs_spatial.py``).
+        `benchmarks/bench_planar_vs_spatial.py`).
 
-        **Arguments:** ``params``: this chain's parameters.
+        **Arguments:** `params`: this chain's parameters.
 
-        **Returns:** ``(SpatialChain, params)``.
+        **Returns:** `(SpatialChain, params)`.
         """
         n = self.n
         chain = SpatialChain("R" * n, up=(0.0, 1.0, 0.0))
@@ -260,12 +262,12 @@ class PlanarChain(eqx.Module):
 def planar_chain(
     n: int, *, bodies: BodyKind = "planar", **values: Any
 ) -> tuple[LagrangianSystem, dict]:
-    """A planar ``n``-link chain as ``(system, params)``.
+    """A planar `n`-link chain as `(system, params)`.
 
-    ``values`` are passed to :meth:`PlanarChain.params` (``m, l, r, I, g, dtype``); for the
-    Newton–Euler oracle use ``lagrax.newton_euler.rnea(PlanarChain(n), ...)``.
+    `values` are passed to [`PlanarChain.params`][lagrax.chains.PlanarChain.params] (`m, l, r, I, g,
+    dtype`); for the Newton–Euler oracle use `lagrax.newton_euler.rnea(PlanarChain(n), ...)`.
 
-    **Example:** ``system, params = lagrax.chains.planar_chain(5, l=0.4)``
+    **Example:** `system, params = lagrax.chains.planar_chain(5, l=0.4)`
     """
     chain = PlanarChain(n)
     return chain.system(bodies=bodies), chain.params(**values)
@@ -290,9 +292,9 @@ def _rotation_tuple(rot, what: str) -> tuple:
 
 
 def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
-    """Rodrigues' formula: rotation by ``angle`` about the unit ``axis``.
+    """Rodrigues' formula: rotation by `angle` about the unit `axis`.
 
-    ``R = 1 + sin θ [a]× + (1 − cos θ) [a]×²``.
+    `R = 1 + sin θ [a]× + (1 − cos θ) [a]×²`.
     """
     a = jnp.asarray(axis, dtype=jnp.result_type(angle))
     k = jnp.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]], dtype=a.dtype)
@@ -301,11 +303,11 @@ def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
 
 
 def joint_constants(types: str, axes: Any, rotations: Any) -> tuple[np.ndarray, ...]:
-    """Per-joint constants ``(A, B, C, s)``, stacked: ``ⁱ⁻¹R_i = A + sin q B +
-    (1 − cos q) C`` and the origin slides by ``q s`` in frame ``i − 1``.
+    """Per-joint constants `(A, B, C, s)`, stacked: ``ⁱ⁻¹R_i = A + sin q B +
+    (1 − cos q) C` and the origin slides by `q s` in frame `i − 1``.
 
-    Revolute (Rodrigues): ``A = S``, ``B = S [a]×``, ``C = S [a]×²``, ``s = 0``;
-    prismatic: ``A = S``, ``B = C = 0``, ``s = S a``.
+    Revolute (Rodrigues): `A = S`, `B = S [a]×`, `C = S [a]×²`, `s = 0`;
+    prismatic: `A = S`, `B = C = 0`, `s = S a`.
     """
     consts = []
     for kind, axis, fixed in zip(types, axes, rotations, strict=True):
@@ -320,32 +322,32 @@ def joint_constants(types: str, axes: Any, rotations: Any) -> tuple[np.ndarray, 
 
 
 class SpatialChain(eqx.Module):
-    r"""A spatial serial chain of revolute (``"R"``) and prismatic (``"P"``) joints.
+    r"""A spatial serial chain of revolute (`"R"`) and prismatic (`"P"`) joints.
 
-    Frames: frame 0 is the fixed (world) frame; frame ``i`` is attached to link ``i``. Joint
-    ``i`` sits at ``offset_i`` (components in frame ``i − 1``), with a fixed orientation
-    ``S_i`` (``rotations[i]``) relative to frame ``i − 1``; then
+    Frames: frame 0 is the fixed (world) frame; frame `i` is attached to link `i`. Joint
+    `i` sits at `offset_i` (components in frame `i − 1`), with a fixed orientation
+    `S_i` (`rotations[i]`) relative to frame `i − 1`; then
 
-    - revolute: link ``i`` turns by ``q_i`` about the unit ``axis_i`` through that point:
-      ``ⁱ⁻¹R_i = S_i Rot(axis_i, q_i)``, ``ⁱ⁻¹p_i = offset_i``;
-    - prismatic: link ``i`` slides by ``q_i`` along ``axis_i``: ``ⁱ⁻¹R_i = S_i``,
-      ``ⁱ⁻¹p_i = offset_i + S_i axis_i q_i``.
+    - revolute: link `i` turns by `q_i` about the unit `axis_i` through that point:
+      `ⁱ⁻¹R_i = S_i Rot(axis_i, q_i)`, `ⁱ⁻¹p_i = offset_i`;
+    - prismatic: link `i` slides by `q_i` along `axis_i`: `ⁱ⁻¹R_i = S_i`,
+      `ⁱ⁻¹p_i = offset_i + S_i axis_i q_i`.
 
-    ``axis_i`` is written in frame ``i`` (equivalently, in the joint frame ``S_i``). Link
-    ``i`` has mass ``m_i``, its centre of mass at ``com_i`` and inertia ``inertia_i`` about
-    the centre of mass, both in frame ``i``. Gravity has magnitude ``g`` along ``−up``
-    (default ``up = (0, 0, 1)``: gravity along −z).
+    `axis_i` is written in frame `i` (equivalently, in the joint frame `S_i`). Link
+    `i` has mass `m_i`, its centre of mass at `com_i` and inertia `inertia_i` about
+    the centre of mass, both in frame `i`. Gravity has magnitude `g` along `−up`
+    (default `up = (0, 0, 1)`: gravity along −z).
 
-    Structure (static): ``joint_types``, ``axes``, ``rotations``, ``up``. Parameters (arrays,
-    from :meth:`params`): ``m: (n,)``, ``offset: (n, 3)``, ``com: (n, 3)``,
-    ``inertia: (n, 3, 3)``, ``g: ()``.
+    Structure (static): `joint_types`, `axes`, `rotations`, `up`. Parameters (arrays,
+    from [`params`][lagrax.chains.SpatialChain.params]): `m: (n,)`, `offset: (n, 3)`, `com: (n, 3)`,
+    `inertia: (n, 3, 3)`, `g: ()`.
 
     **Arguments:**
 
-    - ``joint_types``: a string such as ``"RRP"``.
-    - ``axes``: ``n`` joint axes (normalized here); default z for every joint.
-    - ``rotations``: ``n`` fixed rotations ``S_i``; default the identity.
-    - ``up``: the direction opposite to gravity.
+    - `joint_types`: a string such as `"RRP"`.
+    - `axes`: `n` joint axes (normalized here); default z for every joint.
+    - `rotations`: `n` fixed rotations `S_i`; default the identity.
+    - `up`: the direction opposite to gravity.
 
     **Example:** a 3-DOF arm with a vertical waist, two horizontal elbows:
 
@@ -405,23 +407,23 @@ class SpatialChain(eqx.Module):
         g: Any = 9.81,
         dtype: Any = None,
     ) -> dict[str, jnp.ndarray]:
-        """Parameters as arrays, broadcast to all ``n`` links.
+        """Parameters as arrays, broadcast to all `n` links.
 
         Defaults describe 1 m links along each link's x axis: joint 1 at the origin and
-        joint ``i > 1`` at ``(1, 0, 0)`` in frame ``i − 1``; centre of mass at
-        ``(0.5, 0, 0)``; inertia of a solid cylinder of radius 0.05 m and length 1 m along
-        x; ``m = 1``, ``g = 9.81``.
+        joint `i > 1` at `(1, 0, 0)` in frame `i − 1`; centre of mass at
+        `(0.5, 0, 0)`; inertia of a solid cylinder of radius 0.05 m and length 1 m along
+        x; `m = 1`, `g = 9.81`.
 
-        **Arguments:** ``m`` (scalar or ``(n,)``), ``offset`` and ``com`` (``(3,)`` or
-        ``(n, 3)``), ``inertia`` (``(3, 3)`` or ``(n, 3, 3)``; default from ``m``), ``g``,
-        ``dtype``.
+        **Arguments:** `m` (scalar or `(n,)`), `offset` and `com` (`(3,)` or
+        `(n, 3)`), `inertia` (`(3, 3)` or `(n, 3, 3)`; default from `m`), `g`,
+        `dtype`.
 
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
         "g": ()}``.
 
-        **Raises:** ``ShapeError`` if a value does not broadcast; ``ParameterError`` if an
-        inertia is not symmetric positive-semidefinite or violates ``I1 + I2 ≥ I3``
-        (:func:`lagrax.bodies.check_inertia`, naming the link).
+        **Raises:** `ShapeError` if a value does not broadcast; `ParameterError` if an
+        inertia is not symmetric positive-semidefinite or violates `I1 + I2 ≥ I3`
+        ([`lagrax.bodies.check_inertia`][], naming the link).
         """
         n, dtype = self.n, _float_dtype(dtype)
         m_ = _broadcast("m", m, (n,), dtype)
@@ -445,26 +447,26 @@ class SpatialChain(eqx.Module):
         }
 
     def _joint_constants(self) -> tuple[np.ndarray, ...]:
-        """Per-joint constants, stacked (see :func:`joint_constants`)."""
+        """Per-joint constants, stacked (see `joint_constants`)."""
         return joint_constants(self.joint_types, self.axes, self.rotations)
 
     def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """Forward kinematics: origins ``(n, 3)`` and rotations ``(n, 3, 3)`` of the link
-        frames in the world frame (``R_i`` takes frame-``i`` components to world ones).
+        """Forward kinematics: origins `(n, 3)` and rotations `(n, 3, 3)` of the link
+        frames in the world frame (`R_i` takes frame-`i` components to world ones).
 
-        ``R_i = R_{i−1} ⁱ⁻¹R_i``, ``o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)``, written out
-        joint by joint for short chains and as a ``lax.scan`` over the joints for long ones
-        (see ``_UNROLL_MAX``).
+        `R_i = R_{i−1} ⁱ⁻¹R_i`, `o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)`, written out
+        joint by joint for short chains and as a `lax.scan` over the joints for long ones
+        (see `_UNROLL_MAX`).
         """
         origins, rots, _ = self._kinematics(q, params, with_com=False)
         return origins, rots
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, ``x_ci = o_i + R_i com_i``, shape ``(n, 3)``."""
+        """Centres of mass in the world frame, `x_ci = o_i + R_i com_i`, shape `(n, 3)`."""
         return self._kinematics(q, params, with_com=True)[2]
 
     def link_rotations(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Link rotation matrices ``R_i``, shape ``(n, 3, 3)``."""
+        """Link rotation matrices `R_i`, shape `(n, 3, 3)`."""
         return self.frames(q, params)[1]
 
     def _pose(self, q, params):
@@ -520,15 +522,15 @@ class SpatialChain(eqx.Module):
         return -g * jnp.asarray(self.up, g.dtype)
 
     def scene(self) -> Scene:
-        """The chain as a :class:`lagrax.bodies.Scene`: one batched
-        :class:`~lagrax.bodies.SpatialBody` for all links, gravity ``−g up``."""
+        """The chain as a [`lagrax.bodies.Scene`][]: one batched
+        [`SpatialBody`][lagrax.bodies.SpatialBody] for all links, gravity `−g up`."""
         types = self.joint_types
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         return Scene([body], gravity=self._gravity, n_dof=self.n, name=f"{types} chain")
 
     def system(self) -> LagrangianSystem:
-        """The chain's :class:`lagrax.LagrangianSystem`, its equations evaluated by
-        Featherstone's recursions (``q̈`` by the articulated-body algorithm, O(n); ``M`` by
+        """The chain's [`lagrax.LagrangianSystem`][], its equations evaluated by
+        Featherstone's recursions (`q̈` by the articulated-body algorithm, O(n); `M` by
         the composite-rigid-body algorithm). ``dataclasses.replace(system,
         equations=None)`` differentiates the energies instead (the definition)."""
         return dataclasses.replace(self.scene().system(), equations=ChainEquations(self))
@@ -542,10 +544,11 @@ def spatial_chain(
     up: Any = (0.0, 0.0, 1.0),
     **values: Any,
 ) -> tuple[LagrangianSystem, dict]:
-    """A spatial chain as ``(system, params)``; ``values`` go to :meth:`SpatialChain.params`.
+    """A spatial chain as `(system, params)`; `values` go to
+    [`SpatialChain.params`][lagrax.chains.SpatialChain.params].
 
     For the Newton–Euler oracle, keep the chain:
-    ``chain = SpatialChain(joint_types, axes, ...)``, then ``rnea(chain, ...)``.
+    `chain = SpatialChain(joint_types, axes, ...)`, then `rnea(chain, ...)`.
     """
     chain = SpatialChain(joint_types, axes, rotations, up)
     return chain.system(), chain.params(**values)

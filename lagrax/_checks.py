@@ -1,8 +1,8 @@
-"""Input checks shared by every entry point, eagerly and under ``jit``.
+"""Input checks shared by every entry point, eagerly and under `jit`.
 
 Eager (concrete) inputs are checked in Python with the offending values in the message;
-traced inputs by ``equinox.error_if``, which survives ``jit``, ``vmap`` and ``scan`` and
-costs nothing when its output is unused. Every error raised here is a ``LagraxError``.
+traced inputs by `equinox.error_if`, which survives `jit`, `vmap` and `scan` and
+costs nothing when its output is unused. Every error raised here is a `LagraxError`.
 """
 
 import inspect
@@ -28,7 +28,7 @@ from ._typing import Params
 
 
 def is_traced(*xs: Any) -> bool:
-    """Whether any leaf of ``xs`` is a JAX tracer (we are inside ``jit``/``vmap``/``grad``)."""
+    """Whether any leaf of `xs` is a JAX tracer (we are inside `jit`/`vmap`/`grad`)."""
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
@@ -49,7 +49,7 @@ def describe_params(params: Params) -> str:
 
 
 def _is_params_lookup(err: Exception, params: Params) -> bool:
-    """Did ``err`` come from looking up a missing entry of ``params`` itself?"""
+    """Did `err` come from looking up a missing entry of `params` itself?"""
     if isinstance(err, KeyError):
         key = err.args[0] if err.args else None
         try:
@@ -60,8 +60,8 @@ def _is_params_lookup(err: Exception, params: Params) -> bool:
 
 
 def call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
-    """Call a user function ``fn(*args, params)``; a missing-parameter lookup becomes a
-    ``ParameterError`` naming the entry and what ``params`` has."""
+    """Call a user function `fn(*args, params)`; a missing-parameter lookup becomes a
+    `ParameterError` naming the entry and what `params` has."""
     try:
         return fn(*args, params)
     except TypeError as err:
@@ -89,7 +89,7 @@ def call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
 
 
 def binds(fn: Callable, n: int) -> bool | None:
-    """Whether ``fn`` accepts ``n`` positional arguments (``None``: cannot tell)."""
+    """Whether `fn` accepts `n` positional arguments (`None`: cannot tell)."""
     try:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
@@ -102,7 +102,7 @@ def binds(fn: Callable, n: int) -> bool | None:
 
 
 def time_signature_message(label: str, n_args: int, fn: Callable, time_dependent: bool) -> str:
-    """Why a user energy with ``n_args`` arguments (``params`` included) does not fit."""
+    """Why a user energy with `n_args` arguments (`params` included) does not fit."""
     if time_dependent:
         return (
             f"the system was built with time_dependent=True, so lagrax calls its {label}"
@@ -132,9 +132,9 @@ def _signature_text(fn: Callable) -> str:
 
 
 def call_energy(fn: Callable, role: str, label: str, params: Params, *args: Any) -> Any:
-    """:func:`call_user` for an energy (``T``, ``V``, ``D``): a call that fails because the
-    function takes another number of arguments (a ``T(q, qd, params)`` given to a
-    time-dependent system, or the reverse) becomes an ``ArgumentTypeError`` naming it, at
+    """`call_user` for an energy (`T`, `V`, `D`): a call that fails because the
+    function takes another number of arguments (a `T(q, qd, params)` given to a
+    time-dependent system, or the reverse) becomes an `ArgumentTypeError` naming it, at
     trace time."""
     try:
         return call_user(fn, role, params, *args)
@@ -151,9 +151,9 @@ def call_energy(fn: Callable, role: str, label: str, params: Params, *args: Any)
 
 
 def coords(q: Any, name: str, n_dof: int | None, system_name: str, host: bool = False) -> Any:
-    """``q`` as a 1-D floating array of length ``n_dof`` (when given), or a ``ShapeError``.
+    """`q` as a 1-D floating array of length `n_dof` (when given), or a `ShapeError`.
 
-    ``host=True`` converts with NumPy (no device transfer), for ``simulate``'s set-up.
+    `host=True` converts with NumPy (no device transfer), for `simulate`'s set-up.
     """
     try:
         q = np.asarray(q) if host else jnp.asarray(q)
@@ -187,7 +187,7 @@ def same_shape(name: str, v: Any, q: Any) -> None:
 
 
 def finite(x: jax.Array, name: str) -> jax.Array:
-    """Refuse NaN/inf: eagerly with the value when concrete, by ``error_if`` under jit."""
+    """Refuse NaN/inf: eagerly with the value when concrete, by `error_if` under jit."""
     if not is_traced(x):
         if not bool(np.all(np.isfinite(np.asarray(x)))):
             raise NonFiniteError(f"{name} contains non-finite values: {np.asarray(x)}")
@@ -198,7 +198,7 @@ def finite(x: jax.Array, name: str) -> jax.Array:
 
 
 def finite_params(params: Params) -> None:
-    """Eagerly refuse a non-finite numeric leaf of ``params``, naming its path."""
+    """Eagerly refuse a non-finite numeric leaf of `params`, naming its path."""
     for path, leaf in jax.tree_util.tree_leaves_with_path(params):
         if isinstance(leaf, (int, float, complex, np.ndarray, jax.Array)):
             if not bool(np.all(np.isfinite(np.asarray(leaf)))):
@@ -213,8 +213,8 @@ def finite_params(params: Params) -> None:
 
 
 def energy_value(out: Any, label: str, q: Any) -> Any:
-    """The result of a user energy (``T``, ``V``, ``D``) as a real scalar, or a
-    ``ShapeError`` / ``ArgumentTypeError`` naming ``label`` and what it returned."""
+    """The result of a user energy (`T`, `V`, `D`) as a real scalar, or a
+    `ShapeError` / `ArgumentTypeError` naming `label` and what it returned."""
     if out is None:
         raise ArgumentTypeError(f"the {label} returned None; did it forget `return`?")
     try:
@@ -243,7 +243,7 @@ def energy_value(out: Any, label: str, q: Any) -> Any:
 
 
 def force_value(out: Any, who: str, q: Any) -> Any:
-    """The result of a user force (``force``, ``tau``): a real array shaped like ``q``."""
+    """The result of a user force (`force`, `tau`): a real array shaped like `q`."""
     if out is None:
         raise ArgumentTypeError(f"{who} returned None; did it forget `return`?")
     try:
@@ -304,7 +304,7 @@ def _jaxprs_of(params: dict) -> list[tuple[Any, bool]]:
 
 
 def _clamped(jaxpr: Any, known: dict) -> list[tuple[int, int]]:
-    """``(length, index)`` of each out-of-range static read in ``jaxpr``."""
+    """`(length, index)` of each out-of-range static read in `jaxpr`."""
     env = dict(known)
     found = []
 
@@ -355,9 +355,9 @@ def _abstract(x: Any) -> Any:
 
 
 def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
-    """Raise a ``ShapeError`` if ``fn(*args, params)`` reads past the end of an array.
+    """Raise a `ShapeError` if `fn(*args, params)` reads past the end of an array.
 
-    ``args`` are the arrays the function receives before ``params`` (their values are not
+    `args` are the arrays the function receives before `params` (their values are not
     used, only shapes and dtypes). A function that cannot be traced abstractly (one that
     converts a parameter to a Python float, say) is skipped: the real call reports its own
     errors.
@@ -408,10 +408,10 @@ def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
 def physical(
     value: Any, label: str, *, what: str = "mass", positive: bool = False, item: str = ""
 ) -> Any:
-    """A mass (or another physical amount) that must be ``>= 0`` (``> 0`` with
-    ``positive``) and finite, entry by entry; a ``ParameterError`` names ``label``, the
-    entry (``item`` and its 1-based number, e.g. "link 2") and the value. A traced
-    value comes back wrapped in ``equinox.error_if``. A callable (a parameter looked up
+    """A mass (or another physical amount) that must be `>= 0` (`> 0` with
+    `positive`) and finite, entry by entry; a `ParameterError` names `label`, the
+    entry (`item` and its 1-based number, e.g. "link 2") and the value. A traced
+    value comes back wrapped in `equinox.error_if`. A callable (a parameter looked up
     later) is returned unchecked."""
     if callable(value):
         return value
@@ -446,7 +446,7 @@ def physical(
 
 
 def _real_scalar(name: str, value: Any, fix: str) -> Any:
-    """``value`` as a Python float when concrete, else the tracer; refuses other kinds."""
+    """`value` as a Python float when concrete, else the tracer; refuses other kinds."""
     if isinstance(value, jax.core.Tracer):
         if jnp.ndim(value) != 0:
             raise ConfigurationError(
@@ -472,7 +472,7 @@ def _real_scalar(name: str, value: Any, fix: str) -> Any:
 
 
 def finite_real(name: str, value: Any, fix: str = "") -> Any:
-    """A finite real scalar option (e.g. ``t0``)."""
+    """A finite real scalar option (e.g. `t0`)."""
     x = _real_scalar(name, value, fix)
     if isinstance(x, float):
         if not math.isfinite(x):
@@ -482,7 +482,7 @@ def finite_real(name: str, value: Any, fix: str = "") -> Any:
 
 
 def positive_real(name: str, value: Any, fix: str = "") -> Any:
-    """A finite real scalar ``> 0`` (a step, a time span)."""
+    """A finite real scalar `> 0` (a step, a time span)."""
     x = _real_scalar(name, value, fix)
     if isinstance(x, float):
         if not (math.isfinite(x) and x > 0):
@@ -496,7 +496,7 @@ def positive_real(name: str, value: Any, fix: str = "") -> Any:
 
 
 def non_negative_real(name: str, value: Any, fix: str = "") -> Any:
-    """A finite real scalar ``>= 0`` (a tolerance, a gain)."""
+    """A finite real scalar `>= 0` (a tolerance, a gain)."""
     x = _real_scalar(name, value, fix)
     if isinstance(x, float):
         if not (math.isfinite(x) and x >= 0):
@@ -510,10 +510,10 @@ def non_negative_real(name: str, value: Any, fix: str = "") -> Any:
 
 
 def positive_int(name: str, value: Any, fix: str = "") -> int:
-    """A positive whole number (a count: ``max_steps``, ``n_save``, a chunk size).
+    """A positive whole number (a count: `max_steps`, `n_save`, a chunk size).
 
-    Whole-valued floats (``1e5``) are accepted; counts fix the shape of the compiled
-    program, so a traced value is refused with an ``ArgumentTypeError``.
+    Whole-valued floats (`1e5`) are accepted; counts fix the shape of the compiled
+    program, so a traced value is refused with an `ArgumentTypeError`.
     """
     if isinstance(value, jax.core.Tracer):
         raise ArgumentTypeError(
@@ -533,7 +533,7 @@ def positive_int(name: str, value: Any, fix: str = "") -> int:
 
 
 def time_interval(t0: Any, t1: Any) -> tuple[Any, Any]:
-    """``(t0, t1)``: finite, with ``t1 > t0`` (eagerly, or by ``error_if`` on ``t1``)."""
+    """`(t0, t1)`: finite, with `t1 > t0` (eagerly, or by `error_if` on `t1`)."""
     fix = "Integrate over a finite interval t0 < t1, e.g. t0=0.0, t1=10.0"
     t0 = finite_real("t0", t0, fix)
     t1 = finite_real("t1", t1, fix)
@@ -549,7 +549,7 @@ def time_interval(t0: Any, t1: Any) -> tuple[Any, Any]:
 
 
 def tolerances(rtol: Any, atol: Any) -> tuple[Any, Any]:
-    """``(rtol, atol)``: finite, ``>= 0`` and not both zero."""
+    """`(rtol, atol)`: finite, `>= 0` and not both zero."""
     fix = "Use e.g. rtol=1e-8, atol=1e-8"
     rtol = non_negative_real("rtol", rtol, fix)
     atol = non_negative_real("atol", atol, fix)
@@ -569,10 +569,10 @@ def tolerances(rtol: Any, atol: Any) -> tuple[Any, Any]:
 
 
 def fixed_step(dt: Any, t0: Any, t1: Any) -> Any:
-    """A fixed step ``0 < dt <= t1 - t0``.
+    """A fixed step `0 < dt <= t1 - t0`.
 
-    A step longer than the interval would silently be cut to ``t1 - t0`` (one step of
-    another size than asked for), which is nearly always a slip (``dt`` and ``t1``
+    A step longer than the interval would silently be cut to `t1 - t0` (one step of
+    another size than asked for), which is nearly always a slip (`dt` and `t1`
     swapped, or wrong units), so it is refused.
     """
     fix = "Pass the step of a fixed-step solve as dt > 0, e.g. dt=0.01"
@@ -595,7 +595,7 @@ def fixed_step(dt: Any, t0: Any, t1: Any) -> Any:
 
 
 def first_step(dt0: Any) -> Any:
-    """The first step ``dt0`` of an adaptive solve: ``None`` (automatic) or ``> 0``."""
+    """The first step `dt0` of an adaptive solve: `None` (automatic) or `> 0`."""
     if dt0 is None:
         return None
     return positive_real(
@@ -607,12 +607,12 @@ def first_step(dt0: Any) -> Any:
 
 
 def interval(t0: Any, t1: Any) -> None:
-    """Eagerly require finite ``t0 < t1`` (see :func:`time_interval`)."""
+    """Eagerly require finite `t0 < t1` (see `time_interval`)."""
     time_interval(t0, t1)
 
 
 def save_times(ts: Any, t0: Any, t1: Any, name: str = "ts") -> None:
-    """Eagerly require finite, sorted save times inside ``[t0, t1]``."""
+    """Eagerly require finite, sorted save times inside `[t0, t1]`."""
     ts = np.asarray(ts)
     if not np.issubdtype(ts.dtype, np.number) or np.iscomplexobj(ts):
         raise ArgumentTypeError(f"{name} must be an array of real times, got {ts!r}")
@@ -625,7 +625,7 @@ def save_times(ts: Any, t0: Any, t1: Any, name: str = "ts") -> None:
 
 
 def traced_save_times(ts: jax.Array, t0: jax.Array, t1: jax.Array) -> jax.Array:
-    """Under ``jit``: ``ts`` with a run-time check that it is sorted inside ``[t0, t1]``."""
+    """Under `jit`: `ts` with a run-time check that it is sorted inside `[t0, t1]`."""
     if not ts.shape[0]:
         return ts
     return eqx.error_if(
@@ -650,7 +650,7 @@ def _kind(value: Any) -> str:
 
 
 def sweep_times(t0: Any, t1: Any) -> tuple[float, float]:
-    """Finite ``t0 < t1`` as Python floats (see :func:`time_interval`)."""
+    """Finite `t0 < t1` as Python floats (see `time_interval`)."""
     t0, t1 = time_interval(t0, t1)
     return float(t0), float(t1)
 
@@ -659,9 +659,9 @@ _KEEP_NAMES = ("final", "trajectory")
 
 
 def keep_option(keep: Any, t0: float, t1: float) -> np.ndarray | None:
-    """``keep=``: a known name, a callable, or sorted finite times inside ``[t0, t1]``.
+    """`keep=`: a known name, a callable, or sorted finite times inside `[t0, t1]`.
 
-    **Returns:** the times as a float array, or ``None`` for a name or a callable.
+    **Returns:** the times as a float array, or `None` for a name or a callable.
     """
     if callable(keep):
         return None
@@ -692,8 +692,8 @@ def keep_option(keep: Any, t0: float, t1: float) -> np.ndarray | None:
 
 
 def lanes_option(n_lanes: Any, chunk_size: int | None, n_devices: int) -> int | None:
-    """``n_lanes``: ``None`` or a positive integer, at most the members of a chunk per
-    device when ``chunk_size`` was given (more lanes than members would only idle)."""
+    """`n_lanes`: `None` or a positive integer, at most the members of a chunk per
+    device when `chunk_size` was given (more lanes than members would only idle)."""
     if n_lanes is None:
         return None
     lanes = positive_int(
@@ -711,7 +711,7 @@ def lanes_option(n_lanes: Any, chunk_size: int | None, n_devices: int) -> int | 
 
 
 def devices_option(devices: Any) -> None:
-    """``devices``: ``None``, a count in ``1..len(jax.devices())`` or a non-empty list."""
+    """`devices`: `None`, a count in `1..len(jax.devices())` or a non-empty list."""
     if devices is None:
         return
     available = len(jax.devices())
@@ -748,8 +748,8 @@ def sweep_options(
     checkpoint: Any,
     progress: Any,
 ) -> tuple[float, float, int | None]:
-    """Check ``sweep``'s scalar options on the host, once per call, before anything is
-    traced. **Returns:** ``(t0, t1, chunk_size)`` as Python numbers."""
+    """Check `sweep`'s scalar options on the host, once per call, before anything is
+    traced. **Returns:** `(t0, t1, chunk_size)` as Python numbers."""
     import diffrax as dfx
 
     t0, t1 = sweep_times(t0, t1)
@@ -789,8 +789,8 @@ def sweep_options(
 
 
 def batch_size(params: Any) -> int:
-    """The member count of batched ``params`` (every leaf a numeric array with the same
-    leading axis, at least one member), or a ``LagraxError`` naming the leaves."""
+    """The member count of batched `params` (every leaf a numeric array with the same
+    leading axis, at least one member), or a `LagraxError` naming the leaves."""
     leaves = jax.tree_util.tree_leaves_with_path(params)
     if not leaves:
         raise ShapeError(

@@ -1,16 +1,16 @@
-"""The derivative kernels every system kind shares: ``M``, the bias force, ``∂V/∂q`` …
+"""The derivative kernels every system kind shares: `M`, the bias force, `∂V/∂q` …
 
-They take the energies (any object with ``kinetic``, ``potential``, ``dissipation`` and
-``force`` attributes, e.g. a ``LagrangianSystem``) and ``params``, never a system class,
+They take the energies (any object with `kinetic`, `potential`, `dissipation` and
+`force` attributes, e.g. a `LagrangianSystem`) and `params`, never a system class,
 so that every system module can call them without importing another.
 
-With ``L = T − V``, generalized inputs ``τ``, an applied force ``F(t, q, q̇)`` and a
-Rayleigh dissipation ``D(q, q̇)``, the equations of motion are ``M(q) q̈ = f`` with
-``M = ∂²T/∂q̇²`` and ``f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ + τ + F − ∂D/∂q̇``.
+With `L = T − V`, generalized inputs `τ`, an applied force `F(t, q, q̇)` and a
+Rayleigh dissipation `D(q, q̇)`, the equations of motion are `M(q) q̈ = f` with
+`M = ∂²T/∂q̇²` and `f = ∂L/∂q − (∂²L/∂q̇∂q) q̇ + τ + F − ∂D/∂q̇`.
 
-A time-dependent system (``e.time_dependent``) has ``T(t, q, q̇)``, ``V(t, q)``,
-``D(t, q, q̇)``: every kernel then takes the time ``t`` and ``f`` gains ``−∂²L/∂q̇∂t``.
-For an autonomous system ``t`` is ignored and the kernels trace exactly the code they
+A time-dependent system (`e.time_dependent`) has `T(t, q, q̇)`, `V(t, q)`,
+`D(t, q, q̇)`: every kernel then takes the time `t` and `f` gains `−∂²L/∂q̇∂t`.
+For an autonomous system `t` is ignored and the kernels trace exactly the code they
 traced before time-dependent systems existed.
 """
 
@@ -29,8 +29,8 @@ FOF_MAX = 6
 
 
 class Equations(Protocol):
-    """A structure-aware evaluation of the equations of the same ``T`` and ``V`` (a chain's
-    recursions): ``M``, ``q̈`` for a generalized force, and ``M q̈ + C q̇ + G``."""
+    """A structure-aware evaluation of the equations of the same `T` and `V` (a chain's
+    recursions): `M`, `q̈` for a generalized force, and `M q̈ + C q̇ + G`."""
 
     def mass_matrix(self, q: Any, params: Any) -> Any: ...
     def mass_and_bias(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any]: ...
@@ -39,8 +39,8 @@ class Equations(Protocol):
 
 
 class Energies(Protocol):
-    """What the kernels read: the user's energy and force functions (or ``None``), and
-    optionally structure-aware ``equations`` of the same energies."""
+    """What the kernels read: the user's energy and force functions (or `None`), and
+    optionally structure-aware `equations` of the same energies."""
 
     kinetic: Callable[..., Any]
     potential: Callable[..., Any] | None
@@ -51,24 +51,24 @@ class Energies(Protocol):
 
 
 def timed(e: Energies) -> bool:
-    """Whether the energies take the time first: ``T(t, q, q̇)``, ``V(t, q)``, ``D(t, q, q̇)``."""
+    """Whether the energies take the time first: `T(t, q, q̇)`, `V(t, q)`, `D(t, q, q̇)`."""
     return getattr(e, "time_dependent", False)
 
 
 def time_of(t, q):
-    """The time as a scalar array of ``q``'s dtype (what a time-dependent energy receives)."""
+    """The time as a scalar array of `q`'s dtype (what a time-dependent energy receives)."""
     if t is None:
         raise TypeError("internal error: a time-dependent system's kernel needs the time t")
     return jnp.asarray(t, q.dtype)
 
 
 def _with_time(e: Energies, t, q, *args):
-    """The arguments of a user energy before ``params``: ``(t, q, …)`` when time-dependent."""
+    """The arguments of a user energy before `params`: `(t, q, …)` when time-dependent."""
     return (time_of(t, q), q, *args) if timed(e) else (q, *args)
 
 
 def use_scalar(n: int, scalar_derivatives: bool | None) -> bool:
-    """Scalar forward-over-forward for ``n <= FOF_MAX`` unless the system says otherwise."""
+    """Scalar forward-over-forward for `n <= FOF_MAX` unless the system says otherwise."""
     return n <= FOF_MAX if scalar_derivatives is None else scalar_derivatives
 
 
@@ -84,8 +84,8 @@ DISSIPATION_T = "dissipation function D(t, q, qd, params)"
 
 
 def kinetic(e: Energies, q, qd, params, t=None):
-    """``T(q, q̇)`` (``T(t, q, q̇)``), checked (at trace time) to be a real scalar reading
-    ``q``, ``q̇`` in range."""
+    """`T(q, q̇)` (`T(t, q, q̇)`), checked (at trace time) to be a real scalar reading
+    `q`, `q̇` in range."""
     label = KINETIC_T if timed(e) else KINETIC
     args = _with_time(e, t, q, qd)
     clamped_reads(e.kinetic, label, params, *args)
@@ -93,7 +93,7 @@ def kinetic(e: Energies, q, qd, params, t=None):
 
 
 def potential(e: Energies, q, params, t=None):
-    """``V(q)`` (``V(t, q)``; zero when the system has no potential)."""
+    """`V(q)` (`V(t, q)`; zero when the system has no potential)."""
     if e.potential is None:
         return jnp.zeros((), q.dtype)
     label = POTENTIAL_T if timed(e) else POTENTIAL
@@ -105,37 +105,37 @@ def potential(e: Energies, q, params, t=None):
 
 
 def lagrangian(e: Energies, q, qd, params, t=None):
-    """``L = T − V``."""
+    """`L = T − V`."""
     return kinetic(e, q, qd, params, t) - potential(e, q, params, t)
 
 
 def grad_kinetic(e: Energies, q, qd, params, t=None):
-    """``(∂T/∂q, ∂T/∂q̇)`` in one reverse pass."""
+    """`(∂T/∂q, ∂T/∂q̇)` in one reverse pass."""
     return jax.grad(lambda a, b: kinetic(e, a, b, params, t), argnums=(0, 1))(q, qd)
 
 
 def jacobi(e: Energies, q, qd, params, t=None):
-    """The Jacobi integral ``h = q̇·∂L/∂q̇ − L = q̇·∂T/∂q̇ − T + V``: one JVP of ``T`` along
-    ``q̇`` in ``q̇`` gives ``T`` and ``q̇·∂T/∂q̇`` together (``h = T + V`` for a ``T``
-    quadratic in ``q̇``, up to round-off)."""
+    """The Jacobi integral `h = q̇·∂L/∂q̇ − L = q̇·∂T/∂q̇ − T + V`: one JVP of `T` along
+    `q̇` in `q̇` gives `T` and `q̇·∂T/∂q̇` together (`h = T + V` for a `T`
+    quadratic in `q̇`, up to round-off)."""
     t_val, t_dot = jax.jvp(lambda b: kinetic(e, q, b, params, t), (qd,), (qd,))
     return t_dot - t_val + potential(e, q, params, t)
 
 
 def explicit_power(e: Energies, q, qd, params, t):
-    """``−∂L/∂t`` (``∂V/∂t − ∂T/∂t``): the rate at which an explicit time dependence
-    changes the Jacobi integral, ``dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)``."""
+    """`−∂L/∂t` (`∂V/∂t − ∂T/∂t`): the rate at which an explicit time dependence
+    changes the Jacobi integral, `dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)`."""
     t = time_of(t, q)
     return -jax.jvp(lambda s: lagrangian(e, q, qd, params, s), (t,), (jnp.ones_like(t),))[1]
 
 
 def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None, t=None):
-    """Forward-over-reverse: ``M = ∂p/∂q̇`` column by column, plus optionally
-    ``(∂p/∂q) v`` for a tangent ``v`` in ``q``; returns ``(∂T/∂q, p, M, (∂p/∂q) v)``.
+    """Forward-over-reverse: `M = ∂p/∂q̇` column by column, plus optionally
+    `(∂p/∂q) v` for a tangent `v` in `q`; returns `(∂T/∂q, p, M, (∂p/∂q) v)`.
 
-    All tangents go through one vmapped JVP of the gradient of ``T``. For a time-dependent
+    All tangents go through one vmapped JVP of the gradient of `T`. For a time-dependent
     system the extra tangent also moves the time at unit rate: it returns
-    ``(∂p/∂q) v + ∂p/∂t``.
+    `(∂p/∂q) v + ∂p/∂t`.
     """
     n = q.shape[0]
     eye = jnp.eye(n, dtype=q.dtype)
@@ -169,33 +169,33 @@ def mass_columns(e: Energies, q, qd, params, extra_q_tangent=None, t=None):
 
 
 def mass_matrix(e: Energies, q, qd, params, t=None):
-    """``M(q) = ∂²T/∂q̇²`` (``n`` JVPs of ``∂T/∂q̇``, or the structure-aware ``equations``)."""
+    """`M(q) = ∂²T/∂q̇²` (`n` JVPs of `∂T/∂q̇`, or the structure-aware `equations`)."""
     if e.equations is not None:
         return e.equations.mass_matrix(q, params)
     return mass_columns(e, q, qd, params, t=t)[2]
 
 
 def coriolis(e: Energies, q, qd, params, t=None):
-    """``C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q``: one JVP along ``(q̇, 0)``."""
+    """`C(q, q̇) q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q`: one JVP along `(q̇, 0)`."""
     (t_q, _), (_, dp) = jax.jvp(lambda a: grad_kinetic(e, a, qd, params, t), (q,), (qd,))
     return dp - t_q
 
 
 def time_rate_of_momentum(e: Energies, q, qd, params, t):
-    """``∂²T/∂q̇∂t = ∂p/∂t`` at fixed ``(q, q̇)`` (one JVP along the time)."""
+    """`∂²T/∂q̇∂t = ∂p/∂t` at fixed `(q, q̇)` (one JVP along the time)."""
     s = time_of(t, q)
     return jax.jvp(lambda c: grad_kinetic(e, q, qd, params, c)[1], (s,), (jnp.ones_like(s),))[1]
 
 
 def gravity(e: Energies, q, params, t=None):
-    """``G(q) = ∂V/∂q``."""
+    """`G(q) = ∂V/∂q`."""
     if e.potential is None:
         return jnp.zeros_like(q)
     return jax.grad(lambda a: potential(e, a, params, t))(q)
 
 
 def damping(e: Energies, q, qd, params, t=None):
-    """``∂D/∂q̇`` (the force acting is its negative)."""
+    """`∂D/∂q̇` (the force acting is its negative)."""
     if e.dissipation is None:
         return jnp.zeros_like(q)
     label = DISSIPATION_T if timed(e) else DISSIPATION
@@ -210,7 +210,7 @@ def damping(e: Energies, q, qd, params, t=None):
 
 
 def applied(e: Energies, t, q, qd, params, tau):
-    """Right-hand generalized force ``τ + F(t, q, q̇) − ∂D/∂q̇`` (without potential)."""
+    """Right-hand generalized force `τ + F(t, q, q̇) − ∂D/∂q̇` (without potential)."""
     f = -damping(e, q, qd, params, t)
     if tau is not None:
         f = f + tau
@@ -222,14 +222,14 @@ def applied(e: Energies, t, q, qd, params, tau):
 
 
 def eom_small(e: Energies, q, qd, params, t=None):
-    """``M`` and ``∂L/∂q − (∂²L/∂q̇∂q) q̇`` (``− ∂²L/∂q̇∂t`` when time-dependent) as lists
+    """`M` and `∂L/∂q − (∂²L/∂q̇∂q) q̇` (`− ∂²L/∂q̇∂t` when time-dependent) as lists
     of scalars, by scalar forward-over-forward derivatives.
 
-    For small ``n`` this beats forward-over-reverse: every derivative is a straight
+    For small `n` this beats forward-over-reverse: every derivative is a straight
     line of scalar arithmetic on the primal values, which XLA fuses into one loop with
-    each transcendental evaluated once. It costs ``n(n+1)/2 + n`` second-order and
-    ``n`` first-order directional derivatives of ``L``, so it is used for
-    ``n <= FOF_MAX`` only (see :func:`use_scalar`).
+    each transcendental evaluated once. It costs `n(n+1)/2 + n` second-order and
+    `n` first-order directional derivatives of `L`, so it is used for
+    `n <= FOF_MAX` only (see `use_scalar`).
     """
     n = q.shape[0]
     basis = [jnp.asarray(np.eye(n)[i], q.dtype) for i in range(n)]
@@ -265,10 +265,10 @@ def _has_applied(e: Energies, tau) -> bool:
 
 
 def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
-    """``M(q)`` and ``f = τ + F − C q̇ − G − ∂D/∂q̇``: the equations ``M q̈ = f``.
+    """`M(q)` and `f = τ + F − C q̇ − G − ∂D/∂q̇`: the equations `M q̈ = f`.
 
-    ``scalar`` chooses the derivatives as :func:`use_scalar` does; structure-aware
-    ``equations`` take precedence.
+    `scalar` chooses the derivatives as `use_scalar` does; structure-aware
+    `equations` take precedence.
     """
     f_applied = applied(e, t, q, qd, params, tau)
     if e.equations is not None:
@@ -283,11 +283,11 @@ def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
 
 
 def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
-    """``q̈ = M⁻¹ f`` without raising: NaN where ``M`` is not positive-definite.
+    """`q̈ = M⁻¹ f` without raising: NaN where `M` is not positive-definite.
 
     The scalar path solves with a Cholesky factorization unrolled over the scalars (no
-    matrix is stacked); the vector path with a Cholesky factorization of ``M``.
-    Structure-aware ``equations`` (a chain's articulated-body algorithm) take precedence.
+    matrix is stacked); the vector path with a Cholesky factorization of `M`.
+    Structure-aware `equations` (a chain's articulated-body algorithm) take precedence.
     """
     if e.equations is not None:
         f = applied(e, t, q, qd, params, tau) if _has_applied(e, tau) else None

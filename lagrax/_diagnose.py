@@ -1,13 +1,13 @@
-"""The account of a failed solve that ``simulate`` raises.
+"""The account of a failed solve that `simulate` raises.
 
 The diagnosis names a cause only from states the solver actually reached: the state where
-it stopped (``t_end``) or, when that blew up, the last finite saved state. There it
-evaluates the pieces the accelerations are made of (the input ``tau``, the system's
-force, the energies' derivatives, the mass matrix: :meth:`AbstractSystem.components`)
-at that time and a little after it, where the failed step was trying to go, and says
-which of them is non-finite. Only when all of them are finite does it blame the mass
-matrix (singular relative to itself, or collapsed since the initial state), the step
-size or the step budget.
+it stopped (`t_end`) or, when that blew up, the last finite saved state. There it
+evaluates the pieces the accelerations are made of (the input `tau`, the system's
+force, the energies' derivatives, the mass matrix:
+[`AbstractSystem.components`][lagrax.AbstractSystem.components]) at that time and a little after it,
+where the failed step was trying to go, and says which of them is non-finite. Only when all of them
+are finite does it blame the mass matrix (singular relative to itself, or collapsed since the
+initial state), the step size or the step budget.
 """
 
 from typing import Any
@@ -29,7 +29,7 @@ FORCE = "the force function F(t, q, qd, params)"  # as LagrangianSystem.componen
 
 @eqx.filter_jit
 def _probe(system: AbstractSystem, field: LagrangianVectorField, ts, q, qd, params, tau_const):
-    """Each component at ``(t, q, q̇)`` for every ``t`` in ``ts``: one compiled call."""
+    """Each component at `(t, q, q̇)` for every `t` in `ts`: one compiled call."""
 
     def at(t):
         out = {}
@@ -42,8 +42,8 @@ def _probe(system: AbstractSystem, field: LagrangianVectorField, ts, q, qd, para
 
 
 def _non_finite_component(system, field, ts, q, qd, params, tau_const):
-    """``(name, t)`` of the first non-finite component at ``(q, q̇)`` over the times
-    ``ts`` (in order), or ``None``. Best effort: never raises."""
+    """`(name, t)` of the first non-finite component at `(q, q̇)` over the times
+    `ts` (in order), or `None`. Best effort: never raises."""
     try:
         parts = _probe(system, field, jnp.asarray(ts, q.dtype), q, qd, params, tau_const)
         for name, value in parts.items():
@@ -85,8 +85,8 @@ def diagnose(
 ) -> str:
     """A readable account of why a solve failed, from the states it reached.
 
-    ``tau_fn`` / ``tau_const`` are the solve's inputs, ``y0`` its initial state (the
-    reference for a mass matrix that collapses during the solve) and ``t1`` its end.
+    `tau_fn` / `tau_const` are the solve's inputs, `y0` its initial state (the
+    reference for a mass matrix that collapses during the solve) and `t1` its end.
     """
     t_end = float(sol.t_end)
     q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)

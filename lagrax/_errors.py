@@ -6,7 +6,7 @@ class LagraxError(Exception):
 
 
 class ShapeError(LagraxError, ValueError):
-    """An array has the wrong shape for the system (e.g. ``q`` of length 3 for a 2-DOF arm)."""
+    """An array has the wrong shape for the system (e.g. `q` of length 3 for a 2-DOF arm)."""
 
 
 class NonFiniteError(LagraxError, ValueError):
@@ -14,14 +14,14 @@ class NonFiniteError(LagraxError, ValueError):
 
 
 class ParameterError(LagraxError, KeyError):
-    """``params`` lacks an entry that an energy or force function reads."""
+    """`params` lacks an entry that an energy or force function reads."""
 
     def __str__(self) -> str:  # KeyError would quote the whole message
         return str(self.args[0])
 
 
 class MassMatrixError(LagraxError, ValueError):
-    """The mass matrix ``M(q) = ∂²T/∂q̇²`` is singular or not positive-definite."""
+    """The mass matrix `M(q) = ∂²T/∂q̇²` is singular or not positive-definite."""
 
 
 class SimulationError(LagraxError, RuntimeError):
@@ -29,14 +29,14 @@ class SimulationError(LagraxError, RuntimeError):
 
 
 class ConstraintError(LagraxError, ValueError):
-    """Holonomic constraints cannot be enforced: their Jacobian ``J = ∂φ/∂q`` is
+    """Holonomic constraints cannot be enforced: their Jacobian `J = ∂φ/∂q` is
     rank-deficient (redundant constraints or a singular configuration, so the KKT matrix
-    ``[[M, Jᵀ], [J, 0]]`` is singular), or a state cannot be projected onto ``φ(q) = 0``."""
+    `[[M, Jᵀ], [J, 0]]` is singular), or a state cannot be projected onto `φ(q) = 0`."""
 
 
 class ConfigurationError(LagraxError, ValueError):
-    """An option has a value lagrax cannot use (``t1 <= t0``, an unknown method name,
-    ``dt`` together with ``stepsize_controller``, ...): the message names the option, the
+    """An option has a value lagrax cannot use (`t1 <= t0`, an unknown method name,
+    `dt` together with `stepsize_controller`, ...): the message names the option, the
     value and the fix."""
 
 
@@ -59,5 +59,5 @@ class CheckpointWarning(UserWarning):
 
 class URDFError(LagraxError, ValueError):
     """A URDF model cannot be read into a tree: malformed XML, a missing or unphysical
-    ``<inertial>``, a link with two parents or a loop, an unknown or unsupported joint
+    `<inertial>`, a link with two parents or a loop, an unknown or unsupported joint
     type. The message names the link or joint and says what to fix."""

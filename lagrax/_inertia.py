@@ -1,9 +1,9 @@
 """Inertia tensors: common shapes, the parallel-axis theorem, rotation, principal axes.
 
-Conventions (the lecture's): the inertia matrix of a body about a point ``P`` in a frame
-``A`` is ``ᴬI_P = ∫ −[r]² ρ dV``, with ``r`` the position of the volume element relative to
-``P`` in ``A`` components and ``[r]`` its skew-symmetric cross-product matrix. Diagonal
-entries are ``I_xx = ∫ (y² + z²) ρ dV`` etc., off-diagonal entries ``I_xy = −∫ x y ρ dV``.
+Conventions (the lecture's): the inertia matrix of a body about a point `P` in a frame
+`A` is `ᴬI_P = ∫ −[r]² ρ dV`, with `r` the position of the volume element relative to
+`P` in `A` components and `[r]` its skew-symmetric cross-product matrix. Diagonal
+entries are `I_xx = ∫ (y² + z²) ρ dV` etc., off-diagonal entries `I_xy = −∫ x y ρ dV`.
 """
 
 from typing import Any, NamedTuple
@@ -41,17 +41,18 @@ def _diag_along(axis: int, along, across) -> Float[Array, "3 3"]:
 def rod_inertia(mass: ArrayLike, length: ArrayLike, axis: int | str = "x") -> Float[Array, "3 3"]:
     """Inertia of a slender uniform rod about its centre, in axes aligned with the rod.
 
-    ``I = m L² / 12`` about both axes perpendicular to the rod, ``0`` about the rod's own
+    `I = m L² / 12` about both axes perpendicular to the rod, `0` about the rod's own
     axis (the slender-rod idealization: this tensor is only positive *semi*-definite; use
-    :func:`cylinder_inertia` when the spin about the rod's axis matters).
+    [`cylinder_inertia`][lagrax.bodies.cylinder_inertia] when the spin about the rod's axis
+    matters).
 
     **Arguments:**
 
-    - ``mass``: ``m``.
-    - ``length``: ``L``.
-    - ``axis``: the axis the rod lies along, ``"x"`` (default), ``"y"`` or ``"z"`` (or 0, 1, 2).
+    - `mass`: `m`.
+    - `length`: `L`.
+    - `axis`: the axis the rod lies along, `"x"` (default), `"y"` or `"z"` (or 0, 1, 2).
 
-    **Returns:** a ``(3, 3)`` diagonal matrix.
+    **Returns:** a `(3, 3)` diagonal matrix.
     """
     m, length = jnp.asarray(mass), jnp.asarray(length)
     return _diag_along(_axis(axis), jnp.zeros_like(m * length), m * length**2 / 12)
@@ -60,15 +61,15 @@ def rod_inertia(mass: ArrayLike, length: ArrayLike, axis: int | str = "x") -> Fl
 def box_inertia(mass: ArrayLike, size: Float[ArrayLike, "3"]) -> Float[Array, "3 3"]:
     """Inertia of a uniform solid box (cuboid) about its centre, in axes along its edges.
 
-    With edge lengths ``(a, b, c)`` along ``(x, y, z)``:
-    ``I = m/12 · diag(b² + c², a² + c², a² + b²)``.
+    With edge lengths `(a, b, c)` along `(x, y, z)`:
+    `I = m/12 · diag(b² + c², a² + c², a² + b²)`.
 
     **Arguments:**
 
-    - ``mass``: ``m``.
-    - ``size``: the edge lengths ``(a, b, c)``.
+    - `mass`: `m`.
+    - `size`: the edge lengths `(a, b, c)`.
 
-    **Returns:** a ``(3, 3)`` diagonal matrix.
+    **Returns:** a `(3, 3)` diagonal matrix.
     """
     m = jnp.asarray(mass)
     size = jnp.asarray(size)
@@ -83,31 +84,31 @@ def cylinder_inertia(
 ) -> Float[Array, "3 3"]:
     """Inertia of a uniform solid circular cylinder about its centre.
 
-    About its own axis ``I = m R² / 2``; about any axis through the centre perpendicular to
-    it ``I = m (3 R² + h²) / 12``.
+    About its own axis `I = m R² / 2`; about any axis through the centre perpendicular to
+    it `I = m (3 R² + h²) / 12`.
 
     **Arguments:**
 
-    - ``mass``: ``m``.
-    - ``radius``: ``R``.
-    - ``height``: ``h`` (its length along the axis).
-    - ``axis``: the cylinder's axis, ``"z"`` (default), ``"x"`` or ``"y"`` (or 0, 1, 2).
+    - `mass`: `m`.
+    - `radius`: `R`.
+    - `height`: `h` (its length along the axis).
+    - `axis`: the cylinder's axis, `"z"` (default), `"x"` or `"y"` (or 0, 1, 2).
 
-    **Returns:** a ``(3, 3)`` diagonal matrix.
+    **Returns:** a `(3, 3)` diagonal matrix.
     """
     m, r, h = jnp.asarray(mass), jnp.asarray(radius), jnp.asarray(height)
     return _diag_along(_axis(axis), m * r**2 / 2, m * (3 * r**2 + h**2) / 12)
 
 
 def sphere_inertia(mass: ArrayLike, radius: ArrayLike) -> Float[Array, "3 3"]:
-    """Inertia of a uniform solid sphere about its centre: ``I = 2/5 m R²`` about every axis.
+    """Inertia of a uniform solid sphere about its centre: `I = 2/5 m R²` about every axis.
 
     **Arguments:**
 
-    - ``mass``: ``m``.
-    - ``radius``: ``R``.
+    - `mass`: `m`.
+    - `radius`: `R`.
 
-    **Returns:** a ``(3, 3)`` diagonal matrix.
+    **Returns:** a `(3, 3)` diagonal matrix.
     """
     m, r = jnp.asarray(mass), jnp.asarray(radius)
     i = 2 * m * r**2 / 5
@@ -119,23 +120,23 @@ def parallel_axis(
     mass: ArrayLike,
     offset: Float[ArrayLike, " d"],
 ) -> Float[Array, "..."]:
-    """Parallel-axis theorem: inertia about a point ``P`` from the inertia about the CoM.
+    """Parallel-axis theorem: inertia about a point `P` from the inertia about the CoM.
 
-    In 3-D, ``I_P = I_C + m (‖d‖² 1 − d dᵀ)``; in the plane (a scalar inertia about the
-    z axis and ``d`` of length 2), ``I_P = I_C + m ‖d‖²``. ``d`` is the vector between the
-    centre of mass ``C`` and ``P`` (its sign does not matter), in the same frame as ``I_C``.
+    In 3-D, `I_P = I_C + m (‖d‖² 1 − d dᵀ)`; in the plane (a scalar inertia about the
+    z axis and `d` of length 2), `I_P = I_C + m ‖d‖²`. `d` is the vector between the
+    centre of mass `C` and `P` (its sign does not matter), in the same frame as `I_C`.
     Only valid from the centre of mass: shifting between two other points needs two steps.
 
     **Arguments:**
 
-    - ``inertia``: ``I_C``, a ``(3, 3)`` matrix about the centre of mass (or a scalar for a
+    - `inertia`: `I_C`, a `(3, 3)` matrix about the centre of mass (or a scalar for a
       planar body).
-    - ``mass``: ``m``.
-    - ``offset``: ``d``, shape ``(3,)`` (or ``(2,)`` with a scalar inertia).
+    - `mass`: `m`.
+    - `offset`: `d`, shape `(3,)` (or `(2,)` with a scalar inertia).
 
-    **Returns:** ``I_P``, the same shape as ``inertia``.
+    **Returns:** `I_P`, the same shape as `inertia`.
 
-    **Raises:** ``ShapeError`` if the shapes do not match either case.
+    **Raises:** `ShapeError` if the shapes do not match either case.
     """
     inertia, m, d = jnp.asarray(inertia), jnp.asarray(mass), jnp.asarray(offset)
     if inertia.ndim == 0 and d.shape in ((2,), (3,)):
@@ -150,15 +151,15 @@ def parallel_axis(
 
 
 def rotate_inertia(inertia: Inertia, rotation: Rotation) -> Float[Array, "3 3"]:
-    """Change of frame of an inertia tensor about a fixed point: ``ᴬI = ᴬR_B ᴮI ᴬR_Bᵀ``.
+    """Change of frame of an inertia tensor about a fixed point: `ᴬI = ᴬR_B ᴮI ᴬR_Bᵀ`.
 
     **Arguments:**
 
-    - ``inertia``: ``ᴮI``, the inertia in frame ``B`` components.
-    - ``rotation``: ``ᴬR_B``, the rotation matrix taking ``B`` components to ``A``
-      components (its columns are ``B``'s axes written in ``A``).
+    - `inertia`: `ᴮI`, the inertia in frame `B` components.
+    - `rotation`: `ᴬR_B`, the rotation matrix taking `B` components to `A`
+      components (its columns are `B`'s axes written in `A`).
 
-    **Returns:** ``ᴬI``, shape ``(3, 3)``. Trace, eigenvalues (principal moments) and
+    **Returns:** `ᴬI`, shape `(3, 3)`. Trace, eigenvalues (principal moments) and
     determinant are unchanged.
     """
     inertia, rotation = jnp.asarray(inertia), jnp.asarray(rotation)
@@ -170,26 +171,26 @@ def rotate_inertia(inertia: Inertia, rotation: Rotation) -> Float[Array, "3 3"]:
 
 
 class PrincipalAxes(NamedTuple):
-    """Principal moments and axes of an inertia tensor: ``I = axes @ diag(moments) @ axes.T``."""
+    """Principal moments and axes of an inertia tensor: `I = axes @ diag(moments) @ axes.T`."""
 
     moments: Float[Array, "3"]
-    """Principal moments of inertia, ascending (``I1 ≤ I2 ≤ I3``)."""
+    """Principal moments of inertia, ascending (`I1 ≤ I2 ≤ I3`)."""
     axes: Float[Array, "3 3"]
-    """Principal axes as columns (unit eigenvectors); a proper rotation (``det = +1``)."""
+    """Principal axes as columns (unit eigenvectors); a proper rotation (`det = +1`)."""
 
 
 def principal_axes(inertia: Inertia) -> PrincipalAxes:
-    """Principal moments and axes of a symmetric inertia tensor by ``jnp.linalg.eigh``.
+    """Principal moments and axes of a symmetric inertia tensor by `jnp.linalg.eigh`.
 
-    The eigenvectors are real and orthonormal because ``I`` is symmetric; the last axis is
-    flipped if needed so that the axes form a right-handed frame (``det = +1``), i.e. a
-    rotation from the principal frame to the frame of ``inertia``.
+    The eigenvectors are real and orthonormal because `I` is symmetric; the last axis is
+    flipped if needed so that the axes form a right-handed frame (`det = +1`), i.e. a
+    rotation from the principal frame to the frame of `inertia`.
 
     **Arguments:**
 
-    - ``inertia``: a symmetric ``(3, 3)`` matrix.
+    - `inertia`: a symmetric `(3, 3)` matrix.
 
-    **Returns:** :class:`PrincipalAxes` ``(moments, axes)``.
+    **Returns:** [`PrincipalAxes`][lagrax.bodies.PrincipalAxes] `(moments, axes)`.
     """
     inertia = jnp.asarray(inertia)
     if inertia.shape != (3, 3):
@@ -211,35 +212,35 @@ def check_inertia(
     semidefinite: bool = False,
     rtol: float | None = None,
 ) -> Float[Array, "..."]:
-    """Check that ``inertia`` is a physical inertia tensor, and return it.
+    """Check that `inertia` is a physical inertia tensor, and return it.
 
     A 3×3 inertia about any point must be
 
-    - symmetric (``|I − Iᵀ| ≤ rtol · max|I|``),
-    - positive-definite (all principal moments ``> rtol · max moment``; with
-      ``semidefinite=True``, ``≥ −rtol · max moment``, which admits slender rods and point
+    - symmetric (`|I − Iᵀ| ≤ rtol · max|I|`),
+    - positive-definite (all principal moments `> rtol · max moment`; with
+      `semidefinite=True`, `≥ −rtol · max moment`, which admits slender rods and point
       masses (all moments zero)),
-    - and satisfy the triangle inequality of its principal moments, ``I1 + I2 ≥ I3``
-      (``I_xx + I_yy = ∫ (x² + y² + 2 z²) ρ dV ≥ ∫ (x² + y²) ρ dV = I_zz`` in principal axes).
+    - and satisfy the triangle inequality of its principal moments, `I1 + I2 ≥ I3`
+      (`I_xx + I_yy = ∫ (x² + y² + 2 z²) ρ dV ≥ ∫ (x² + y²) ρ dV = I_zz` in principal axes).
 
-    A scalar (planar) inertia must be positive (non-negative with ``semidefinite=True``). A
-    stack of shape ``(k, 3, 3)`` or ``(k,)`` is checked member by member.
+    A scalar (planar) inertia must be positive (non-negative with `semidefinite=True`). A
+    stack of shape `(k, 3, 3)` or `(k,)` is checked member by member.
 
-    Outside ``jit`` the checks run on concrete values and the error names the offending
-    member and the values seen; under ``jit`` they become one ``equinox.error_if`` with a
+    Outside `jit` the checks run on concrete values and the error names the offending
+    member and the values seen; under `jit` they become one `equinox.error_if` with a
     generic message.
 
     **Arguments:**
 
-    - ``inertia``: a ``(3, 3)`` matrix, a ``(k, 3, 3)`` stack, or scalar/``(k,)`` planar
+    - `inertia`: a `(3, 3)` matrix, a `(k, 3, 3)` stack, or scalar/`(k,)` planar
       inertias.
-    - ``name``: what to call it in messages.
-    - ``semidefinite``: accept zero principal moments.
-    - ``rtol``: relative tolerance (default ``1000 ε`` of the dtype).
+    - `name`: what to call it in messages.
+    - `semidefinite`: accept zero principal moments.
+    - `rtol`: relative tolerance (default `1000 ε` of the dtype).
 
-    **Returns:** ``inertia`` as an array.
+    **Returns:** `inertia` as an array.
 
-    **Raises:** ``ParameterError`` naming the value seen when a check fails; ``ShapeError``
+    **Raises:** `ParameterError` naming the value seen when a check fails; `ShapeError`
     for a shape that is neither of the above.
     """
     arr = jnp.asarray(inertia)

@@ -1,26 +1,26 @@
 """A work queue of ODE solves on a fixed number of vectorized lanes.
 
-Under ``vmap``, ``diffrax.diffeqsolve`` steps every member of a batch until the slowest
+Under `vmap`, `diffrax.diffeqsolve` steps every member of a batch until the slowest
 one has finished; members that are done ride along as masked padding. For a sweep of a
 chaotic or stiff model the step counts differ by large factors, and that padding is a
 large share of the work.
 
-``run_lanes`` instead keeps ``L`` lanes busy: each lane integrates one member; when a
-member finishes (reaches ``t1``, runs out of steps, or blows up) its results are written
+`run_lanes` instead keeps `L` lanes busy: each lane integrates one member; when a
+member finishes (reaches `t1`, runs out of steps, or blows up) its results are written
 to the output and the lane is refilled with the next member of the queue, all inside one
 compiled program. The schedule, in three phases:
 
-1. the lanes start free, and the first members fill them, ``refill`` at a time;
-2. while members are left to start: lanes step until ``refill`` of them are free (or
-   as many as there are members left), then one block of ``refill`` members is started
-   on them. A refill initializes only those ``refill`` members (a fraction of a step's
+1. the lanes start free, and the first members fill them, `refill` at a time;
+2. while members are left to start: lanes step until `refill` of them are free (or
+   as many as there are members left), then one block of `refill` members is started
+   on them. A refill initializes only those `refill` members (a fraction of a step's
    work), so it can be frequent; the stepping loop has no branch inside, so each step
    is one loop iteration with a single loop test (on an accelerator: one device-to-host
    read of the predicate), and the refill branch is taken once per block;
 3. when the queue is empty, the lanes still busy finish. This tail is where lanes idle:
-   with ``tail_lanes`` (``2 <= tail_lanes < L``), once no more than ``tail_lanes``
-   members are left, they are gathered into a second, narrower loop of ``tail_lanes``
-   lanes (one extra compiled loop body), so the slowest members no longer drag ``L``
+   with `tail_lanes` (`2 <= tail_lanes < L`), once no more than `tail_lanes`
+   members are left, they are gathered into a second, narrower loop of `tail_lanes`
+   lanes (one extra compiled loop body), so the slowest members no longer drag `L`
    lanes along.
 
 Every member takes the same steps whatever its lane, block or phase: the arithmetic is
@@ -28,10 +28,10 @@ elementwise over lanes, so its numbers do not depend on the schedule (bitwise, f
 of two lanes and more: a one-lane loop may round differently, so the tail loop is never
 narrower than two).
 
-The stepping is diffrax's own, through ``_integrate.advance`` (shared with ``simulate``'s
-single-trajectory loop): ``solver.step``, ``stepsize_controller.adapt_step_size``, the
-same clipping to ``t1`` and the same dense output at the save times, so each member takes
-the steps ``diffeqsolve`` would take for it (up to round-off in the controller).
+The stepping is diffrax's own, through `_integrate.advance` (shared with `simulate`'s
+single-trajectory loop): `solver.step`, `stepsize_controller.adapt_step_size`, the
+same clipping to `t1` and the same dense output at the save times, so each member takes
+the steps `diffeqsolve` would take for it (up to round-off in the controller).
 """
 
 from functools import partial
@@ -50,7 +50,7 @@ _OK = int(code_of(RESULTS.successful))
 
 
 class LaneOutput(eqx.Module):
-    """What ``run_lanes`` returns, indexed by member (leading axis ``M``)."""
+    """What `run_lanes` returns, indexed by member (leading axis `M`)."""
 
     ys: Any  # pytree of (M, S, ...): the state at the save times (inf where not reached)
     y_end: Any  # pytree of (M, ...): the last state reached
@@ -66,7 +66,7 @@ class LaneOutput(eqx.Module):
 
 
 class _Queue(eqx.Module):
-    """The lanes and the queue position (the loop state of ``run_lanes``)."""
+    """The lanes and the queue position (the loop state of `run_lanes`)."""
 
     lane: _integrate.StepState  # (L,): one trajectory per lane
     member: Any  # (L, ...): each lane's member arguments
@@ -78,7 +78,7 @@ class _Queue(eqx.Module):
 
 
 class _Outputs(eqx.Module):
-    """Per-member results, written when a member finishes (leading axis ``M``)."""
+    """Per-member results, written when a member finishes (leading axis `M`)."""
 
     ys: Any
     y_end: Any
@@ -100,12 +100,12 @@ def _scatter(out, rows, vals):
 
 
 def default_refill(n_lanes: int) -> int:
-    """The refill block of ``run_lanes`` when none is given: a sixteenth of the lanes."""
+    """The refill block of `run_lanes` when none is given: a sixteenth of the lanes."""
     return max(1, n_lanes // 16)
 
 
 def _scatter_rows(tree, rows, vals):
-    """``tree[rows] = vals`` over matching pytrees (rows out of range are dropped); static
+    """`tree[rows] = vals` over matching pytrees (rows out of range are dropped); static
     (Python) leaves pass through."""
 
     def put(a, v):
@@ -137,24 +137,24 @@ def run_lanes(
     refill: int | None = None,
     tail_lanes: int = 0,
 ) -> LaneOutput:
-    """Solve ``y' = f(t, y, (member, extra_args))`` for every member on ``n_lanes`` lanes.
+    """Solve `y' = f(t, y, (member, extra_args))` for every member on `n_lanes` lanes.
 
     **Arguments:**
 
-    - ``term``, ``solver``, ``controller``: as for ``diffrax.diffeqsolve``.
-    - ``members``: pytree whose leaves have a leading axis ``M`` (per-member arguments).
-    - ``y0s``: pytree of initial states with leading axis ``M``.
-    - ``extra_args``: arguments shared by all members.
-    - ``t0``, ``t1``, ``dt0``: the interval, and the first step (``None``: chosen by the
+    - `term`, `solver`, `controller`: as for `diffrax.diffeqsolve`.
+    - `members`: pytree whose leaves have a leading axis `M` (per-member arguments).
+    - `y0s`: pytree of initial states with leading axis `M`.
+    - `extra_args`: arguments shared by all members.
+    - `t0`, `t1`, `dt0`: the interval, and the first step (`None`: chosen by the
       controller, as in diffrax).
-    - ``ts``: save times, sorted, inside ``[t0, t1]``; may be empty.
-    - ``n_lanes``: number of members integrated at once.
-    - ``max_steps``: step budget per member (accepted + rejected).
-    - ``refill``: members started per refill (default :func:`default_refill`).
-    - ``tail_lanes``: width of the narrower loop the last members finish on once the
-      queue is empty (none when below 2 or not below ``n_lanes``).
+    - `ts`: save times, sorted, inside `[t0, t1]`; may be empty.
+    - `n_lanes`: number of members integrated at once.
+    - `max_steps`: step budget per member (accepted + rejected).
+    - `refill`: members started per refill (default `default_refill`).
+    - `tail_lanes`: width of the narrower loop the last members finish on once the
+      queue is empty (none when below 2 or not below `n_lanes`).
 
-    **Returns:** a :class:`LaneOutput`.
+    **Returns:** a `LaneOutput`.
     """
     n_members = jtu.tree_leaves(y0s)[0].shape[0]
     n_lanes = max(1, min(n_lanes, n_members))

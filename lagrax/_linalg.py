@@ -1,14 +1,14 @@
 """Small dense SPD solves for the equations of motion.
 
 Mass matrices of mechanisms are small (n ≲ 10) and are solved once per right-hand-side
-evaluation, usually under ``vmap``. A LAPACK call per solve is slow at that size, so for
-``n <= _UNROLL_MAX`` the factorization is unrolled into scalar arithmetic that XLA fuses
+evaluation, usually under `vmap`. A LAPACK call per solve is slow at that size, so for
+`n <= _UNROLL_MAX` the factorization is unrolled into scalar arithmetic that XLA fuses
 with the derivative computation into one loop over the batch. Larger systems use
-``jax.scipy.linalg.cho_factor``/``cho_solve``. No inverse is ever formed.
+`jax.scipy.linalg.cho_factor`/`cho_solve`. No inverse is ever formed.
 
 Every solve returns NaN (rather than a finite wrong answer) when the matrix is not
 positive-definite or is singular to working precision: a Cholesky pivot
-``d_j <= tol · max_i |m_ii|`` with ``tol = 64 ε`` is replaced by NaN, so the failure
+`d_j <= tol · max_i |m_ii|` with `tol = 64 ε` is replaced by NaN, so the failure
 propagates to the accelerations, where callers detect it.
 
 A note on speed: in XLA:CPU an intermediate with several consumers becomes a fusion
@@ -30,17 +30,17 @@ def _tol(x) -> float:
 
 
 def _checked(d, bound):
-    """The pivot ``d`` if it exceeds ``bound``, else NaN."""
+    """The pivot `d` if it exceeds `bound`, else NaN."""
     return jnp.where(d > bound, d, jnp.nan)
 
 
 def solve_spd_unrolled(rows: list, rhs: list) -> Float[Array, " n"]:
-    """Solve ``m x = b`` for a small SPD ``m`` given as nested lists of scalars.
+    """Solve `m x = b` for a small SPD `m` given as nested lists of scalars.
 
-    ``n = 1, 2`` use the Cholesky pivots directly: for ``n = 2``, ``d1 = m11`` and
-    ``d2 = det/m11``, and the solve is ``x = adj(m) b / det`` with ``det = d1 d2`` (one
-    division). ``n >= 3`` is an unrolled Cholesky factorization ``m = L Lᵀ`` and two
-    triangular solves. NaN where ``m`` is not positive-definite (see module docstring).
+    `n = 1, 2` use the Cholesky pivots directly: for `n = 2`, `d1 = m11` and
+    `d2 = det/m11`, and the solve is `x = adj(m) b / det` with `det = d1 d2` (one
+    division). `n >= 3` is an unrolled Cholesky factorization `m = L Lᵀ` and two
+    triangular solves. NaN where `m` is not positive-definite (see module docstring).
     """
     n = len(rhs)
     scale = jnp.abs(rows[0][0])
@@ -74,10 +74,10 @@ def solve_spd_unrolled(rows: list, rhs: list) -> Float[Array, " n"]:
 
 
 def cholesky_solve(m: Float[Array, "n n"], b: Float[Array, " n"]) -> Float[Array, " n"]:
-    """Solve ``m x = b`` for symmetric positive-definite ``m`` (NaN if it is not).
+    """Solve `m x = b` for symmetric positive-definite `m` (NaN if it is not).
 
-    Unrolled for ``n <= _UNROLL_MAX`` (see :func:`solve_spd_unrolled`), LAPACK
-    (``cho_factor``/``cho_solve``) above.
+    Unrolled for `n <= _UNROLL_MAX` (see `solve_spd_unrolled`), LAPACK
+    (`cho_factor`/`cho_solve`) above.
     """
     n = m.shape[-1]
     if n <= _UNROLL_MAX:
@@ -91,11 +91,11 @@ def cholesky_solve(m: Float[Array, "n n"], b: Float[Array, " n"]) -> Float[Array
 
 
 def lu_factor_small(a: Float[Array, "n n"]):
-    """LU factorization with partial pivoting of a small general matrix: ``P a = L U``.
+    """LU factorization with partial pivoting of a small general matrix: `P a = L U`.
 
-    Unrolled over the columns for ``n <= _UNROLL_MAX`` (no LAPACK call, so it fuses into
-    the surrounding solver loop); ``jax.scipy.linalg.lu_factor`` above. Returns an opaque
-    factorization for :func:`lu_solve_small`. A singular ``a`` gives non-finite solutions.
+    Unrolled over the columns for `n <= _UNROLL_MAX` (no LAPACK call, so it fuses into
+    the surrounding solver loop); `jax.scipy.linalg.lu_factor` above. Returns an opaque
+    factorization for `lu_solve_small`. A singular `a` gives non-finite solutions.
     """
     n = a.shape[-1]
     if n > _UNROLL_MAX:
@@ -114,7 +114,7 @@ def lu_factor_small(a: Float[Array, "n n"]):
 
 
 def lu_solve_small(factors, b: Float[Array, " n"]) -> Float[Array, " n"]:
-    """Solve ``a x = b`` from :func:`lu_factor_small`'s factorization of ``a``."""
+    """Solve `a x = b` from `lu_factor_small`'s factorization of `a`."""
     lu, pivots = factors
     n = b.shape[0]
     if n > _UNROLL_MAX:

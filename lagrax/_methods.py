@@ -1,4 +1,4 @@
-"""Named integration methods for ``simulate``: what each is, and how it must be run."""
+"""Named integration methods for `simulate`: what each is, and how it must be run."""
 
 import functools
 import math
@@ -72,7 +72,7 @@ def _instance(make: Callable[[], dfx.AbstractSolver]) -> dfx.AbstractSolver:
 
 
 def resolve_solver(solver) -> tuple[dfx.AbstractSolver, bool]:
-    """``(diffrax solver, may_be_adaptive)`` from a method name or a solver instance."""
+    """`(diffrax solver, may_be_adaptive)` from a method name or a solver instance."""
     if solver is None:
         solver = "tsit5"
     if isinstance(solver, str):
@@ -88,9 +88,9 @@ def resolve_solver(solver) -> tuple[dfx.AbstractSolver, bool]:
 
 
 def fixed_step_budget(t0: float, t1: float, dt: float) -> int:
-    """Steps needed at a fixed ``dt``, rounded up to a power of two, at least 4096.
+    """Steps needed at a fixed `dt`, rounded up to a power of two, at least 4096.
 
-    ``max_steps`` is a compile-time constant for diffrax; rounding keeps the number of
+    `max_steps` is a compile-time constant for diffrax; rounding keeps the number of
     distinct budgets (and so of compilations) logarithmic in the step count.
     """
     needed = math.ceil((float(t1) - float(t0)) / float(dt) * (1 + 1e-12)) + 1
@@ -98,13 +98,13 @@ def fixed_step_budget(t0: float, t1: float, dt: float) -> int:
 
 
 def configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):
-    """``(solver, stepsize_controller, dt0, max_steps)`` for a solve, with lagrax's defaults.
+    """`(solver, stepsize_controller, dt0, max_steps)` for a solve, with lagrax's defaults.
 
-    Shared by ``simulate`` and ``sweep``. ``stepsize_controller`` stays ``None`` for the
-    default ``PIDController(rtol, atol)``; the step budget is sized for a fixed ``dt``
-    when ``t0``, ``t1`` and ``dt`` are concrete. Every option is validated here (see the
-    options section of ``_checks``): a bad concrete value raises a ``ConfigurationError``,
-    a traced one fails at run time through ``equinox.error_if``.
+    Shared by `simulate` and `sweep`. `stepsize_controller` stays `None` for the
+    default `PIDController(rtol, atol)`; the step budget is sized for a fixed `dt`
+    when `t0`, `t1` and `dt` are concrete. Every option is validated here (see the
+    options section of `_checks`): a bad concrete value raises a `ConfigurationError`,
+    a traced one fails at run time through `equinox.error_if`.
     """
     named_implicit = isinstance(solver, str)  # configure only the solvers we built
     solver, may_adapt = resolve_solver(solver)

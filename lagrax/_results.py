@@ -31,14 +31,14 @@ class RESULTS(dfx.RESULTS):
 
 
 def code_of(result: RESULTS):
-    """The integer code of a result (an ``int32`` array, batched under ``vmap``): a result
+    """The integer code of a result (an `int32` array, batched under `vmap`): a result
     is a pytree whose one leaf is its code."""
     (value,) = jtu.tree_leaves(result)
     return value
 
 
 def from_code(code) -> RESULTS:
-    """The ``RESULTS`` item with integer code ``code`` (e.g. one read back from a file)."""
+    """The `RESULTS` item with integer code `code` (e.g. one read back from a file)."""
     return jtu.tree_unflatten(jtu.tree_structure(RESULTS.successful), [code])
 
 

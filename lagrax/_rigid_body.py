@@ -27,7 +27,7 @@ TorqueFn = Callable[[Array, Quaternion, Vector3], Vector3]
 
 # ------------------------------------------------------------------ attitude maps
 def hat(w: Float[ArrayLike, "3"]) -> Matrix3:
-    """The skew-symmetric matrix ``[w]×`` with ``[w]× v = w × v``."""
+    """The skew-symmetric matrix `[w]×` with `[w]× v = w × v`."""
     w = jnp.asarray(w)
     zero = jnp.zeros_like(w[0])
     return jnp.stack(
@@ -40,13 +40,13 @@ def hat(w: Float[ArrayLike, "3"]) -> Matrix3:
 
 
 def vee(s: Float[ArrayLike, "3 3"]) -> Vector3:
-    """Inverse of :func:`hat`: the vector of the skew part of ``s``."""
+    """Inverse of [`hat`][lagrax.rigid_body.hat]: the vector of the skew part of `s`."""
     s = jnp.asarray(s)
     return 0.5 * jnp.stack([s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1]])
 
 
 def quaternion_product(p: Float[ArrayLike, "4"], q: Float[ArrayLike, "4"]) -> Quaternion:
-    """Hamilton product ``p ⊗ q`` of quaternions ``(w, x, y, z)`` (scalar first)."""
+    """Hamilton product `p ⊗ q` of quaternions `(w, x, y, z)` (scalar first)."""
     p, q = jnp.asarray(p), jnp.asarray(q)
     pw, pv, qw, qv = p[0], p[1:], q[0], q[1:]
     return jnp.concatenate(
@@ -55,9 +55,9 @@ def quaternion_product(p: Float[ArrayLike, "4"], q: Float[ArrayLike, "4"]) -> Qu
 
 
 def quaternion_to_matrix(quat: Float[ArrayLike, "4"]) -> Matrix3:
-    """Rotation matrix ``R`` (body → space: ``x_space = R x_body``) of the quaternion
-    ``(w, x, y, z)``, normalized first (so a slightly drifted norm still gives an exactly
-    orthogonal ``R``): ``R = I + 2w[v]× + 2[v]×²`` for the unit quaternion ``(w, v)``."""
+    """Rotation matrix `R` (body → space: `x_space = R x_body`) of the quaternion
+    `(w, x, y, z)`, normalized first (so a slightly drifted norm still gives an exactly
+    orthogonal `R`): `R = I + 2w[v]× + 2[v]×²` for the unit quaternion `(w, v)`."""
     quat = jnp.asarray(quat)
     quat = quat / jnp.sqrt(jnp.sum(quat**2))
     v = hat(quat[1:])
@@ -77,16 +77,16 @@ def _axis_rotation(angle, axis: int):
 
 
 def euler_angles_to_matrix(angles: Float[ArrayLike, "3"]) -> Matrix3:
-    """``R = R_z(ψ) R_y(θ) R_x(φ)`` for ZYX (yaw–pitch–roll, intrinsic) Euler angles
-    ``angles = (ψ, θ, φ)``: rotate about the body z axis by ψ, then about the new y axis by
-    θ, then about the newest x axis by φ. Body → space. Gimbal lock at ``θ = ±π/2``."""
+    """`R = R_z(ψ) R_y(θ) R_x(φ)` for ZYX (yaw–pitch–roll, intrinsic) Euler angles
+    `angles = (ψ, θ, φ)`: rotate about the body z axis by ψ, then about the new y axis by
+    θ, then about the newest x axis by φ. Body → space. Gimbal lock at `θ = ±π/2`."""
     a = jnp.asarray(angles)
     return _axis_rotation(a[0], 2) @ _axis_rotation(a[1], 1) @ _axis_rotation(a[2], 0)
 
 
 def euler_angles_to_quaternion(angles: Float[ArrayLike, "3"]) -> Quaternion:
-    """The unit quaternion of :func:`euler_angles_to_matrix`: ``q_z(ψ) ⊗ q_y(θ) ⊗ q_x(φ)``
-    with ``q_axis(a) = (cos a/2, sin a/2 · axis)``."""
+    """The unit quaternion of [`euler_angles_to_matrix`][lagrax.rigid_body.euler_angles_to_matrix]:
+    `q_z(ψ) ⊗ q_y(θ) ⊗ q_x(φ)` with `q_axis(a) = (cos a/2, sin a/2 · axis)`."""
     a = jnp.asarray(angles)
 
     def about(angle, axis):
@@ -98,13 +98,13 @@ def euler_angles_to_quaternion(angles: Float[ArrayLike, "3"]) -> Quaternion:
 
 
 def body_angular_velocity(angles: Float[ArrayLike, "3"], rates: Float[ArrayLike, "3"]) -> Vector3:
-    """Body-frame angular velocity ``ω`` (``[ω]× = Rᵀ Ṙ``) of ZYX Euler angles ``(ψ, θ, φ)``
+    """Body-frame angular velocity `ω` (`[ω]× = Rᵀ Ṙ`) of ZYX Euler angles `(ψ, θ, φ)`
     and their rates: each rate turns the body about its own axis, carried to the body
     frame by the rotations that follow it,
 
         ω = ψ̇ (R_y(θ) R_x(φ))ᵀ e_z + θ̇ R_x(φ)ᵀ e_y + φ̇ e_x = E(θ, φ) (ψ̇, θ̇, φ̇),
 
-    linear in the rates with ``det E = −cos θ`` (singular at gimbal lock ``θ = ±π/2``).
+    linear in the rates with `det E = −cos θ` (singular at gimbal lock `θ = ±π/2`).
     """
     a = jnp.asarray(angles)
     r = jnp.asarray(rates)
@@ -114,9 +114,10 @@ def body_angular_velocity(angles: Float[ArrayLike, "3"], rates: Float[ArrayLike,
 
 
 def euler_angle_rates(angles: Float[ArrayLike, "3"], omega: Float[ArrayLike, "3"]) -> Vector3:
-    """Euler-angle rates that produce the body angular velocity ``omega``: the solution of
-    ``E(angles) rates = ω`` (inverse of :func:`body_angular_velocity`). Not finite at
-    gimbal lock (``θ = ±π/2``), where ``E`` is singular."""
+    """Euler-angle rates that produce the body angular velocity `omega`: the solution of
+    `E(angles) rates = ω` (inverse of
+    [`body_angular_velocity`][lagrax.rigid_body.body_angular_velocity]). Not finite at gimbal
+    lock (`θ = ±π/2`), where `E` is singular."""
     angles = jnp.asarray(angles)
     omega = jnp.asarray(omega, angles.dtype)
     e = jax.jacfwd(lambda r: body_angular_velocity(angles, r))(jnp.zeros_like(angles))
@@ -145,16 +146,18 @@ def euler_equations(
 ) -> Vector3:
     r"""Euler's equations of a rigid body about its centre of mass, in the body frame:
 
-    .. math::  I ω̇ + ω × (I ω) = M   ⇒   ω̇ = I⁻¹ (M − ω × I ω)
+    $$
+    I ω̇ + ω × (I ω) = M   ⇒   ω̇ = I⁻¹ (M − ω × I ω)
+    $$
 
     **Arguments:**
 
-    - ``omega``: body-frame angular velocity, shape ``(3,)``.
-    - ``inertia``: principal moments ``(I1, I2, I3)`` (body axes = principal axes) or the
+    - `omega`: body-frame angular velocity, shape `(3,)`.
+    - `inertia`: principal moments `(I1, I2, I3)` (body axes = principal axes) or the
       3×3 inertia matrix about the centre of mass in the body frame.
-    - ``torque``: body-frame moment ``M`` about the centre of mass (default zero).
+    - `torque`: body-frame moment `M` about the centre of mass (default zero).
 
-    **Returns:** ``ω̇``, shape ``(3,)``.
+    **Returns:** `ω̇`, shape `(3,)`.
     """
     omega = jnp.asarray(omega)
     principal = jnp.shape(inertia) == (3,)
@@ -172,17 +175,17 @@ class RigidBodySolution(eqx.Module):
 
     **Fields:**
 
-    - ``ts``: saved times ``(T,)``.
-    - ``quat``: attitude quaternions ``(w, x, y, z)`` (body → space), shape ``(T, 4)``.
-    - ``omega``: body-frame angular velocity, shape ``(T, 3)``.
-    - ``energy``: rotational kinetic energy ``½ ωᵀ I ω``, shape ``(T,)``.
-    - ``angular_momentum``: space-frame angular momentum ``R I ω``, shape ``(T, 3)``
+    - `ts`: saved times `(T,)`.
+    - `quat`: attitude quaternions `(w, x, y, z)` (body → space), shape `(T, 4)`.
+    - `omega`: body-frame angular velocity, shape `(T, 3)`.
+    - `energy`: rotational kinetic energy `½ ωᵀ I ω`, shape `(T,)`.
+    - `angular_momentum`: space-frame angular momentum `R I ω`, shape `(T, 3)`
       (constant without torque).
-    - ``result``, ``stats``: the result code (``lagrax.RESULTS``) and counters (``ok``
+    - `result`, `stats`: the result code (`lagrax.RESULTS`) and counters (`ok`
       tells success).
 
-    Properties: ``rotation`` (``(T, 3, 3)``), ``body_angular_momentum`` (``I ω``, whose
-    magnitude is conserved without torque), ``ok``.
+    Properties: `rotation` (`(T, 3, 3)`), `body_angular_momentum` (`I ω`, whose
+    magnitude is conserved without torque), `ok`.
     """
 
     ts: Float[Array, " T"]
@@ -266,34 +269,36 @@ def simulate_euler(
     r"""Rotation of a rigid body about its centre of mass by Euler's equations, with the
     attitude as a unit quaternion (no singular configuration, unlike Euler angles).
 
-    The state ``(q, ω)`` (attitude quaternion body → space, body angular velocity) obeys
+    The state `(q, ω)` (attitude quaternion body → space, body angular velocity) obeys
 
-    .. math::  q̇ = ½ q ⊗ (0, ω),    I ω̇ = M − ω × I ω,
+    $$
+    q̇ = ½ q ⊗ (0, ω),    I ω̇ = M − ω × I ω,
+    $$
 
     integrated with diffrax (default Tsit5, adaptive). The quaternion's norm is preserved
     by the exact flow and drifts only by the integration error; rotations are formed from
-    the normalized quaternion. Without torque, the kinetic energy ``½ ωᵀ I ω``, the
-    magnitude ``|I ω|`` and the space-frame angular momentum ``R I ω`` are conserved
+    the normalized quaternion. Without torque, the kinetic energy `½ ωᵀ I ω`, the
+    magnitude `|I ω|` and the space-frame angular momentum `R I ω` are conserved
     (reported along the solution to check the integration).
 
     **Arguments:**
 
-    - ``inertia``: principal moments ``(I1, I2, I3)`` or the 3×3 body-frame inertia about
+    - `inertia`: principal moments `(I1, I2, I3)` or the 3×3 body-frame inertia about
       the centre of mass (symmetric positive-definite).
-    - ``omega0``: initial body angular velocity ``(3,)``.
-    - ``t1``, ``t0``: time interval; ``ts`` the save times (default ``n_save`` evenly
+    - `omega0`: initial body angular velocity `(3,)`.
+    - `t1`, `t0`: time interval; `ts` the save times (default `n_save` evenly
       spaced).
-    - ``quat0``: initial attitude ``(w, x, y, z)`` (default identity); normalized.
-    - ``torque``: body-frame moment about the centre of mass: a constant ``(3,)`` or a
-      function ``torque(t, quat, omega) -> (3,)``. Default none (free body).
-    - ``solver``, ``rtol``, ``atol``, ``max_steps``: as for ``lagrax.simulate`` (adaptive
+    - `quat0`: initial attitude `(w, x, y, z)` (default identity); normalized.
+    - `torque`: body-frame moment about the centre of mass: a constant `(3,)` or a
+      function `torque(t, quat, omega) -> (3,)`. Default none (free body).
+    - `solver`, `rtol`, `atol`, `max_steps`: as for `lagrax.simulate` (adaptive
       methods only).
-    - ``throw``: raise ``SimulationError`` on failure (default) or report it in ``result``.
+    - `throw`: raise `SimulationError` on failure (default) or report it in `result`.
 
-    **Returns:** a :class:`RigidBodySolution`.
+    **Returns:** a [`RigidBodySolution`][lagrax.rigid_body.RigidBodySolution].
 
-    **Raises:** ``ShapeError``, ``NonFiniteError`` for bad inputs, ``MassMatrixError``
-    for an inertia that is not symmetric positive-definite, ``SimulationError`` when the
+    **Raises:** `ShapeError`, `NonFiniteError` for bad inputs, `MassMatrixError`
+    for an inertia that is not symmetric positive-definite, `SimulationError` when the
     solve fails.
 
     **Example:** the intermediate-axis (tennis-racket) instability:

@@ -1,23 +1,25 @@
-"""The equations of a :class:`lagrax.bodies.Scene` from its bodies' pose maps.
+"""The equations of a [`lagrax.bodies.Scene`][] from its bodies' pose maps.
 
-A scene knows what its kinetic energy is made of: each body's pose ``P(q)`` (a centre of
-mass ``x_c``, and an angle ``θ`` or a rotation ``R``), its mass and its inertia. With
-the Jacobians ``J_v = ∂x_c/∂q`` and ``J_ω`` (``∂θ/∂q`` in the plane; in space the
-columns ``ω_j = vee(Rᵀ ∂R/∂q_j)``, the body-frame angular velocity per unit ``q̇_j``),
+A scene knows what its kinetic energy is made of: each body's pose `P(q)` (a centre of
+mass `x_c`, and an angle `θ` or a rotation `R`), its mass and its inertia. With
+the Jacobians `J_v = ∂x_c/∂q` and `J_ω` (`∂θ/∂q` in the plane; in space the
+columns `ω_j = vee(Rᵀ ∂R/∂q_j)`, the body-frame angular velocity per unit `q̇_j`),
 
-.. math::
+$$
+M(q) = Σ_b m_b J_{v,b}ᵀ J_{v,b} + J_{ω,b}ᵀ I_b J_{ω,b},
+$$
 
-    M(q) = Σ_b m_b J_{v,b}ᵀ J_{v,b} + J_{ω,b}ᵀ I_b J_{ω,b},
+$$
+C(q, q̇) q̇ = Σ_b m_b J_{v,b}ᵀ a_b + J_{ω,b}ᵀ (I_b α_b + ω_b × I_b ω_b),
+$$
 
-    C(q, q̇) q̇ = Σ_b m_b J_{v,b}ᵀ a_b + J_{ω,b}ᵀ (I_b α_b + ω_b × I_b ω_b),
-
-where ``a_b = ∂²x_c/∂q² [q̇, q̇]`` and ``α_b = vee(Rᵀ ∂²R/∂q² [q̇, q̇])`` are the body's
-accelerations when ``q̈ = 0`` (Newton's and Euler's equations projected on the
+where `a_b = ∂²x_c/∂q² [q̇, q̇]` and `α_b = vee(Rᵀ ∂²R/∂q² [q̇, q̇])` are the body's
+accelerations when `q̈ = 0` (Newton's and Euler's equations projected on the
 coordinates: Kane's method, or d'Alembert's principle). One forward-mode Jacobian of the
-pose maps gives ``M``, and one second-order forward derivative along ``q̇`` the velocity
-products: no second derivatives of ``T``, and none of the nine entries of each rotation
-matrix. The gravity and spring forces ``G = ∂V/∂q`` are one reverse-mode gradient of
-``V``. These equal the autodiff Lagrangian of the same energies to round-off (tested).
+pose maps gives `M`, and one second-order forward derivative along `q̇` the velocity
+products: no second derivatives of `T`, and none of the nine entries of each rotation
+matrix. The gravity and spring forces `G = ∂V/∂q` are one reverse-mode gradient of
+`V`. These equal the autodiff Lagrangian of the same energies to round-off (tested).
 """
 
 from typing import Any
@@ -33,8 +35,8 @@ from ._typing import Params
 
 
 def _vee(s):
-    """The axial vector of the skew part of ``s[..., 3, 3, ...]`` (leading batch axes and
-    trailing axes kept): ``½ (s₂₁ − s₁₂, s₀₂ − s₂₀, s₁₀ − s₀₁)``."""
+    """The axial vector of the skew part of `s[..., 3, 3, ...]` (leading batch axes and
+    trailing axes kept): `½ (s₂₁ − s₁₂, s₀₂ − s₂₀, s₁₀ − s₀₁)`."""
     return 0.5 * jnp.stack(
         [
             s[..., 2, 1, :] - s[..., 1, 2, :],
@@ -46,15 +48,15 @@ def _vee(s):
 
 
 def _batch(x, base_ndim: int):
-    """A body's per-item values as one array with the items along axis 0 (a list of ``k``
+    """A body's per-item values as one array with the items along axis 0 (a list of `k`
     is stacked; a single item gains an axis). Stacking the few items of a list and doing
-    one batched product beat a product per item by about 2x under ``vmap``."""
+    one batched product beat a product per item by about 2x under `vmap`."""
     items = _items(x, base_ndim)
     return jnp.stack(items) if isinstance(items, list) else items
 
 
 def _pose_fn(body, params: Params):
-    """``q -> (x_c, orientation or None)`` of a body, as pytrees of per-item values."""
+    """`q -> (x_c, orientation or None)` of a body, as pytrees of per-item values."""
     if isinstance(body, PointMass):
         return lambda a: (body.com_position(a, params), None)
     if isinstance(body, (PlanarBody, SpatialBody)):
@@ -63,13 +65,13 @@ def _pose_fn(body, params: Params):
 
 
 def _per_item(value, k: int, base_ndim: int, dtype):
-    """A parameter shared by the ``k`` items or given per item, as ``(k, ...)``."""
+    """A parameter shared by the `k` items or given per item, as `(k, ...)`."""
     value = jnp.asarray(value, dtype)
     return jnp.broadcast_to(value, (k,) + value.shape[value.ndim - base_ndim :])
 
 
 def _body_terms(body, q, qd, params: Params, with_bias: bool):
-    """One body's (possibly ``k`` bodies') contributions to ``M`` and to ``C q̇``."""
+    """One body's (possibly `k` bodies') contributions to `M` and to `C q̇`."""
     pose = _pose_fn(body, params)
     (j_x, j_o) = jax.jacfwd(pose)(q)  # every leaf gains a trailing axis of length n
     if with_bias:
@@ -117,9 +119,9 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
 
 
 class SceneEquations(eqx.Module):
-    """The equations of a scene's ``LagrangianSystem`` from its bodies' pose maps (see the
-    module docstring): ``M`` from one forward-mode Jacobian of the poses, the velocity
-    products from one second-order forward derivative along ``q̇``, ``G = ∂V/∂q``."""
+    """The equations of a scene's `LagrangianSystem` from its bodies' pose maps (see the
+    module docstring): `M` from one forward-mode Jacobian of the poses, the velocity
+    products from one second-order forward derivative along `q̇`, `G = ∂V/∂q`."""
 
     scene: Scene
 
@@ -145,19 +147,19 @@ class SceneEquations(eqx.Module):
         return self._mass_and_velocity_products(q, jnp.zeros_like(q), params, False)[0]
 
     def mass_and_bias(self, q, qd, params: Params) -> tuple[Any, Any]:
-        """``M`` and the bias ``C q̇ + G``."""
+        """`M` and the bias `C q̇ + G`."""
         qd = qd.astype(q.dtype)
         mass, cqd = self._mass_and_velocity_products(q, qd, params, True)
         return mass, cqd + self._gravity(q, params)
 
     def accelerations(self, q, qd, params: Params, force) -> Any:
-        """``q̈`` solving ``M q̈ + C q̇ + G = force`` (``None``: zero); NaN where ``M`` is
+        """`q̈` solving `M q̈ + C q̇ + G = force` (`None`: zero); NaN where `M` is
         not positive-definite."""
         mass, bias = self.mass_and_bias(q, qd, params)
         rhs = -bias if force is None else jnp.asarray(force, q.dtype) - bias
         return cholesky_solve(mass, rhs)
 
     def inverse_dynamics(self, q, qd, qdd, params: Params) -> Any:
-        """``M q̈ + C q̇ + G`` (``qdd=None``: the bias ``C q̇ + G``)."""
+        """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`)."""
         mass, bias = self.mass_and_bias(q, qd, params)
         return bias if qdd is None else mass @ qdd.astype(q.dtype) + bias

@@ -1,12 +1,12 @@
 """Kinematic trees of rigid bodies: robots with branches (a torso with two arms, a hand).
 
-A :class:`Tree` holds the *structure* (joint types, the parent of every body, joint axes,
-fixed joint rotations, names, limits); the numbers a sweep may vary (masses, joint
-placements, centres of mass, inertias, damping, g) live in ``params`` as arrays with a
-leading axis of length ``n``, as for chains. Its energies are one batched
-:class:`~lagrax.bodies.SpatialBody`; its equations are Featherstone's recursions run over
-parents (:mod:`lagrax._articulated`); :func:`lagrax.newton_euler.rnea` reads its structure
-for the independent oracle. :func:`lagrax.chains.from_urdf` builds one from a URDF file.
+A [`Tree`][lagrax.chains.Tree] holds the *structure* (joint types, the parent of every body, joint
+axes, fixed joint rotations, names, limits); the numbers a sweep may vary (masses, joint
+placements, centres of mass, inertias, damping, g) live in `params` as arrays with a
+leading axis of length `n`, as for chains. Its energies are one batched
+[`SpatialBody`][lagrax.bodies.SpatialBody]; its equations are Featherstone's recursions run over
+parents (`lagrax._articulated`); [`lagrax.newton_euler.rnea`][] reads its structure
+for the independent oracle. [`lagrax.chains.from_urdf`][] builds one from a URDF file.
 """
 
 import dataclasses
@@ -28,7 +28,7 @@ from ._typing import Params, Vector
 
 
 def _joint_damping(q, qd, params):
-    """Rayleigh dissipation of viscous joint friction: ``D = ½ Σ b_i q̇_i²``."""
+    """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²`."""
     return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2)
 
 
@@ -62,55 +62,55 @@ def _bounds(values: Any, n: int, what: str) -> tuple[float, ...]:
 
 
 class Tree(eqx.Module):
-    r"""A kinematic tree of rigid bodies joined by revolute (``"R"``) and prismatic
-    (``"P"``) joints, fixed to the world at its base.
+    r"""A kinematic tree of rigid bodies joined by revolute (`"R"`) and prismatic
+    (`"P"`) joints, fixed to the world at its base.
 
-    Body ``i`` hangs from body ``parents[i]`` (``−1``: the base, i.e. the world), with
-    ``parents[i] < i``, so bodies are numbered from the base outwards; a serial chain has
-    ``parents = (−1, 0, 1, …)``. Joint ``i`` connects body ``parents[i]`` (frame ``p``) to
-    body ``i`` exactly as a :class:`SpatialChain`'s joint connects link ``i − 1`` to ``i``:
-    it sits at ``offset_i`` in frame ``p`` with a fixed orientation ``S_i``
-    (``rotations[i]``), and
+    Body `i` hangs from body `parents[i]` (`−1`: the base, i.e. the world), with
+    `parents[i] < i`, so bodies are numbered from the base outwards; a serial chain has
+    `parents = (−1, 0, 1, …)`. Joint `i` connects body `parents[i]` (frame `p`) to
+    body `i` exactly as a [`SpatialChain`][lagrax.chains.SpatialChain]'s joint connects link `i − 1`
+    to `i`: it sits at `offset_i` in frame `p` with a fixed orientation `S_i`
+    (`rotations[i]`), and
 
-    - revolute: ``ᵖR_i = S_i Rot(axis_i, q_i)``, ``ᵖp_i = offset_i``;
-    - prismatic: ``ᵖR_i = S_i``, ``ᵖp_i = offset_i + S_i axis_i q_i``.
+    - revolute: `ᵖR_i = S_i Rot(axis_i, q_i)`, `ᵖp_i = offset_i`;
+    - prismatic: `ᵖR_i = S_i`, `ᵖp_i = offset_i + S_i axis_i q_i`.
 
-    This is the URDF joint: ``S_i`` and ``offset_i`` are its ``<origin rpy xyz>`` and
-    ``axis_i`` its ``<axis>`` in the joint (= child link) frame. Body ``i`` has mass
-    ``m_i``, centre of mass ``com_i`` and inertia ``inertia_i`` about the centre of mass,
-    both in frame ``i``. Gravity has magnitude ``g`` along ``−up``. Each joint may have
-    viscous damping ``damping_i`` (Rayleigh ``D = ½ Σ b_i q̇_i²``, a torque ``−b_i q̇_i``).
+    This is the URDF joint: `S_i` and `offset_i` are its `<origin rpy xyz>` and
+    `axis_i` its `<axis>` in the joint (= child link) frame. Body `i` has mass
+    `m_i`, centre of mass `com_i` and inertia `inertia_i` about the centre of mass,
+    both in frame `i`. Gravity has magnitude `g` along `−up`. Each joint may have
+    viscous damping `damping_i` (Rayleigh `D = ½ Σ b_i q̇_i²`, a torque `−b_i q̇_i`).
 
-    Fixed joints are not bodies of the tree: :func:`lagrax.chains.from_urdf` merges a link
+    Fixed joints are not bodies of the tree: [`lagrax.chains.from_urdf`][] merges a link
     on a fixed joint into the body it is fixed to (mass, centre of mass and inertia by the
     parallel-axis theorem, rotated into that body's frame), so the equations have one
     coordinate per moving joint.
 
-    Structure (static): ``joint_types``, ``parents``, ``axes``, ``rotations``, ``up``,
-    ``joint_names``, ``body_names``, ``limits``, ``velocity_limits``, ``effort_limits``.
-    Parameters (arrays, from :meth:`params`): ``m: (n,)``, ``offset: (n, 3)``,
-    ``com: (n, 3)``, ``inertia: (n, 3, 3)``, ``damping: (n,)``, ``g: ()``.
+    Structure (static): `joint_types`, `parents`, `axes`, `rotations`, `up`,
+    `joint_names`, `body_names`, `limits`, `velocity_limits`, `effort_limits`.
+    Parameters (arrays, from [`params`][lagrax.chains.Tree.params]): `m: (n,)`, `offset: (n, 3)`,
+    `com: (n, 3)`, `inertia: (n, 3, 3)`, `damping: (n,)`, `g: ()`.
 
-    The system's equations are Featherstone's recursions run over parents: ``q̈`` by the
-    articulated-body algorithm (O(n)), ``M`` by the composite-rigid-body algorithm
-    (``M_ji = S_jᵀ I^c_i S_i`` for ``j`` on ``i``'s path to the base, zero otherwise),
-    ``M q̈ + C q̇ + G`` by recursive Newton–Euler; the energies remain the definition
-    (``dataclasses.replace(system, equations=None)``).
+    The system's equations are Featherstone's recursions run over parents: `q̈` by the
+    articulated-body algorithm (O(n)), `M` by the composite-rigid-body algorithm
+    (`M_ji = S_jᵀ I^c_i S_i` for `j` on `i`'s path to the base, zero otherwise),
+    `M q̈ + C q̇ + G` by recursive Newton–Euler; the energies remain the definition
+    (`dataclasses.replace(system, equations=None)`).
 
     **Arguments:**
 
-    - ``joint_types``: a string such as ``"RRPR"`` (``"C"``, continuous, is read as ``"R"``).
-    - ``parents``: ``n`` parent indices (``−1``: the base; ``parents[i] < i``).
-    - ``axes``: ``n`` joint axes (normalized here); default z.
-    - ``rotations``: ``n`` fixed rotations ``S_i``; default the identity.
-    - ``up``: the direction opposite to gravity (default ``(0, 0, 1)``).
-    - ``joint_names``, ``body_names``: labels (default ``joint0…``, ``body0…``).
-    - ``limits``: ``n`` pairs ``(lower, upper)`` of joint positions (default unlimited),
+    - `joint_types`: a string such as `"RRPR"` (`"C"`, continuous, is read as `"R"`).
+    - `parents`: `n` parent indices (`−1`: the base; `parents[i] < i`).
+    - `axes`: `n` joint axes (normalized here); default z.
+    - `rotations`: `n` fixed rotations `S_i`; default the identity.
+    - `up`: the direction opposite to gravity (default `(0, 0, 1)`).
+    - `joint_names`, `body_names`: labels (default `joint0…`, `body0…`).
+    - `limits`: `n` pairs `(lower, upper)` of joint positions (default unlimited),
       stored for the user (e.g. for events); the equations do not enforce them.
-    - ``velocity_limits``, ``effort_limits``: ``n`` positive bounds (default ``inf``),
+    - `velocity_limits`, `effort_limits`: `n` positive bounds (default `inf`),
       stored likewise.
 
-    **Raises:** ``ValueError`` for an unknown joint type, a parent index that is not an
+    **Raises:** `ValueError` for an unknown joint type, a parent index that is not an
     earlier body, or lists of the wrong length.
 
     **Example:** a torso joint carrying two one-joint arms:
@@ -188,7 +188,7 @@ class Tree(eqx.Module):
         return len(self.joint_types)
 
     def children(self, i: int) -> tuple[int, ...]:
-        """The bodies hanging from body ``i`` (``−1``: from the base)."""
+        """The bodies hanging from body `i` (`−1`: from the base)."""
         return tuple(k for k, p in enumerate(self.parents) if p == i)
 
     def params(
@@ -202,22 +202,22 @@ class Tree(eqx.Module):
         g: Any = 9.81,
         dtype: Any = None,
     ) -> dict[str, jnp.ndarray]:
-        """Parameters as arrays, broadcast to all ``n`` bodies.
+        """Parameters as arrays, broadcast to all `n` bodies.
 
         Defaults: 1 kg bodies with their centre of mass at the joint, joints at their
         parent's origin, the inertia of a solid 1 kg sphere of radius 0.1 m
-        (``0.004 kg m²``) times ``m``, no damping, ``g = 9.81``.
+        (`0.004 kg m²`) times `m`, no damping, `g = 9.81`.
 
-        **Arguments:** ``m``, ``damping`` (scalar or ``(n,)``), ``offset`` and ``com``
-        (``(3,)`` or ``(n, 3)``), ``inertia`` (``(3, 3)`` or ``(n, 3, 3)``), ``g``,
-        ``dtype`` (default float64 with x64).
+        **Arguments:** `m`, `damping` (scalar or `(n,)`), `offset` and `com`
+        (`(3,)` or `(n, 3)`), `inertia` (`(3, 3)` or `(n, 3, 3)`), `g`,
+        `dtype` (default float64 with x64).
 
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
         "damping": (n,), "g": ()}``.
 
-        **Raises:** ``ShapeError`` if a value does not broadcast; ``ParameterError`` for a
+        **Raises:** `ShapeError` if a value does not broadcast; `ParameterError` for a
         negative mass or damping, or an inertia that is not symmetric positive-semidefinite
-        or violates ``I1 + I2 ≥ I3`` (naming the body).
+        or violates `I1 + I2 ≥ I3` (naming the body).
         """
         n, dtype = self.n, _float_dtype(dtype)
         m_ = physical(_broadcast("m", m, (n,), dtype), "Tree.params m", item="body")
@@ -239,14 +239,14 @@ class Tree(eqx.Module):
         return joint_constants(self.joint_types, self.axes, self.rotations)
 
     def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """Forward kinematics: body-frame origins ``(n, 3)`` and rotations ``(n, 3, 3)`` in
-        the world frame: ``R_i = R_p ᵖR_i``, ``o_i = o_p + R_p ᵖp_i`` with ``p`` the parent
-        (the base: ``R = 1``, ``o = 0``)."""
+        """Forward kinematics: body-frame origins `(n, 3)` and rotations `(n, 3, 3)` in
+        the world frame: `R_i = R_p ᵖR_i`, `o_i = o_p + R_p ᵖp_i` with `p` the parent
+        (the base: `R = 1`, `o = 0`)."""
         origins, rots, _ = self._kinematics(q, params, with_com=False)
         return jnp.stack(origins), jnp.stack(rots)
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, ``o_i + R_i com_i``, shape ``(n, 3)``."""
+        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n, 3)`."""
         return jnp.stack(self._kinematics(q, params, with_com=True)[2])
 
     def _pose(self, q, params):
@@ -281,9 +281,9 @@ class Tree(eqx.Module):
         return -g * jnp.asarray(self.up, g.dtype)
 
     def scene(self) -> Scene:
-        """The tree as a :class:`lagrax.bodies.Scene`: one batched
-        :class:`~lagrax.bodies.SpatialBody` for all bodies, gravity ``−g up``, joint
-        damping as the Rayleigh dissipation ``½ Σ b_i q̇_i²``."""
+        """The tree as a [`lagrax.bodies.Scene`][]: one batched
+        [`SpatialBody`][lagrax.bodies.SpatialBody] for all bodies, gravity `−g up`, joint
+        damping as the Rayleigh dissipation `½ Σ b_i q̇_i²`."""
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         return Scene(
             [body],
@@ -294,9 +294,9 @@ class Tree(eqx.Module):
         )
 
     def system(self) -> LagrangianSystem:
-        """The tree's :class:`lagrax.LagrangianSystem`, its equations evaluated by
+        """The tree's [`lagrax.LagrangianSystem`][], its equations evaluated by
         Featherstone's recursions over parents, its coordinates named by
-        ``joint_names`` (``system.coordinate_names``). ``dataclasses.replace(system,
+        `joint_names` (`system.coordinate_names`). ``dataclasses.replace(system,
         equations=None)`` differentiates the energies instead (the definition)."""
         return dataclasses.replace(
             self.scene().system(),

@@ -1,10 +1,10 @@
-"""URDF import: a robot description file as a :class:`~lagrax.chains.Tree` and its params.
+"""URDF import: a robot description file as a [`Tree`][lagrax.chains.Tree] and its params.
 
-Read with the standard library's ``xml.etree.ElementTree``: lagrax needs only the
-kinematic and inertial elements of URDF (``<link><inertial>``, ``<joint>`` with its
-``<origin>``, ``<axis>``, ``<limit>``, ``<dynamics>``), which are a few attributes each;
-geometry (``<visual>``, ``<collision>``, meshes) is never read, so a missing mesh file
-cannot be an error, and no dependency (``yourdfpy`` brings ``trimesh`` and ``lxml`` to
+Read with the standard library's `xml.etree.ElementTree`: lagrax needs only the
+kinematic and inertial elements of URDF (`<link><inertial>`, `<joint>` with its
+`<origin>`, `<axis>`, `<limit>`, `<dynamics>`), which are a few attributes each;
+geometry (`<visual>`, `<collision>`, meshes) is never read, so a missing mesh file
+cannot be an error, and no dependency (`yourdfpy` brings `trimesh` and `lxml` to
 load meshes lagrax does not use) is added. Reading the elements here also lets every error
 name the link or joint at fault.
 """
@@ -31,7 +31,7 @@ _UNSUPPORTED = {
 
 
 def rpy_matrix(rpy: Any) -> np.ndarray:
-    """URDF's fixed-axis roll–pitch–yaw: ``R = Rz(yaw) Ry(pitch) Rx(roll)``."""
+    """URDF's fixed-axis roll–pitch–yaw: `R = Rz(yaw) Ry(pitch) Rx(roll)`."""
     r, p, y = (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = (
         math.cos(r),
@@ -247,7 +247,7 @@ def _structure(links: dict, joints: list[_Joint], root: str | None) -> tuple[str
 
 
 def _keep(root: str, tip: str | None, links: dict, parent_of: dict, children: dict) -> set:
-    """Links kept: all below ``root``; with a ``tip``, the path root → tip and every link
+    """Links kept: all below `root`; with a `tip`, the path root → tip and every link
     fixed to a link of that path (moving branches off the path are dropped)."""
     if tip is None:
         out, stack = set(), [root]
@@ -283,56 +283,56 @@ def from_urdf(
     massless_links: bool = False,
     dtype: Any = None,
 ) -> tuple[Tree, dict]:
-    r"""A robot from a URDF file (or string) as a :class:`Tree` and its params.
+    r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
     Each revolute, continuous or prismatic joint becomes a body of the tree (bodies are
     numbered depth-first from the root, children in file order), with its
-    ``<origin xyz rpy>`` as the placement (``offset`` in ``params``, the rotation
-    ``Rz(yaw) Ry(pitch) Rx(roll)`` in the structure), its ``<axis>``, ``<limit>`` (kept in
-    ``tree.limits``, ``velocity_limits``, ``effort_limits``; continuous joints are
-    unlimited) and ``<dynamics damping>`` (``params["damping"]``, a Rayleigh dissipation;
-    ``friction`` is not modelled). Joint names become ``tree.joint_names`` and the
-    system's ``coordinate_names``.
+    `<origin xyz rpy>` as the placement (`offset` in `params`, the rotation
+    `Rz(yaw) Ry(pitch) Rx(roll)` in the structure), its `<axis>`, `<limit>` (kept in
+    `tree.limits`, `velocity_limits`, `effort_limits`; continuous joints are
+    unlimited) and `<dynamics damping>` (`params["damping"]`, a Rayleigh dissipation;
+    `friction` is not modelled). Joint names become `tree.joint_names` and the
+    system's `coordinate_names`.
 
-    A link's ``<inertial>`` gives its mass ``m``, centre of mass ``c`` (``<origin xyz>``)
-    and inertia ``R Ī Rᵀ`` with ``Ī`` the ``<inertia>`` entries and ``R`` the
-    ``<origin rpy>`` rotation (URDF states the inertia in that rotated frame). **Fixed
+    A link's `<inertial>` gives its mass `m`, centre of mass `c` (`<origin xyz>`)
+    and inertia `R Ī Rᵀ` with `Ī` the `<inertia>` entries and `R` the
+    `<origin rpy>` rotation (URDF states the inertia in that rotated frame). **Fixed
     joints are merged**: a link fixed (directly or through other fixed joints) to a moving
-    body at placement ``(R_f, p_f)`` adds ``m``, the first moment ``m (p_f + R_f c)`` and
-    the inertia about the body's origin ``R_f Ī' R_fᵀ + m (|c'|² 1 − c' c'ᵀ)``
-    (``c' = p_f + R_f c``; the parallel-axis theorem) to that body; the body's centre of
+    body at placement `(R_f, p_f)` adds `m`, the first moment `m (p_f + R_f c)` and
+    the inertia about the body's origin `R_f Ī' R_fᵀ + m (|c'|² 1 − c' c'ᵀ)`
+    (`c' = p_f + R_f c`; the parallel-axis theorem) to that body; the body's centre of
     mass and inertia about it follow from the sums. Links fixed to the root (the world)
     do not move and are dropped; joints below them are placed through them.
 
-    Geometry (``<visual>``, ``<collision>``, meshes) is ignored: a missing mesh file is no
+    Geometry (`<visual>`, `<collision>`, meshes) is ignored: a missing mesh file is no
     error.
 
     **Arguments:**
 
-    - ``source``: a path to a ``.urdf`` file, or the URDF XML itself (a string starting
-      with ``<``).
-    - ``root``: the link fixed to the world (default: the URDF's only root link). The tree
+    - `source`: a path to a `.urdf` file, or the URDF XML itself (a string starting
+      with `<`).
+    - `root`: the link fixed to the world (default: the URDF's only root link). The tree
       is everything below it.
-    - ``tip``: a link below ``root``: keep only the chain of joints from ``root`` to
-      ``tip`` (with every link fixed to one of its links); branches off the path are
+    - `tip`: a link below `root`: keep only the chain of joints from `root` to
+      `tip` (with every link fixed to one of its links); branches off the path are
       dropped.
-    - ``up``: the direction opposite to gravity (default ``(0, 0, 1)``: gravity along −z,
+    - `up`: the direction opposite to gravity (default `(0, 0, 1)`: gravity along −z,
       as in Pinocchio and MuJoCo).
-    - ``g``: gravity's magnitude (``params["g"]``).
-    - ``massless_links``: accept moving links without ``<inertial>`` or with zero mass
+    - `g`: gravity's magnitude (`params["g"]`).
+    - `massless_links`: accept moving links without `<inertial>` or with zero mass
       (the mass matrix may then be singular). By default they are refused; links fixed to
-      a moving link may always lack ``<inertial>`` (frames such as a tool flange).
-    - ``dtype``: of the params (default float64 with x64).
+      a moving link may always lack `<inertial>` (frames such as a tool flange).
+    - `dtype`: of the params (default float64 with x64).
 
-    **Returns:** ``(tree, params)``: the :class:`Tree` (``tree.system()`` gives the
-    system) and ``{"m", "offset", "com", "inertia", "damping", "g"}``.
+    **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
+    system) and `{"m", "offset", "com", "inertia", "damping", "g"}`.
 
-    **Raises:** :class:`lagrax.URDFError` naming the link or joint for: malformed XML, a
-    missing or incomplete ``<inertial>`` on a moving link, a negative or zero mass, an
+    **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a
+    missing or incomplete `<inertial>` on a moving link, a negative or zero mass, an
     inertia that is not positive-semidefinite or violates the triangle inequality
-    ``I1 + I2 ≥ I3``, a link with two parents, a loop, several roots without ``root=``, an
+    `I1 + I2 ≥ I3`, a link with two parents, a loop, several roots without `root=`, an
     unknown joint type, a floating or planar joint (not supported), a mimic joint, a
-    robot with no moving joint below ``root``. ``FileNotFoundError`` for a missing file.
+    robot with no moving joint below `root`. `FileNotFoundError` for a missing file.
 
     **Example:**
 

@@ -1,4 +1,4 @@
-"""The first-order vector field ``(q, q̇) ↦ (q̇, q̈)`` that simulate hands to diffrax.
+"""The first-order vector field `(q, q̇) ↦ (q̇, q̈)` that simulate hands to diffrax.
 
 It also carries the system and the inputs, so that solvers which work with the
 Lagrangian itself (the variational integrators) can reach them through the term.
@@ -18,13 +18,14 @@ TauFn = Callable[[Any, Array, Array], Array]
 
 
 class LagrangianVectorField(eqx.Module):
-    """``f(t, (q, q̇), (params, tau_const)) = (q̇, q̈)`` for any :class:`AbstractSystem`."""
+    """`f(t, (q, q̇), (params, tau_const)) = (q̇, q̈)` for any
+    [`AbstractSystem`][lagrax.AbstractSystem]."""
 
     system: AbstractSystem
     tau_fn: TauFn | None = None
 
     def tau(self, t, q, qd, tau_const):
-        """The input generalized force at ``(t, q, q̇)`` (``None`` when there is none)."""
+        """The input generalized force at `(t, q, q̇)` (`None` when there is none)."""
         tau = tau_const
         if self.tau_fn is not None:
             tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", q).astype(q.dtype)
@@ -48,7 +49,7 @@ def _evaluate(field: LagrangianVectorField, t, y, args):
 
 
 def lagrangian_field_of(terms) -> LagrangianVectorField:
-    """Find the ``LagrangianVectorField`` inside (possibly wrapped) diffrax terms."""
+    """Find the `LagrangianVectorField` inside (possibly wrapped) diffrax terms."""
     term = terms
     while hasattr(term, "term"):  # diffrax.WrapTerm and friends
         term = term.term

@@ -3,19 +3,19 @@
 XLA:CPU runs a compiled program as a sequence of kernels ("thunks"), one per fused
 operation, with a fixed cost each. An ODE step for a small mechanism is a few hundred
 flops spread over dozens of such kernels, so that cost dominates: ≈ 3 µs a step for the
-2R arm. XLA can instead compile a whole ``while`` loop into a single kernel, but only
-loops whose memory traffic per iteration is below ``xla_cpu_small_while_loop_byte_threshold``
+2R arm. XLA can instead compile a whole `while` loop into a single kernel, but only
+loops whose memory traffic per iteration is below `xla_cpu_small_while_loop_byte_threshold`
 (1 kB by default, too small for an ODE solver's state). Raising it to 1 MiB lets lagrax's
 single-trajectory loops run as one kernel (≈ 0.5 µs a step), and leaves large batched
 loops (sweeps) as they were: we measured no change there.
 
-The option is an XLA flag, read once when JAX starts its CPU backend, so ``import lagrax``
-adds it to ``XLA_FLAGS`` if JAX has not started yet. It changes nothing if:
+The option is an XLA flag, read once when JAX starts its CPU backend, so `import lagrax`
+adds it to `XLA_FLAGS` if JAX has not started yet. It changes nothing if:
 
-- ``XLA_FLAGS`` already sets ``xla_backend_extra_options`` (yours win);
-- ``LAGRAX_XLA_FLAGS=0`` is set in the environment (opt out);
+- `XLA_FLAGS` already sets `xla_backend_extra_options` (yours win);
+- `LAGRAX_XLA_FLAGS=0` is set in the environment (opt out);
 - JAX has already run a computation in this process: too late. lagrax then works as
-  before, only slower, and says so once (a ``UserWarning``, on CPU only).
+  before, only slower, and says so once (a `UserWarning`, on CPU only).
 """
 
 import os
@@ -28,7 +28,7 @@ THRESHOLD = 1 << 20
 
 
 def configure() -> None:
-    """Add the small-loop threshold to ``XLA_FLAGS`` when that can still take effect."""
+    """Add the small-loop threshold to `XLA_FLAGS` when that can still take effect."""
     if os.environ.get("LAGRAX_XLA_FLAGS", "1").strip().lower() in ("0", "false", "no", "off"):
         return
     flags = os.environ.get("XLA_FLAGS", "")

@@ -1,9 +1,9 @@
 """Serial chains, kinematic trees and URDF robots.
 
-Planar n-link arms and spatial revolute/prismatic chains; :class:`Tree`, a kinematic tree
-(a parent index per body: a torso with two arms, a hand); :func:`from_urdf`, a URDF robot
-as a tree (fixed joints merged into their bodies) with its joint names, limits and
-damping:
+Planar n-link arms and spatial revolute/prismatic chains; [`Tree`][lagrax.chains.Tree], a kinematic
+tree (a parent index per body: a torso with two arms, a hand);
+[`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
+bodies) with its joint names, limits and damping:
 
 ```python
 tree, params = lx.chains.from_urdf("arm.urdf")        # or root=..., tip=... for a chain
@@ -12,10 +12,11 @@ system.coordinate_names                               # the URDF's joint names
 tau_ne = lx.newton_euler.rnea(tree, q, qd, qdd, params)   # the independent oracle
 ```
 
-Each chain builder returns ``(system, params)`` with ``params`` a dict of arrays (leading axis
-``n``: one entry per link), so a sweep can vary masses, lengths, offsets and inertias
-with ``jax.vmap``. The chain object (:class:`PlanarChain`, :class:`SpatialChain`) holds the
-structure and is what :func:`lagrax.newton_euler.rnea` consumes:
+Each chain builder returns `(system, params)` with `params` a dict of arrays (leading axis
+`n`: one entry per link), so a sweep can vary masses, lengths, offsets and inertias
+with `jax.vmap`. The chain object ([`PlanarChain`][lagrax.chains.PlanarChain],
+[`SpatialChain`][lagrax.chains.SpatialChain]) holds the structure and is what
+[`lagrax.newton_euler.rnea`][] consumes:
 
 ```python
 import lagrax as lx
@@ -26,19 +27,19 @@ tau = system.inverse_dynamics(q, qd, qdd, params)
 tau_ne = lx.newton_euler.rnea(chain, q, qd, qdd, params)   # independent oracle
 ```
 
-The energies come from :mod:`lagrax.bodies`: a planar chain is one batched
-:class:`~lagrax.bodies.PlanarBody` (``bodies="spatial"`` builds the same links from
-:class:`~lagrax.bodies.SpatialBody`, for comparison), a spatial chain one batched
-:class:`~lagrax.bodies.SpatialBody`.
+The energies come from [`lagrax.bodies`][]: a planar chain is one batched
+[`PlanarBody`][lagrax.bodies.PlanarBody] (`bodies="spatial"` builds the same links from
+[`SpatialBody`][lagrax.bodies.SpatialBody], for comparison), a spatial chain one batched
+[`SpatialBody`][lagrax.bodies.SpatialBody].
 
 **Which to use.** A chain whose joint axes are all parallel moves in a plane: use
-:class:`PlanarChain` — its forward kinematics is a running sum of angles and its energy
-differentiates ``n`` angles, not ``n`` rotation matrices. For identical equations it ran
-~16× faster than the same 2R arm as a :class:`SpatialChain` (vmapped forward dynamics;
-~5× in a short ``simulate``) and compiled ~3× faster, and as fast as the hand-written
-:func:`lagrax.models.planar_2r` (``benchmarks/bench_planar_vs_spatial.py``, one run on a
-shared 2-core CPU). Use :class:`SpatialChain` for anything that leaves the plane;
-:meth:`PlanarChain.to_spatial` converts for comparison.
+[`PlanarChain`][lagrax.chains.PlanarChain] — its forward kinematics is a running sum of angles and
+its energy differentiates `n` angles, not `n` rotation matrices. For identical equations it ran
+~16× faster than the same 2R arm as a [`SpatialChain`][lagrax.chains.SpatialChain] (vmapped forward
+dynamics; ~5× in a short `simulate`) and compiled ~3× faster, and as fast as the hand-written
+[`lagrax.models.planar_2r`][] (`benchmarks/bench_planar_vs_spatial.py`, one run on a
+shared 2-core CPU). Use [`SpatialChain`][lagrax.chains.SpatialChain] for anything that leaves the
+plane; [`PlanarChain.to_spatial`][lagrax.chains.PlanarChain.to_spatial] converts for comparison.
 """
 
 from ._chains import BodyKind as BodyKind

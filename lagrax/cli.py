@@ -1,4 +1,4 @@
-"""The ``lagrax`` command."""
+"""The `lagrax` command."""
 
 import argparse
 import sys
@@ -141,31 +141,56 @@ def _bench_stability(args) -> int:
     return 0
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """`--help` shows each option's default, except an empty or off one."""
+
+    def _get_help_string(self, action):
+        default = action.default
+        if default is None or default is False or default == "" or default is argparse.SUPPRESS:
+            return action.help
+        return super()._get_help_string(action)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="lagrax", description="Equations of motion from energies, with JAX."
+        prog="lagrax",
+        description="Equations of motion from energies, with JAX.",
+        formatter_class=_HelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
         "demo",
         help="derive the 2R arm, check it against Newton-Euler, simulate it, draw it",
+        description="Derive the 2R arm from its energies, check it against Newton-Euler at "
+        "random states, simulate it and draw it.",
+        formatter_class=_HelpFormatter,
     )
     demo.add_argument("--out", default="lagrax-output", help="output folder for the figure")
     demo.add_argument("--t1", type=float, default=10.0, help="simulated time [s]")
     demo.add_argument("--rtol", type=float, default=1e-10, help="rtol = atol of the solve")
     demo.add_argument("--states", type=int, default=1000, help="random states to compare")
-    demo.add_argument("--seed", type=int, default=0)
-    bench = sub.add_parser("bench", help="accuracy and cost studies")
+    demo.add_argument("--seed", type=int, default=0, help="seed of the random states")
+    bench = sub.add_parser(
+        "bench", help="accuracy and cost studies", formatter_class=_HelpFormatter
+    )
     bench_sub = bench.add_subparsers(dest="study", required=True)
     wp = bench_sub.add_parser(
-        "work-precision", help="error vs wall time per method and tolerance (CSV + PNG)"
+        "work-precision",
+        help="error vs wall time per method and tolerance (CSV + PNG)",
+        formatter_class=_HelpFormatter,
     )
     wp.add_argument("--out", default="lagrax-output", help="output folder")
     wp.add_argument("--t1", type=float, default=10.0, help="simulated time [s]")
     wp.add_argument("--repeats", type=int, default=5, help="timed runs per point (median)")
-    wp.add_argument("--methods", default="", help="comma-separated subset, e.g. tsit5,dopri8")
+    wp.add_argument(
+        "--methods", default="", help="comma-separated subset, e.g. tsit5,dopri8 (default: all)"
+    )
     wp.add_argument("--quick", action="store_true", help="a few points only")
-    stab = bench_sub.add_parser("stability", help="where methods fail, and how it is reported")
+    stab = bench_sub.add_parser(
+        "stability",
+        help="where methods fail, and how it is reported",
+        formatter_class=_HelpFormatter,
+    )
     stab.add_argument("--out", default="lagrax-output", help="output folder")
     stab.add_argument("--quick", action="store_true", help="shorter horizons")
     args = parser.parse_args(argv)

@@ -1,15 +1,15 @@
 """Independent Newton–Euler derivations: an oracle for the autodiff Lagrangian.
 
-- :func:`planar_2r`: the planar 2R arm by the lecture's free-body method. Each link is cut
-  free; Newton's law ``m a_c = Σ f`` and Euler's equation ``I α = Σ M`` (about the centre of
-  mass, or about a fixed point with the parallel-axis inertia) are applied to each, and the
-  unknown joint reaction is eliminated.
-- :func:`rnea`: the recursive Newton–Euler algorithm for any serial chain or kinematic
-  tree of :mod:`lagrax.chains` (planar, spatial, :class:`~lagrax.chains.Tree`): velocities
+- [`planar_2r`][lagrax.newton_euler.planar_2r]: the planar 2R arm by the lecture's free-body method.
+  Each link is cut free; Newton's law `m a_c = Σ f` and Euler's equation `I α = Σ M` (about the
+  centre of mass, or about a fixed point with the parallel-axis inertia) are applied to each, and
+  the unknown joint reaction is eliminated.
+- [`rnea`][lagrax.newton_euler.rnea]: the recursive Newton–Euler algorithm for any serial chain or
+  kinematic tree of [`lagrax.chains`][] (planar, spatial, [`Tree`][lagrax.chains.Tree]): velocities
   and accelerations outward from the base, forces and moments inward from the tips.
 
-No Lagrangian appears anywhere in this module, and ``rnea`` reads only the chain's
-structure (joint types, axes, fixed rotations) and ``params``, with its own kinematics.
+No Lagrangian appears anywhere in this module, and `rnea` reads only the chain's
+structure (joint types, axes, fixed rotations) and `params`, with its own kinematics.
 """
 
 from typing import NamedTuple
@@ -23,14 +23,16 @@ from ._errors import ShapeError
 from ._trees import Tree
 from ._typing import Params
 
+__all__ = ["planar_2r", "planar_2r_free_body", "FreeBody2R", "rnea"]
+
 
 def _cross_z(a, b):
-    """z component of the planar cross product ``a × b``."""
+    """z component of the planar cross product `a × b`."""
     return a[0] * b[1] - a[1] * b[0]
 
 
 def _z_cross(w, r):
-    """``(w ẑ) × r`` for a planar vector ``r``."""
+    """`(w ẑ) × r` for a planar vector `r`."""
     return w * jnp.stack([-r[1], r[0]])
 
 
@@ -38,7 +40,7 @@ class FreeBody2R(NamedTuple):
     """Result of the free-body analysis of the 2R arm (all in the fixed frame)."""
 
     tau: Float[Array, "2"]
-    """Joint torques ``(τ1, τ2)``; ``τ2`` acts on link 2, ``−τ2`` on link 1."""
+    """Joint torques `(τ1, τ2)`; `τ2` acts on link 2, `−τ2` on link 1."""
     f_joint1: Float[Array, "2"]
     """Force of the ground on link 1 at joint 1."""
     f_joint2: Float[Array, "2"]
@@ -54,15 +56,15 @@ def planar_2r_free_body(q, qd, qdd, params: Params) -> FreeBody2R:
 
     Steps:
 
-    1. Kinematics. Link 1 turns at ``ω1 = θ̇1``, ``α1 = θ̈1``; link 2 at ``ω2 = θ̇1 + θ̇2``,
-       ``α2 = θ̈1 + θ̈2``. For a point at ``r`` from a pivot of a link,
-       ``a = a_pivot + α ẑ × r − ω² r``: this gives the elbow and both CoM accelerations.
-    2. Link 2, Newton: ``m2 a_c2 = f2 + m2 g⃗`` gives the reaction ``f2`` of link 1 on link 2.
-    3. Link 2, Euler about its CoM: ``I2 α2 = τ2 + (r_elbow − r_c2) × f2`` gives ``τ2``.
-    4. Link 1, Euler about the fixed joint ``O`` (parallel axis ``I1 + m1 r1²``):
-       ``(I1 + m1 r1²) α1 = τ1 − τ2 + r_c1 × m1 g⃗ + r_elbow × (−f2)`` gives ``τ1``; the
-       ground reaction ``f1`` has no moment about ``O`` and drops out.
-    5. Link 1, Newton: ``m1 a_c1 = f1 − f2 + m1 g⃗`` recovers ``f1`` (not needed for τ).
+    1. Kinematics. Link 1 turns at `ω1 = θ̇1`, `α1 = θ̈1`; link 2 at `ω2 = θ̇1 + θ̇2`,
+       `α2 = θ̈1 + θ̈2`. For a point at `r` from a pivot of a link,
+       `a = a_pivot + α ẑ × r − ω² r`: this gives the elbow and both CoM accelerations.
+    2. Link 2, Newton: `m2 a_c2 = f2 + m2 g⃗` gives the reaction `f2` of link 1 on link 2.
+    3. Link 2, Euler about its CoM: `I2 α2 = τ2 + (r_elbow − r_c2) × f2` gives `τ2`.
+    4. Link 1, Euler about the fixed joint `O` (parallel axis `I1 + m1 r1²`):
+       `(I1 + m1 r1²) α1 = τ1 − τ2 + r_c1 × m1 g⃗ + r_elbow × (−f2)` gives `τ1`; the
+       ground reaction `f1` has no moment about `O` and drops out.
+    5. Link 1, Newton: `m1 a_c1 = f1 − f2 + m1 g⃗` recovers `f1` (not needed for τ).
     """
     p = params
     th1, th12 = q[0], q[0] + q[1]
@@ -94,10 +96,11 @@ def planar_2r_free_body(q, qd, qdd, params: Params) -> FreeBody2R:
 
 
 def planar_2r(q, qd, qdd, params: Params) -> Float[Array, "2"]:
-    """Joint torques ``(τ1, τ2)`` of the planar 2R arm by the free-body Newton–Euler method.
+    """Joint torques `(τ1, τ2)` of the planar 2R arm by the free-body Newton–Euler method.
 
-    Same convention and parameter names as :func:`lagrax.models.planar_2r`; see
-    :func:`planar_2r_free_body` for the steps and the reaction forces.
+    Same convention and parameter names as [`lagrax.models.planar_2r`][]; see
+    [`planar_2r_free_body`][lagrax.newton_euler.planar_2r_free_body] for the steps and the reaction
+    forces.
     """
     return planar_2r_free_body(q, qd, qdd, params).tau
 
@@ -113,50 +116,50 @@ def rnea(
     r"""Joint torques/forces of a serial chain or a kinematic tree by the recursive
     Newton–Euler algorithm.
 
-    **Outward recursion** (base to tip), link ``i`` from link ``i − 1``, all vectors in
-    link ``i``'s own frame, ``E = ⁱ⁻¹R_iᵀ``, joint axis ``a``, ``p`` the joint's offset:
+    **Outward recursion** (base to tip), link `i` from link `i − 1`, all vectors in
+    link `i`'s own frame, `E = ⁱ⁻¹R_iᵀ`, joint axis `a`, `p` the joint's offset:
 
-    - revolute: ``ω_i = E ω_{i−1} + q̇_i a``, ``ω̇_i = E ω̇_{i−1} + (E ω_{i−1}) × q̇_i a + q̈_i a``,
-      ``a_i = E (a_{i−1} + ω̇_{i−1} × p + ω_{i−1} × (ω_{i−1} × p))`` (acceleration of the
+    - revolute: `ω_i = E ω_{i−1} + q̇_i a`, `ω̇_i = E ω̇_{i−1} + (E ω_{i−1}) × q̇_i a + q̈_i a`,
+      `a_i = E (a_{i−1} + ω̇_{i−1} × p + ω_{i−1} × (ω_{i−1} × p))` (acceleration of the
       frame origin, which lies on the joint axis);
-    - prismatic (``s = q_i a``): ``ω_i = E ω_{i−1}``, ``ω̇_i = E ω̇_{i−1}``,
-      ``a_i = E (…as above…) + ω̇_i × s + ω_i × (ω_i × s) + 2 ω_i × q̇_i a + q̈_i a``;
-    - centre of mass: ``a_ci = a_i + ω̇_i × c_i + ω_i × (ω_i × c_i)``;
-    - Newton and Euler: ``F_i = m_i a_ci``, ``N_i = I_i ω̇_i + ω_i × I_i ω_i``.
+    - prismatic (`s = q_i a`): `ω_i = E ω_{i−1}`, `ω̇_i = E ω̇_{i−1}`,
+      `a_i = E (…as above…) + ω̇_i × s + ω_i × (ω_i × s) + 2 ω_i × q̇_i a + q̈_i a`;
+    - centre of mass: `a_ci = a_i + ω̇_i × c_i + ω_i × (ω_i × c_i)`;
+    - Newton and Euler: `F_i = m_i a_ci`, `N_i = I_i ω̇_i + ω_i × I_i ω_i`.
 
-    Gravity enters as an upward acceleration ``g up`` of the base (``a_0 = −g⃗``).
+    Gravity enters as an upward acceleration `g up` of the base (`a_0 = −g⃗`).
 
-    **Inward recursion** (tip to base), with ``f_i``, ``n_i`` the force and moment (about
-    frame ``i``'s origin) exerted on link ``i`` by link ``i − 1``:
+    **Inward recursion** (tip to base), with `f_i`, `n_i` the force and moment (about
+    frame `i`'s origin) exerted on link `i` by link `i − 1`:
 
-    - ``f_i = ⁱR_{i+1} f_{i+1} + F_i``,
-    - ``n_i = N_i + ⁱR_{i+1} n_{i+1} + c_i × F_i + ⁱp_{i+1} × ⁱR_{i+1} f_{i+1}``,
-    - ``τ_i = n_i · a_i`` (revolute) or ``f_i · a_i`` (prismatic).
+    - `f_i = ⁱR_{i+1} f_{i+1} + F_i`,
+    - `n_i = N_i + ⁱR_{i+1} n_{i+1} + c_i × F_i + ⁱp_{i+1} × ⁱR_{i+1} f_{i+1}`,
+    - `τ_i = n_i · a_i` (revolute) or `f_i · a_i` (prismatic).
 
-    For a :class:`~lagrax.chains.Tree` "link ``i − 1``" is body ``i``'s parent and the
-    inward sums run over all of body ``i``'s children ``c``:
-    ``f_i = F_i + Σ_c ⁱR_c f_c``, ``n_i = N_i + c_i × F_i + Σ_c (ⁱR_c n_c + ⁱp_c × ⁱR_c f_c)``.
-    (Joint damping, a Rayleigh dissipation of the system, is not part of ``τ`` here.)
+    For a [`Tree`][lagrax.chains.Tree] "link `i − 1`" is body `i`'s parent and the
+    inward sums run over all of body `i`'s children `c`:
+    `f_i = F_i + Σ_c ⁱR_c f_c`, `n_i = N_i + c_i × F_i + Σ_c (ⁱR_c n_c + ⁱp_c × ⁱR_c f_c)`.
+    (Joint damping, a Rayleigh dissipation of the system, is not part of `τ` here.)
 
-    For a :class:`~lagrax.chains.PlanarChain` the same recursion runs in the plane with
-    scalar angular rates and moments (``z`` components) in the fixed frame: joint ``i + 1``'s
-    acceleration ``a_{i+1} = a_i + α_i ẑ × l_i u_i − ω_i² l_i u_i``, then
-    ``f_i = m_i a_ci + f_{i+1}`` and ``n_i = I_i α_i + r_i u_i × m_i a_ci + n_{i+1} +
-    l_i u_i × f_{i+1}`` about joint ``i``.
+    For a [`PlanarChain`][lagrax.chains.PlanarChain] the same recursion runs in the plane with
+    scalar angular rates and moments (`z` components) in the fixed frame: joint `i + 1`'s
+    acceleration `a_{i+1} = a_i + α_i ẑ × l_i u_i − ω_i² l_i u_i`, then
+    `f_i = m_i a_ci + f_{i+1}` and ``n_i = I_i α_i + r_i u_i × m_i a_ci + n_{i+1} +
+    l_i u_i × f_{i+1}` about joint `i``.
 
     This is an independent derivation (no energies, no autodiff, its own kinematics): use
-    it to check a chain's :meth:`~lagrax.LagrangianSystem.inverse_dynamics`.
+    it to check a chain's [`inverse_dynamics`][lagrax.LagrangianSystem.inverse_dynamics].
 
     **Arguments:**
 
-    - ``chain``: a :class:`~lagrax.chains.PlanarChain`, :class:`~lagrax.chains.SpatialChain`
-      or :class:`~lagrax.chains.Tree`.
-    - ``q``, ``qd``, ``qdd``: joint positions, rates and accelerations, shape ``(n,)``.
-    - ``params``: the chain's parameters (``chain.params(...)``).
+    - `chain`: a [`PlanarChain`][lagrax.chains.PlanarChain],
+      [`SpatialChain`][lagrax.chains.SpatialChain] or [`Tree`][lagrax.chains.Tree].
+    - `q`, `qd`, `qdd`: joint positions, rates and accelerations, shape `(n,)`.
+    - `params`: the chain's parameters (`chain.params(...)`).
 
-    **Returns:** ``τ``, shape ``(n,)``: joint torques (revolute) or forces (prismatic).
+    **Returns:** `τ`, shape `(n,)`: joint torques (revolute) or forces (prismatic).
 
-    **Raises:** ``ShapeError`` for inputs of the wrong length; ``TypeError`` for another
+    **Raises:** `ShapeError` for inputs of the wrong length; `TypeError` for another
     kind of chain.
     """
     if not isinstance(chain, (PlanarChain, SpatialChain, Tree)):
@@ -207,7 +210,7 @@ def _skew(v):
 
 
 def _rotation_about(axis, angle):
-    """``R = cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`` (unit ``a``)."""
+    """`R = cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ` (unit `a`)."""
     c, s = jnp.cos(angle), jnp.sin(angle)
     return c * jnp.eye(3, dtype=axis.dtype) + s * _skew(axis) + (1 - c) * jnp.outer(axis, axis)
 

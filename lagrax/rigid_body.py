@@ -1,8 +1,8 @@
 """Rigid-body rotation: Euler's equations with a singularity-free (quaternion) attitude,
 and the attitude maps between Euler angles, quaternions and rotation matrices.
 
-Compare with ``lagrax.models.free_rigid_body_euler_angles``: the same body as a
-``LagrangianSystem`` in ZYX Euler angles, which is singular at gimbal lock.
+Compare with `lagrax.models.free_rigid_body_euler_angles`: the same body as a
+`LagrangianSystem` in ZYX Euler angles, which is singular at gimbal lock.
 """
 
 from ._rigid_body import RigidBodySolution as RigidBodySolution

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+import pytest
 
 matplotlib.use("Agg")
 
@@ -89,3 +90,139 @@ def test_stability_plots(tmp_path):
     rows = [lx.bench.AtlasRow("case", "m", "ok", "a | b", "", 0.1)]
     lx.bench.write_table(rows, tmp_path / "s.md", tmp_path / "s.csv")
     assert "a / b" in (tmp_path / "s.md").read_text()  # pipes escaped for Markdown
+
+
+# ---------------------------------------------------------------- command-line help
+
+BENCHMARKS = sorted((ROOT / "benchmarks").glob("bench_*.py"))
+
+
+def _bench_module(path: Path):
+    """A benchmark script imported as a module (its imports, no work: main is not run)."""
+    import importlib.util
+    import sys
+
+    if str(path.parent) not in sys.path:
+        sys.path.insert(0, str(path.parent))
+    spec = importlib.util.spec_from_file_location(f"_bench_{path.stem}", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _help(main, argv, capsys) -> str:
+    with pytest.raises(SystemExit) as exit_:
+        main([*argv, "--help"])
+    assert exit_.value.code == 0
+    return capsys.readouterr().out
+
+
+def _options_without_default(text: str) -> list[str]:
+    """Options of a --help text that take a value but do not show its default."""
+    entries: list[str] = []
+    for line in text.splitlines():
+        if re.match(r"^  -", line):
+            entries.append(line.strip())
+        elif entries and re.match(r"^\s{4,}\S", line):
+            entries[-1] += " " + line.strip()
+        elif not line.strip():
+            entries.append("")
+    missing = []
+    for entry in filter(None, entries):
+        option = re.match(r"(-[-\w]+(?:, -[-\w]+)*)( [A-Z_]+)?", entry)
+        assert option is not None, entry
+        takes_value = option.group(2) is not None
+        if takes_value and "(default: " not in entry:
+            missing.append(entry)
+    return missing
+
+
+def test_cli_help_shows_defaults(capsys):
+    seen = []
+    for argv in (["demo"], ["bench", "work-precision"], ["bench", "stability"]):
+        text = _help(cli.main, argv, capsys)
+        assert not _options_without_default(text), (argv, _options_without_default(text))
+        seen.append(text)
+    assert "--t1 T1" in seen[0] and "(default: 10.0)" in seen[0]
+    assert "(default: 1000)" in seen[0]  # --states
+    assert "(default: lagrax-output)" in seen[2]
+
+
+def test_benchmark_help_shows_defaults(capsys):
+    assert len(BENCHMARKS) >= 7, BENCHMARKS
+    for path in BENCHMARKS:
+        text = _help(_bench_module(path).main, [], capsys)
+        assert "usage:" in text, path.name
+        missing = _options_without_default(text)
+        assert not missing, (path.name, missing)
+        assert "(default: " in text, path.name
+
+
+def test_benchmarks_skip_a_missing_baseline_up_front(monkeypatch, capsys):
+    import sys
+
+    optional = _bench_module(ROOT / "benchmarks" / "_optional.py")
+    monkeypatch.setitem(sys.modules, "numba", None)  # as if not installed
+    assert optional.available("numba", "numba RK4 baseline") is False
+    note = capsys.readouterr().out.strip()
+    assert note.count("\n") == 0 and "numba RK4 baseline skipped" in note, note
+    assert '".[bench]"' in note
+    assert optional.available("numpy", "anything") is True
+    assert capsys.readouterr().out == ""
+    # bench_vs_scipy without SciPy: one line and a clean return, before any solve
+    monkeypatch.setitem(sys.modules, "scipy", None)
+    bench = _bench_module(ROOT / "benchmarks" / "bench_vs_scipy.py")
+    assert bench.main([]) is None
+    out = capsys.readouterr().out.strip()
+    assert out.startswith("note: ") and "scipy is not installed" in out and "\n" not in out
+
+
+# ---------------------------------------------------------------- the documentation site
+
+DOC_PAGES = sorted((ROOT / "docs").glob("*.md"))
+
+
+@pytest.mark.slow  # about 40 s: a dozen first compilations
+def test_docs_pages_python_examples_run(tmp_path, monkeypatch, capsys):
+    """Every ```python block of the site's pages runs (each page in its own namespace);
+    index.md's example is the README's, run above."""
+    monkeypatch.chdir(tmp_path)  # getting-started writes a figure
+    ran = 0
+    for page in DOC_PAGES:
+        if page.name == "index.md":
+            assert "cart_pole = lx.LagrangianSystem(T, V" in (ROOT / "README.md").read_text()
+            continue
+        blocks = re.findall(r"```python\n(.*?)```", page.read_text(), flags=re.S)
+        namespace: dict = {}
+        for block in blocks:
+            exec(compile(block, str(page.relative_to(ROOT)), "exec"), namespace)
+            ran += 1
+        if page.name == "getting-started.md":
+            assert namespace["ds"].attrs["n_failed"] == 0
+            assert (tmp_path / "arm.png").stat().st_size > 10_000
+        if page.name == "errors.md":
+            assert "not positive-definite" in capsys.readouterr().out
+    assert ran >= 10, ran
+
+
+def test_mkdocs_nav_and_api_reference_cover_the_public_api():
+    """The nav names every page and notebook; the API pages document every public name."""
+    yml = (ROOT / "mkdocs.yml").read_text()
+    for page in DOC_PAGES:
+        assert f": {page.name}" in yml, page.name
+    for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        assert f"notebooks/{nb.name}" in yml, nb.name
+    api = "\n".join(p.read_text() for p in (ROOT / "docs" / "api").glob("*.md"))
+    documented = set(re.findall(r"^::: lagrax\.(\w+)", api, flags=re.M))
+    assert set(lx.__all__) <= documented, set(lx.__all__) - documented
+
+
+def test_notebooks_are_committed_without_outputs():
+    """The site executes them at build; the repository keeps them clean (CI skips their
+    second execution by tests/test_notebooks.py after the docs build: see .ci/run)."""
+    import json
+
+    for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        cells = json.loads(nb.read_text())["cells"]
+        assert not any(c.get("outputs") for c in cells if c["cell_type"] == "code"), nb.name

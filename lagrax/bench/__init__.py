@@ -1,9 +1,11 @@
 """Accuracy–cost studies: work–precision diagrams and the stability atlas.
 
-- :func:`work_precision` runs methods over ladders of tolerances/steps against a
-  reference solution; :func:`write_csv` and :func:`plot_work_precision` report it.
-- :mod:`stability <lagrax.bench._stability>` cases: :func:`long_horizon`, :func:`stiff`,
-  :func:`chaos`, :func:`singular`, collected by ``lagrax bench stability``.
+- [`work_precision`][lagrax.bench.work_precision] runs methods over ladders of tolerances/steps
+  against a reference solution; [`write_csv`][lagrax.bench.write_csv] and
+  [`plot_work_precision`][lagrax.bench.plot_work_precision] report it.
+- `stability` cases: [`long_horizon`][lagrax.bench.long_horizon], [`stiff`][lagrax.bench.stiff],
+  [`chaos`][lagrax.bench.chaos], [`singular`][lagrax.bench.singular], collected by `lagrax bench
+  stability`.
 """
 
 from ._stability import AtlasRow as AtlasRow
@@ -22,3 +24,22 @@ from ._work_precision import plot_work_precision as plot_work_precision
 from ._work_precision import reference_solution as reference_solution
 from ._work_precision import work_precision as work_precision
 from ._work_precision import write_csv as write_csv
+
+__all__ = [
+    "work_precision",
+    "reference_solution",
+    "WorkPrecisionPoint",
+    "DEFAULT_LADDERS",
+    "write_csv",
+    "plot_work_precision",
+    "long_horizon",
+    "stiff",
+    "stiff_arm",
+    "chaos",
+    "singular",
+    "spherical_pendulum",
+    "AtlasRow",
+    "write_table",
+    "plot_long_horizon",
+    "plot_chaos",
+]

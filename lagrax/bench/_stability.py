@@ -49,7 +49,7 @@ def energy_trend(ts, energy_error) -> tuple[float, float]:
 
 
 def long_horizon(periods: float = 1e4, *, n_save: int = 2001):
-    """Torque-free 2R arm over ``periods`` of its slowest natural period (≈ 2.34 s).
+    """Torque-free 2R arm over `periods` of its slowest natural period (≈ 2.34 s).
 
     Tsit5 at a practical tolerance (1e-8) drifts secularly in energy; the midpoint
     variational integrator keeps a bounded, oscillating energy error. Returns the atlas
@@ -102,7 +102,7 @@ def _stiff_dissipation(q, qd, p):
 
 
 def stiff_arm(stiffness_ratio: float = 1e6):
-    """The 2R arm with a joint-2 spring/damper, ``k = ratio · m g l`` (gravity scale)."""
+    """The 2R arm with a joint-2 spring/damper, `k = ratio · m g l` (gravity scale)."""
     system = LagrangianSystem(
         _stiff_kinetic,
         _stiff_potential,
@@ -150,8 +150,8 @@ def chaos(t1: float = 30.0, tolerances=(1e-6, 1e-8, 1e-10, 1e-12), threshold: fl
     """Predictability horizon of the chaotic 2R arm against the solver tolerance.
 
     Each solution is compared with Dopri8 at 1e-13; the horizon is the first time the
-    joint angles differ by more than ``threshold`` rad. Returns rows and the divergence
-    curves ``{tol: (ts, |Δq|)}``.
+    joint angles differ by more than `threshold` rad. Returns rows and the divergence
+    curves `{tol: (ts, |Δq|)}`.
     """
     system, params = arm.planar_2r()
     q0, qd0 = jnp.array(CHAOTIC_START), jnp.zeros(2)
@@ -206,7 +206,7 @@ def _xy_potential(q, p):
 
 def spherical_pendulum(coordinates: str = "spherical"):
     """A spherical pendulum in spherical angles (singular at the bottom) or in the
-    horizontal bob coordinates ``(x, y)`` (regular there)."""
+    horizontal bob coordinates `(x, y)` (regular there)."""
     params = {"m": jnp.asarray(1.0), "l": jnp.asarray(1.0), "g": jnp.asarray(9.81)}
     if coordinates == "spherical":
         return LagrangianSystem(

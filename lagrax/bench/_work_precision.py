@@ -65,10 +65,10 @@ def _state_error(a: Solution, b: Solution) -> float:
 
 
 def reference_solution(system, q0, qd0, params, *, t1: float, n_save: int = 201):
-    """Dopri8 at ``rtol = atol = 1e-13``, and an estimate of its own error.
+    """Dopri8 at `rtol = atol = 1e-13`, and an estimate of its own error.
 
     The estimate is the difference from a second, independent run (Dopri8 at 1e-14 with
-    a different step-size history); returned as ``(solution, error_estimate)``.
+    a different step-size history); returned as `(solution, error_estimate)`.
     """
     ref = simulate(
         system,
@@ -111,15 +111,15 @@ def work_precision(
 ) -> tuple[list[WorkPrecisionPoint], float]:
     """Run each method over its ladder of tolerances or steps; measure error and cost.
 
-    For every (method, tolerance or step): the state error at ``t1`` against a reference
-    solution (:func:`reference_solution`), the largest relative energy error along the
-    trajectory (``n_save`` points), the median wall time of ``repeats`` runs after
+    For every (method, tolerance or step): the state error at `t1` against a reference
+    solution ([`reference_solution`][lagrax.bench.reference_solution]), the largest relative energy
+    error along the trajectory (`n_save` points), the median wall time of `repeats` runs after
     compilation, the compile time (first call minus a run), the step count and, for
     explicit Runge–Kutta methods, the number of right-hand-side evaluations. Adaptive
-    methods use ``rtol = atol = value``; fixed-step methods ``dt = value``. Failed runs are
-    recorded with ``ok=False``, not dropped.
+    methods use `rtol = atol = value`; fixed-step methods `dt = value`. Failed runs are
+    recorded with `ok=False`, not dropped.
 
-    **Returns:** ``(points, reference_error)``.
+    **Returns:** `(points, reference_error)`.
     """
     ladders = DEFAULT_LADDERS if ladders is None else ladders
     ref, ref_err = reference_solution(system, q0, qd0, params, t1=t1, n_save=n_save)

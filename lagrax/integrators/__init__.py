@@ -1,4 +1,4 @@
-"""Integrators that diffrax lacks, as ``diffrax.AbstractSolver`` subclasses."""
+"""Integrators that diffrax lacks, as `diffrax.AbstractSolver` subclasses."""
 
 from ._rk4 import RK4 as RK4
 from ._variational import Variational as Variational

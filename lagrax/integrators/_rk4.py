@@ -19,8 +19,8 @@ _rk4_tableau = ButcherTableau(
 class RK4(AbstractERK):
     """The classic fourth-order Runge–Kutta method (fixed step only).
 
-    Four stages, no error estimate: use it with ``dt=`` (``diffrax.ConstantStepSize``).
-    Included as the fixed-step workhorse many engines use (e.g. MuJoCo's ``RK4``), so
+    Four stages, no error estimate: use it with `dt=` (`diffrax.ConstantStepSize`).
+    Included as the fixed-step workhorse many engines use (e.g. MuJoCo's `RK4`), so
     lagrax can be compared with them at the same step. Reference: W. Kutta, Z. Math.
     Phys. 46 (1901) 435–453.
     """

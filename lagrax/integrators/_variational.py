@@ -25,17 +25,17 @@ _COMPOSITIONS: dict[int, tuple[float, ...]] = {
 
 
 def _newton(residual, x0, rtol, atol, max_steps):
-    """Solve ``residual(x) = 0`` by a chord (simplified Newton) iteration from ``x0``.
+    """Solve `residual(x) = 0` by a chord (simplified Newton) iteration from `x0`.
 
-    The exact Jacobian (``n`` JVPs) is formed and factored once, at ``x0``; each iteration
-    then costs one residual. From the third-order predictor of ``Variational`` the start
-    is within ``O(h³)`` of the root, so the contraction factor ``‖J(x0)⁻¹(J(x*) − J(x0))‖``
+    The exact Jacobian (`n` JVPs) is formed and factored once, at `x0`; each iteration
+    then costs one residual. From the third-order predictor of `Variational` the start
+    is within `O(h³)` of the root, so the contraction factor `‖J(x0)⁻¹(J(x*) − J(x0))‖`
     is tiny and two or three iterations reach round-off — cheaper than full Newton, whose
     every iteration re-forms the Jacobian.
 
-    Stops when the update is below ``atol + rtol·|x|``. Returns ``(x, aux, result)`` with
-    ``aux`` the residual's auxiliary output at the returned ``x``; the result is
-    ``nonlinear_max_steps_reached`` if it did not converge and ``nonlinear_divergence``
+    Stops when the update is below `atol + rtol·|x|`. Returns `(x, aux, result)` with
+    `aux` the residual's auxiliary output at the returned `x`; the result is
+    `nonlinear_max_steps_reached` if it did not converge and `nonlinear_divergence`
     if the iterate became non-finite.
     """
     r0, aux0 = residual(x0)
@@ -64,45 +64,45 @@ def _newton(residual, x0, rtol, atol, max_steps):
 
 
 class Variational(dfx.AbstractSolver):
-    r"""Midpoint variational integrator (and its order-4 composition), for any ``T``.
+    r"""Midpoint variational integrator (and its order-4 composition), for any `T`.
 
     The discrete Lagrangian of the midpoint rule
 
-        ``L_d(q_k, q_{k+1}) = h L((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)``
+        `L_d(q_k, q_{k+1}) = h L((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)`
 
-    and the discrete Lagrange–d'Alembert principle (forces ``F = τ + F_applied − ∂D/∂q̇``
-    at the midpoint, split equally between the two ends: ``f^± = (h/2) F``) give the
-    position–momentum map ``(q_k, p_k) ↦ (q_{k+1}, p_{k+1})``:
+    and the discrete Lagrange–d'Alembert principle (forces `F = τ + F_applied − ∂D/∂q̇`
+    at the midpoint, split equally between the two ends: `f^± = (h/2) F`) give the
+    position–momentum map `(q_k, p_k) ↦ (q_{k+1}, p_{k+1})`:
 
-        ``p_k + (h/2)(∂L/∂q + F) − ∂L/∂q̇ = 0``     (solved for ``q_{k+1}`` by Newton)
-        ``p_{k+1} = p_k + h (∂L/∂q + F)``
+        `p_k + (h/2)(∂L/∂q + F) − ∂L/∂q̇ = 0`     (solved for `q_{k+1}` by Newton)
+        `p_{k+1} = p_k + h (∂L/∂q + F)`
 
-    with ``∂L/∂q``, ``∂L/∂q̇`` and ``F`` evaluated at the midpoint
-    ``((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)`` (and, for a time-dependent system, at the
-    midpoint time ``t_k + h/2``). It does not need ``L`` to be separable,
+    with `∂L/∂q`, `∂L/∂q̇` and `F` evaluated at the midpoint
+    `((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)` (and, for a time-dependent system, at the
+    midpoint time `t_k + h/2`). It does not need `L` to be separable,
     so it applies to configuration-dependent mass matrices (diffrax's
-    ``SemiImplicitEuler`` does not). Without forcing the map is symplectic and conserves
-    the discrete momentum map of every symmetry of ``L_d`` (e.g. ``p_i`` for a cyclic
-    coordinate ``q_i``) to solver precision; the energy error stays bounded over
+    `SemiImplicitEuler` does not). Without forcing the map is symplectic and conserves
+    the discrete momentum map of every symmetry of `L_d` (e.g. `p_i` for a cyclic
+    coordinate `q_i`) to solver precision; the energy error stays bounded over
     exponentially long times instead of drifting. The midpoint map is symmetric, so
-    ``order=4`` composes it with Yoshida's triple-jump step fractions.
+    `order=4` composes it with Yoshida's triple-jump step fractions.
 
-    The state handed to diffrax is ``(q, q̇)``; the momentum ``p`` is carried in the
-    solver state, and ``q̇_{k+1}`` is recovered from ``p_{k+1} = ∂T/∂q̇(q_{k+1}, q̇_{k+1})``
-    (``M(q) q̇ = p − ∂T/∂q̇(q, 0)`` for ``T`` quadratic in ``q̇``).
+    The state handed to diffrax is `(q, q̇)`; the momentum `p` is carried in the
+    solver state, and `q̇_{k+1}` is recovered from `p_{k+1} = ∂T/∂q̇(q_{k+1}, q̇_{k+1})`
+    (`M(q) q̇ = p − ∂T/∂q̇(q, 0)` for `T` quadratic in `q̇`).
 
     **Fixed step only.** This solver provides no error estimate and must not be paired
-    with an error-controlled adaptive step: changing ``h`` from step to step according to
+    with an error-controlled adaptive step: changing `h` from step to step according to
     the state destroys symplecticity, and with it the bounded energy error. Use it with
-    ``diffrax.ConstantStepSize()`` (``lagrax.simulate(..., dt=h)``).
+    `diffrax.ConstantStepSize()` (`lagrax.simulate(..., dt=h)`).
 
     **Arguments:**
 
-    - ``order``: 2 (midpoint) or 4 (triple-jump composition, three Newton solves a step).
-    - ``rtol``, ``atol``: tolerances of the Newton iteration on ``q_{k+1}`` (on the change
+    - `order`: 2 (midpoint) or 4 (triple-jump composition, three Newton solves a step).
+    - `rtol`, `atol`: tolerances of the Newton iteration on `q_{k+1}` (on the change
       between iterates; Newton converges quadratically, so the accepted iterate is
       accurate to round-off). Tighter values can stall on round-off in long runs.
-    - ``max_newton_steps``: Newton iterations allowed per (sub)step; failure to converge
+    - `max_newton_steps`: Newton iterations allowed per (sub)step; failure to converge
       is reported as a failed solve.
 
     References: J. E. Marsden and M. West, *Discrete mechanics and variational
@@ -191,7 +191,7 @@ class Variational(dfx.AbstractSolver):
 
 
 def _lagrangian_system(field) -> LagrangianSystem:
-    """The unconstrained ``LagrangianSystem`` a variational integrator needs, or an error."""
+    """The unconstrained `LagrangianSystem` a variational integrator needs, or an error."""
     system = field.system
     if not isinstance(system, LagrangianSystem):
         raise ConfigurationError(

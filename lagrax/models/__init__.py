@@ -1,4 +1,4 @@
-"""Ready-made scenes: each returns ``(system, params)`` with default parameter values."""
+"""Ready-made scenes: each returns `(system, params)` with default parameter values."""
 
 from ._cartesian_pendulum import cartesian_pendulum as cartesian_pendulum
 from ._four_bar import four_bar as four_bar

@@ -9,35 +9,35 @@ PARAM_NAMES = ("m", "l", "g")
 
 
 def kinetic(q, qd, p):
-    """``T = ½ m (ẋ² + ẏ²)``."""
+    """`T = ½ m (ẋ² + ẏ²)`."""
     return 0.5 * p["m"] * jnp.sum(qd**2)
 
 
 def potential(q, p):
-    """``V = m g y`` (gravity along −y)."""
+    """`V = m g y` (gravity along −y)."""
     return p["m"] * p["g"] * q[1]
 
 
 def rod(q, p):
-    """``φ = x² + y² − l²``: the bob stays at distance ``l`` from the pivot (origin)."""
+    """`φ = x² + y² − l²`: the bob stays at distance `l` from the pivot (origin)."""
     return jnp.stack([q[0] ** 2 + q[1] ** 2 - p["l"] ** 2])
 
 
 def cartesian_pendulum(*, alpha: float = 10.0, beta: float = 10.0, **overrides):
-    """A simple pendulum in Cartesian coordinates ``q = (x, y)``, as ``(system, params)``.
+    """A simple pendulum in Cartesian coordinates `q = (x, y)`, as `(system, params)`.
 
-    A point mass ``m`` in the plane (gravity ``g`` along −y, pivot at the origin) with the
-    holonomic constraint ``φ(q) = x² + y² − l² = 0``: a :class:`ConstrainedSystem` with 2
-    coordinates and 1 constraint (1 degree of freedom). In the minimal coordinate ``θ``
-    (from the downward vertical, ``x = l sin θ``, ``y = −l cos θ``) it is
-    ``m l² θ̈ + m g l sin θ = 0``, and the rod tension is ``m (l θ̇² + g cos θ)``; the
-    multiplier is ``λ = −tension / (2 l)`` (the constraint force ``Jᵀλ = 2λ (x, y)``
+    A point mass `m` in the plane (gravity `g` along −y, pivot at the origin) with the
+    holonomic constraint `φ(q) = x² + y² − l² = 0`: a
+    [`ConstrainedSystem`][lagrax.ConstrainedSystem] with 2 coordinates and 1 constraint (1 degree of
+    freedom). In the minimal coordinate `θ` (from the downward vertical, `x = l sin θ`, `y = −l cos
+    θ`) it is `m l² θ̈ + m g l sin θ = 0`, and the rod tension is `m (l θ̇² + g cos θ)`; the
+    multiplier is `λ = −tension / (2 l)` (the constraint force `Jᵀλ = 2λ (x, y)`
     pulls the bob towards the pivot).
 
-    ``params``: ``m l g`` (default 1 kg, 1 m, 9.81 m/s²); keyword arguments override them.
-    ``alpha``, ``beta``: Baumgarte gains of the :class:`ConstrainedSystem`.
+    `params`: `m l g` (default 1 kg, 1 m, 9.81 m/s²); keyword arguments override them.
+    `alpha`, `beta`: Baumgarte gains of the [`ConstrainedSystem`][lagrax.ConstrainedSystem].
 
-    **Example:** ``system, params = lagrax.models.cartesian_pendulum(l=2.0)``
+    **Example:** `system, params = lagrax.models.cartesian_pendulum(l=2.0)`
     """
     unknown = set(overrides) - set(PARAM_NAMES)
     if unknown:

@@ -13,8 +13,8 @@ def _unit(angle):
 
 
 def joints(q, p):
-    """Moving joints ``A`` (crank–coupler) and ``B`` (coupler–rocker, reached through the
-    crank and coupler), and ``B'`` (the same joint reached from the rocker's pivot)."""
+    """Moving joints `A` (crank–coupler) and `B` (coupler–rocker, reached through the
+    crank and coupler), and `B'` (the same joint reached from the rocker's pivot)."""
     a = p["l1"] * _unit(q[0])
     b = a + p["l2"] * _unit(q[1])
     b_rocker = jnp.stack([p["d"], jnp.zeros_like(p["d"])]) + p["l3"] * _unit(q[2])
@@ -22,7 +22,7 @@ def joints(q, p):
 
 
 def _centres(q, p):
-    """Centres of mass of the three uniform links, shape ``(3, 2)``."""
+    """Centres of mass of the three uniform links, shape `(3, 2)`."""
     a, _, _ = joints(q, p)
     ground_b = jnp.stack([p["d"], jnp.zeros_like(p["d"])])
     return jnp.stack(
@@ -35,9 +35,9 @@ def _centres(q, p):
 
 
 def kinetic(q, qd, p):
-    """``T = Σ ½ m_i |v_ci|² + ½ (m_i l_i²/12) θ̇_i²`` (uniform rods), with the centre
-    velocities ``v_c1 = ½ l1 θ̇1 e⊥(θ1)``, ``v_c2 = l1 θ̇1 e⊥(θ1) + ½ l2 θ̇2 e⊥(θ2)``,
-    ``v_c3 = ½ l3 θ̇3 e⊥(θ3)`` (``e⊥(θ) = (−sin θ, cos θ)``), written out: a planar link
+    """`T = Σ ½ m_i |v_ci|² + ½ (m_i l_i²/12) θ̇_i²` (uniform rods), with the centre
+    velocities `v_c1 = ½ l1 θ̇1 e⊥(θ1)`, `v_c2 = l1 θ̇1 e⊥(θ1) + ½ l2 θ̇2 e⊥(θ2)`,
+    `v_c3 = ½ l3 θ̇3 e⊥(θ3)` (`e⊥(θ) = (−sin θ, cos θ)`), written out: a planar link
     needs only its centre velocity and one angular rate."""
     w1, w2, w3 = qd[0], qd[1], qd[2]
     # |v_c2|² = (l1 θ̇1)² + (½ l2 θ̇2)² + l1 l2 θ̇1 θ̇2 cos(θ1 − θ2)
@@ -57,34 +57,34 @@ def kinetic(q, qd, p):
 
 
 def potential(q, p):
-    """``V = g Σ m_i y_ci`` (gravity along −y)."""
+    """`V = g Σ m_i y_ci` (gravity along −y)."""
     masses = jnp.stack([p["m1"], p["m2"], p["m3"]])
     return p["g"] * jnp.sum(masses * _centres(q, p)[:, 1])
 
 
 def loop_closure(q, p):
-    """``φ(q) = B − B' = l1 e(θ1) + l2 e(θ2) − l3 e(θ3) − (d, 0)``, shape ``(2,)``."""
+    """`φ(q) = B − B' = l1 e(θ1) + l2 e(θ2) − l3 e(θ3) − (d, 0)`, shape `(2,)`."""
     _, b, b_rocker = joints(q, p)
     return b - b_rocker
 
 
 def four_bar(*, alpha: float = 10.0, beta: float = 10.0, **overrides):
-    """A planar four-bar linkage under gravity, as ``(system, params)``.
+    """A planar four-bar linkage under gravity, as `(system, params)`.
 
-    Three uniform rods — crank (length ``l1``, pivot at the origin), coupler (``l2``) and
-    rocker (``l3``, pivot at ``(d, 0)``); the ground is the fourth bar. Coordinates
-    ``q = (θ1, θ2, θ3)`` are the links' absolute angles from the x axis, gravity along
+    Three uniform rods — crank (length `l1`, pivot at the origin), coupler (`l2`) and
+    rocker (`l3`, pivot at `(d, 0)`); the ground is the fourth bar. Coordinates
+    `q = (θ1, θ2, θ3)` are the links' absolute angles from the x axis, gravity along
     −y. Closing the loop (crank tip + coupler = rocker tip) is the holonomic constraint
-    ``φ(q) = l1 e(θ1) + l2 e(θ2) − l3 e(θ3) − (d, 0) = 0`` (2 equations, so 1 degree of
-    freedom): a :class:`ConstrainedSystem`. Its multipliers ``λ`` are the force (x, y) that
-    the rocker exerts on the coupler at their joint.
+    `φ(q) = l1 e(θ1) + l2 e(θ2) − l3 e(θ3) − (d, 0) = 0` (2 equations, so 1 degree of
+    freedom): a [`ConstrainedSystem`][lagrax.ConstrainedSystem]. Its multipliers `λ` are the force
+    (x, y) that the rocker exerts on the coupler at their joint.
 
-    ``params``: ``l1 l2 l3 d m1 m2 m3 g``. Defaults: a Grashof crank–rocker
-    (``l1 = 0.5``, ``l2 = 2``, ``l3 = 1.5``, ``d = 2`` m; the crank turns fully) of
-    1 kg/m rods, ``g = 9.81``; keyword arguments override them. For it, ``J = ∂φ/∂q``
+    `params`: `l1 l2 l3 d m1 m2 m3 g`. Defaults: a Grashof crank–rocker
+    (`l1 = 0.5`, `l2 = 2`, `l3 = 1.5`, `d = 2` m; the crank turns fully) of
+    1 kg/m rods, `g = 9.81`; keyword arguments override them. For it, `J = ∂φ/∂q`
     has full rank in every assembled configuration.
 
-    **Example:** the crank up and an approximate assembly, projected by ``simulate``:
+    **Example:** the crank up and an approximate assembly, projected by `simulate`:
 
     ```python
     system, params = lagrax.models.four_bar()

@@ -1,4 +1,4 @@
-"""The lecture's mass–spring–damper, ``m ẍ + c ẋ + k x = f(t)``."""
+"""The lecture's mass–spring–damper, `m ẍ + c ẋ + k x = f(t)`."""
 
 import jax.numpy as jnp
 
@@ -23,12 +23,12 @@ def _harmonic_force(t, q, qd, p):
 
 
 def mass_spring_damper(**overrides):
-    """A mass on a linear spring and viscous damper, as ``(system, params)``.
+    """A mass on a linear spring and viscous damper, as `(system, params)`.
 
-    ``T = ½ m ẋ²``, ``V = ½ k x²``, Rayleigh ``D = ½ c ẋ²`` and a harmonic load
-    ``f(t) = f0 cos(ω t)`` give ``m ẍ + c ẋ + k x = f(t)``. ``params`` keys:
-    ``m k c f0 omega`` (defaults 1, 1, 0, 0, 1: an undamped, unforced unit oscillator).
-    For any other ``f(t)``, pass ``tau=`` to :func:`lagrax.simulate`.
+    `T = ½ m ẋ²`, `V = ½ k x²`, Rayleigh `D = ½ c ẋ²` and a harmonic load
+    `f(t) = f0 cos(ω t)` give `m ẍ + c ẋ + k x = f(t)`. `params` keys:
+    `m k c f0 omega` (defaults 1, 1, 0, 0, 1: an undamped, unforced unit oscillator).
+    For any other `f(t)`, pass `tau=` to [`lagrax.simulate`][].
     """
     params = {"m": 1.0, "k": 1.0, "c": 0.0, "f0": 0.0, "omega": 1.0}
     unknown = set(overrides) - set(params)

@@ -18,7 +18,7 @@ def _com_positions(q, p):
 
 
 def kinetic(q, qd, p):
-    """``T = ½ m1 |v_c1|² + ½ I1 θ̇1² + ½ m2 |v_c2|² + ½ I2 (θ̇1 + θ̇2)²``.
+    """`T = ½ m1 |v_c1|² + ½ I1 θ̇1² + ½ m2 |v_c2|² + ½ I2 (θ̇1 + θ̇2)²`.
 
     CoM velocities by the chain rule on the CoM positions (written out, since a planar
     link needs only its CoM velocity and one angular rate).
@@ -35,7 +35,7 @@ def kinetic(q, qd, p):
 
 
 def potential(q, p):
-    """``V = g (m1 y_c1 + m2 y_c2)`` with gravity along −y."""
+    """`V = g (m1 y_c1 + m2 y_c2)` with gravity along −y."""
     s1, s12 = jnp.sin(q[0]), jnp.sin(q[0] + q[1])
     return p["g"] * (p["m1"] * p["r1"] * s1 + p["m2"] * (p["l1"] * s1 + p["r2"] * s12))
 
@@ -47,12 +47,12 @@ def default_params(dtype=None) -> dict:
 
 
 def planar_2r(**overrides):
-    """The planar 2R arm of the lecture, as ``(system, params)``.
+    """The planar 2R arm of the lecture, as `(system, params)`.
 
-    Convention: ``θ1`` measured from the x axis, ``θ2`` relative to link 1, gravity along
-    −y. Link ``i`` has mass ``m_i``, length ``l_i``, its centre of mass on the link at
-    distance ``r_i`` from its joint and z-inertia ``I_i`` about that centre of mass.
-    ``params`` is a dict with keys ``m1 m2 l1 l2 r1 r2 I1 I2 g`` (SI units); keyword
+    Convention: `θ1` measured from the x axis, `θ2` relative to link 1, gravity along
+    −y. Link `i` has mass `m_i`, length `l_i`, its centre of mass on the link at
+    distance `r_i` from its joint and z-inertia `I_i` about that centre of mass.
+    `params` is a dict with keys `m1 m2 l1 l2 r1 r2 I1 I2 g` (SI units); keyword
     arguments override the defaults (two uniform 1 kg, 1 m rods).
 
     Its equations of motion (lecture, eq. of the 2R arm):
@@ -61,7 +61,7 @@ def planar_2r(**overrides):
              − m2 l1 r2 s2 (2 θ̇1 + θ̇2) θ̇2 + m1 g r1 c1 + m2 g (l1 c1 + r2 c12)
         τ2 = (I2 + m2 (r2² + l1 r2 c2)) θ̈1 + (I2 + m2 r2²) θ̈2 + m2 l1 r2 s2 θ̇1² + m2 g r2 c12
 
-    **Example:** ``system, params = lagrax.models.planar_2r(m2=2.0)``
+    **Example:** `system, params = lagrax.models.planar_2r(m2=2.0)`
     """
     params = default_params()
     unknown = set(overrides) - set(PARAM_NAMES)
