@@ -1,4 +1,4 @@
-"""Sweeps on a GPU (the 2R arm; --model arm7: the 7-DOF arm): lagrax at its defaults against MuJoCo MJX, at matched accuracy.
+"""GPU sweeps (the 2R arm, or the 7-DOF arm) against MuJoCo MJX, at matched accuracy.
 
 The sweep of ``bench_sweep.py`` (a grid of m2 ∈ [0.5, 2] kg × l1 ∈ [0.5, 1.5] m, the
 chaotic start θ = (−π/2 + 1.4, 0.8) at rest, 10 s, final state kept), at batch sizes from
