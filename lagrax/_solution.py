@@ -25,17 +25,19 @@ class Solution(eqx.Module):
       ``num_rejected_steps``, ``max_steps``).
     - ``t_end``, ``q_end``, ``qd_end``: the last state the solver reached: ``t1`` on
       success, the time it stopped at on failure (with a custom ``saveat``, the last save).
-    - ``constraint_violation``: for a ``ConstrainedSystem``, ``φ(q)`` at ``ts``, shape
-      ``(T, m)``; ``None`` otherwise.
-    - ``multipliers``: for a ``ConstrainedSystem``, the Lagrange multipliers ``λ`` at
-      ``ts``, shape ``(T, m)`` (``J(q)ᵀλ`` is the generalized constraint force); ``None``
-      otherwise.
+    - ``constraint_violation``: for a ``ConstrainedSystem`` with holonomic constraints,
+      ``φ(q)`` at ``ts``, shape ``(T, m₁)``; ``None`` otherwise.
+    - ``multipliers``: for a ``ConstrainedSystem``, the Lagrange multipliers at ``ts``,
+      shape ``(T, m₁ + m₂)``: the holonomic rows' ``λ``, then the velocity rows' ``μ``
+      (``J(q)ᵀλ + A(q)ᵀμ`` is the generalized constraint force); ``None`` otherwise.
     - ``work``: for a time-dependent system, the work its explicit time dependence has done
       since the first save, ``W(t) = ∫ −∂L/∂t dt``, shape ``(T,)``, so that
       ``h(t) − h(t0) = W(t)`` on the exact motion without inputs or dissipation;
       ``None`` for an autonomous system. Integrated from the saved states by a
       sixth-order (Hermite) two-point rule, so the saves must resolve the time
       dependence (see :attr:`energy_error`).
+    - ``velocity_constraint_violation``: for a ``ConstrainedSystem`` with velocity
+      constraints, ``A(q) q̇`` at ``ts``, shape ``(T, m₂)``; ``None`` otherwise.
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -55,6 +57,7 @@ class Solution(eqx.Module):
     constraint_violation: Float[Array, "T m"] | None = None
     multipliers: Float[Array, "T m"] | None = None
     work: Float[Array, " T"] | None = None
+    velocity_constraint_violation: Float[Array, "T m2"] | None = None
 
     @property
     def ok(self) -> Array:

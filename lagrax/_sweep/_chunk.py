@@ -135,9 +135,12 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     at_end = jax.vmap(
         lambda t, a, b, p: system.observables(t, a, b, p, field.tau(t, a, b, tau_const))
     )(jnp.minimum(out.t_end, t1), q_end, qd_end, members)
-    violation = at_end.get("constraint_violation")
-    if violation is not None:
-        violation = jnp.max(jnp.abs(violation), axis=1)
+    # max |φ(q)| and max |A(q) q̇| at the end state (each present when the system has them)
+    violation = {
+        k: jnp.max(jnp.abs(at_end[k]), axis=1)
+        for k in ("constraint_violation", "velocity_constraint_violation")
+        if k in at_end
+    }
     reduced = None
     if setup.reduce is not None:
 
@@ -256,8 +259,8 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
         busy_lane_steps=np.asarray([out.busy_lane_steps.sum()]),
         lane_steps=np.asarray([out.lane_steps.sum()]),
     )
-    if violation is not None:
-        chunk["constraint_violation"] = blank(violation)
+    for k, v in violation.items():
+        chunk[k] = blank(v)
     if reduced is not None:
         leaves, _ = jtu.tree_flatten_with_path(reduced)
         for path, leaf in leaves:

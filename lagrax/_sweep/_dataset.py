@@ -73,8 +73,9 @@ def dataset(
     text = messages()
     status = np.asarray(["ok" if r == _OK else _short(text[r]) for r in cat["result"]])
     data["status"] = (sweep_dims, shaped(status))
-    if "constraint_violation" in cat:
-        data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
+    for k in ("constraint_violation", "velocity_constraint_violation"):
+        if k in cat:
+            data[k] = (sweep_dims, shaped(cat[k]))
     for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
         data[k] = (sweep_dims, shaped(cat[k]))
     # the system's coordinate names (a tree's joint names) label the dof axis

@@ -88,7 +88,8 @@ def sweep(
     - ``system``: a :class:`LagrangianSystem`, or a :class:`ConstrainedSystem` (each
       member's initial state is first projected onto its constraints, as in
       ``simulate``; the result then also has ``constraint_violation``, ``max |φ(q)|`` at
-      the end).
+      the end, and with velocity constraints ``velocity_constraint_violation``,
+      ``max |A(q) q̇|`` at the end).
     - ``q0``, ``qd0``: initial state, ``(n,)`` for all members, or one per member
       (``(members, n)``, or the grid's shape + ``(n,)``).
     - ``params``: a :class:`Grid` from :func:`grid` / :func:`samples`, or a pytree whose
