@@ -36,7 +36,8 @@ class AbstractSystem(eqx.Module):
 
     **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
     :meth:`components` (none), :meth:`failure_hint` (none), :meth:`jacobi_integral`
-    (:meth:`energy`), :meth:`explicit_power` (none).
+    (:meth:`energy`), :meth:`explicit_power` (none), :meth:`input_power` (``q̇·τ``),
+    :meth:`energy_magnitude` (``|h|``).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -94,6 +95,19 @@ class AbstractSystem(eqx.Module):
         :meth:`jacobi_integral`; ``None`` (the default) for an autonomous system, whose
         ``h`` only inputs and dissipation change. Never raises."""
         return None
+
+    def input_power(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Any:
+        """``q̇·(τ + F − ∂D/∂q̇)`` at one state: the rate at which the inputs, applied forces
+        and dissipation change :meth:`jacobi_integral`; ``None`` when there are none
+        (``tau`` is ``None`` and the system has no force or dissipation). Default:
+        ``q̇·τ``. Never raises."""
+        return None if tau is None else jnp.dot(qd, tau)
+
+    def energy_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """A magnitude of the energy at one state that does not vanish where ``h`` does
+        (``|T| + |V|``), the scale of ``Solution.energy_error``. Default: ``|h|``. Never
+        raises."""
+        return jnp.abs(self.jacobi_integral(t, q, qd, params))
 
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any

@@ -230,6 +230,15 @@ class ConstrainedSystem(AbstractSystem):
         """The system's ``−∂L/∂t`` (``None`` when autonomous)."""
         return self.system.explicit_power(t, q, qd, params)
 
+    def input_power(self, t, q, qd, params, tau):
+        """The system's ``q̇·(τ + F − ∂D/∂q̇)`` (the constraint forces add none:
+        ``q̇·(Jᵀλ + Aᵀμ) = λ·J q̇ + μ·A q̇ = 0`` on admissible velocities)."""
+        return self.system.input_power(t, q, qd, params, tau)
+
+    def energy_magnitude(self, t, q, qd, params):
+        """The system's ``|T| + |V|``."""
+        return self.system.energy_magnitude(t, q, qd, params)
+
     def kinetic_energy(
         self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
     ) -> Scalar:

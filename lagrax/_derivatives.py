@@ -260,7 +260,7 @@ def eom_small(e: Energies, q, qd, params, t=None):
     return rows, rhs
 
 
-def _has_applied(e: Energies, tau) -> bool:
+def has_applied(e: Energies, tau) -> bool:
     return tau is not None or e.force is not None or e.dissipation is not None
 
 
@@ -290,11 +290,11 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     Structure-aware ``equations`` (a chain's articulated-body algorithm) take precedence.
     """
     if e.equations is not None:
-        f = applied(e, t, q, qd, params, tau) if _has_applied(e, tau) else None
+        f = applied(e, t, q, qd, params, tau) if has_applied(e, tau) else None
         return e.equations.accelerations(q, qd, params, f)
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params, t)
-        if _has_applied(e, tau):
+        if has_applied(e, tau):
             f_applied = applied(e, t, q, qd, params, tau)
             rhs = [r + f_applied[i] for i, r in enumerate(rhs)]
         return solve_spd_unrolled(rows, rhs)

@@ -135,24 +135,66 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
     extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
     work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
-    return Solution(ts, q, qd, energy, result, stats, t_end, q_end, qd_end, **extras, work=work)
+    scale = energy_scale(system, params, ts, q, qd, energy)
+    return Solution(
+        ts,
+        q,
+        qd,
+        energy,
+        result,
+        stats,
+        t_end,
+        q_end,
+        qd_end,
+        **extras,
+        work=work,
+        energy_scale=scale,
+    )
+
+
+def energy_scale(system, params, ts, q, qd, energy):
+    """``max(|h(t_0)|, max_k (|T| + |V|)(t_k))`` over the reached saves: the scale of
+    ``Solution.energy_error`` (``0`` without saves)."""
+    if ts.shape[0] == 0:
+        return jnp.zeros((), energy.dtype)
+    mag = jax.vmap(lambda s, a, b: system.energy_magnitude(s, a, b, params))(ts, q, qd)
+    reached = jnp.isfinite(ts) & jnp.isfinite(mag)
+    e0 = jnp.where(jnp.isfinite(energy[0]), jnp.abs(energy[0]), 0.0)
+    return jnp.maximum(e0, jnp.max(jnp.where(reached, mag, 0.0)))
+
+
+def power_of(system, field, params, tau_const, t, q, qd):
+    """The rate of change of the Jacobi integral along the motion, ``−∂L/∂t +
+    q̇·(τ + F − ∂D/∂q̇)``, at one state, or ``None`` when nothing changes ``h`` (an
+    autonomous system without inputs, applied forces or dissipation)."""
+    explicit = system.explicit_power(t, q, qd, params)
+    inputs = system.input_power(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    if explicit is None:
+        return inputs
+    return explicit if inputs is None else explicit + inputs
 
 
 def work_along(system, field, params, tau_const, ts, q, qd):
-    r"""``W(t_k) = ∫_{t_0}^{t_k} −∂L/∂t dt`` at the saved times (from the first save; ``inf``
-    where not reached), or ``None`` for an autonomous system.
+    r"""``W(t_k) = ∫_{t_0}^{t_k} P dt`` at the saved times (from the first save; ``inf``
+    where not reached), with the power ``P = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)`` of the explicit
+    time dependence, the inputs, the applied force and the dissipation; ``None`` when
+    there is no such power (see :func:`power_of`).
 
-    The rate ``P = −∂L/∂t`` (:meth:`AbstractSystem.explicit_power`) and its first two
-    derivatives along the motion (JVPs along ``(1, q̇, q̈)``; ``q̈`` from the vector field
-    and ``q⃛`` from a JVP of it) at the saves give the two-point Hermite rule
+    The rate ``P`` (:meth:`AbstractSystem.explicit_power` plus
+    :meth:`AbstractSystem.input_power`) and its first two derivatives along the motion
+    (JVPs along ``(1, q̇, q̈)``; ``q̈`` from the vector field and ``q⃛`` from a JVP of it)
+    at the saves give the two-point Hermite rule
 
     .. math::  W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
                + \tfrac{Δ^2}{10}(Ṗ_k − Ṗ_{k+1}) + \tfrac{Δ^3}{120}(P̈_k + P̈_{k+1}),
 
-    sixth order in the save spacing ``Δ``: the saves must resolve the time dependence
-    (about 15 saves per period of it give ~1e-10).
+    sixth order in the save spacing ``Δ``: the saves must resolve the time dependence and
+    the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
+    smooth between saves (a switch inside a save interval costs accuracy).
     """
-    if ts.shape[0] == 0 or system.explicit_power(ts[0], q[0], qd[0], params) is None:
+    if ts.shape[0] == 0:
+        return None
+    if power_of(system, field, params, tau_const, ts[0], q[0], qd[0]) is None:
         return None
     reached = jnp.isfinite(ts) & jnp.all(jnp.isfinite(q), axis=1)
     reached = reached & jnp.all(jnp.isfinite(qd), axis=1)
@@ -166,7 +208,7 @@ def work_along(system, field, params, tau_const, ts, q, qd):
 
     def along(t, a, b, v, w):  # P and its derivative along the tangent (1, v, w)
         return jax.jvp(
-            lambda c, x, y: system.explicit_power(c, x, y, params),
+            lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
             (t, a, b),
             (jnp.ones_like(t), v, w),
         )

@@ -8,7 +8,7 @@ from ._results import RESULTS
 
 
 class Solution(eqx.Module):
-    """A simulated trajectory at the saved times.
+    r"""A simulated trajectory at the saved times.
 
     **Fields:**
 
@@ -30,14 +30,22 @@ class Solution(eqx.Module):
     - ``multipliers``: for a ``ConstrainedSystem``, the Lagrange multipliers at ``ts``,
       shape ``(T, m₁ + m₂)``: the holonomic rows' ``λ``, then the velocity rows' ``μ``
       (``J(q)ᵀλ + A(q)ᵀμ`` is the generalized constraint force); ``None`` otherwise.
-    - ``work``: for a time-dependent system, the work its explicit time dependence has done
-      since the first save, ``W(t) = ∫ −∂L/∂t dt``, shape ``(T,)``, so that
-      ``h(t) − h(t0) = W(t)`` on the exact motion without inputs or dissipation;
-      ``None`` for an autonomous system. Integrated from the saved states by a
-      sixth-order (Hermite) two-point rule, so the saves must resolve the time
-      dependence (see :attr:`energy_error`).
+    - ``work``: the work done on the system since the first save by everything that
+      changes ``h``, shape ``(T,)``:
+
+      .. math::  W(t) = ∫_{t_0}^{t} \big(−∂L/∂t + q̇·(τ + F − ∂D/∂q̇)\big)\,dt,
+
+      the explicit time dependence (a moving support, a reeled-in pendulum), the inputs
+      ``τ``, the applied force ``F`` and the dissipation ``D`` (its share is negative),
+      so that ``h(t) − h(t_0) = W(t)`` on the exact motion. ``None`` for an autonomous
+      system without any of them (then ``h`` is conserved). Constraint forces do no
+      work and are not included. Integrated from the saved states by a sixth-order
+      (Hermite) two-point rule, so the saves must resolve the time dependence and the
+      inputs (see :attr:`energy_error`).
     - ``velocity_constraint_violation``: for a ``ConstrainedSystem`` with velocity
       constraints, ``A(q) q̇`` at ``ts``, shape ``(T, m₂)``; ``None`` otherwise.
+    - ``energy_scale``: the scale of :attr:`energy_error`,
+      ``max(|h(t_0)|, max_t (|T| + |V|))`` over the saves, a scalar.
 
     After a failed solve with ``throw=False``, entries past the failure time are ``inf``
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -58,6 +66,7 @@ class Solution(eqx.Module):
     multipliers: Float[Array, "T m"] | None = None
     work: Float[Array, " T"] | None = None
     velocity_constraint_violation: Float[Array, "T m2"] | None = None
+    energy_scale: Float[Array, ""] | None = None
 
     @property
     def ok(self) -> Array:
@@ -67,24 +76,41 @@ class Solution(eqx.Module):
     @property
     def energy_change(self) -> Float[Array, " T"]:
         """``h(t) − h(t0)``: the change of :attr:`energy` since the first save (physics,
-        not error, for a time-dependent, damped or driven system)."""
+        not error, for a time-dependent, damped or driven system: it equals
+        :attr:`work` on the exact motion)."""
         return self.energy - self.energy[..., :1]
 
     @property
-    def energy_error(self) -> Float[Array, " T"]:
-        r"""The relative energy balance residual along the path,
-
-        .. math::  \frac{h(t) − h(t_0) − W(t)}{\max(|h(t_0)|, \text{tiny})},
-
-        with ``h`` = :attr:`energy` and ``W`` = :attr:`work` (zero for an autonomous
-        system, where this is the relative change of ``h``). It vanishes on the exact
-        motion of a system without inputs or dissipation (their work is not subtracted:
-        for a damped or driven system it is the change of ``h`` they cause); otherwise it
-        measures the integrator's error, plus, for a time-dependent system, the
-        quadrature error of ``W`` (sixth order in the save spacing).
-        """
-        e0 = self.energy[..., :1]
-        balance = self.energy - e0
+    def energy_balance(self) -> Float[Array, " T"]:
+        """The absolute energy balance residual ``h(t) − h(t_0) − W(t)`` (in energy
+        units; ``W`` = :attr:`work`, zero when ``None``): zero on the exact motion,
+        whatever the inputs, dissipation or time dependence."""
+        balance = self.energy_change
         if self.work is not None:
             balance = balance - self.work
-        return balance / jnp.maximum(jnp.abs(e0), jnp.finfo(e0.dtype).tiny)
+        return balance
+
+    @property
+    def energy_error(self) -> Float[Array, " T"]:
+        r"""The energy balance residual relative to the path's energy scale,
+
+        .. math::  \frac{h(t) − h(t_0) − W(t)}
+                        {\max\big(|h(t_0)|,\ \max_s (|T| + |V|)(s)\big)},
+
+        with ``h`` = :attr:`energy`, ``W`` = :attr:`work` (the work of the explicit time
+        dependence, inputs, applied force and dissipation; zero for a conservative
+        system, where this is the change of ``h``) and the maximum over the saved
+        states (:attr:`energy_scale`). The scale cannot vanish on a moving system, so a
+        pendulum released from rest at the horizontal (``h = 0``) reads the error
+        relative to its kinetic and potential energies, not ``inf``; for a system whose
+        ``T`` and ``V`` never exceed ``|h(t_0)|`` it is the familiar relative change.
+        It vanishes on the exact motion; otherwise it measures the integrator's error,
+        plus the quadrature error of ``W`` (sixth order in the save spacing).
+        :attr:`energy_balance` is the same residual in energy units,
+        :attr:`energy_change` the change of ``h`` itself.
+        """
+        if self.energy_scale is None:
+            scale = jnp.abs(self.energy[..., :1])
+        else:
+            scale = jnp.asarray(self.energy_scale)[..., None]
+        return self.energy_balance / jnp.maximum(scale, jnp.finfo(scale.dtype).tiny)

@@ -38,14 +38,15 @@ def joint_trajectories(sol: Solution, *, labels: Sequence[str] | None = None, ax
 
 
 def energy_error(sol: Solution, *, ax=None):
-    """Relative energy error ``|E(t) − E(0)| / |E(0)|`` on a log scale."""
+    """The energy error ``|h(t) − h(0) − W(t)| / scale`` (``Solution.energy_error``: the
+    balance residual, relative to ``max(|h(0)|, |T| + |V|)``) on a log scale."""
     ax = _axes(ax)
     err = np.abs(np.asarray(sol.energy_error))
     # zero error (at t0, or exactly conserved) is drawn at 1/10 of machine epsilon
     floor = 0.1 * np.finfo(err.dtype).eps
     ax.semilogy(np.asarray(sol.ts), np.maximum(err, floor))
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("|E(t) − E(0)| / |E(0)|")
+    ax.set_ylabel("|h(t) − h(0) − W(t)| / scale")
     ax.set_ylim(bottom=floor)
     return ax
 

@@ -64,10 +64,13 @@ def dataset(
             x = shaped(cat["reduce" + p])
             extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(sweep_dims))]
             data[name] = (sweep_dims + extra, x)
-    e0 = cat["energy0"]
+    # as Solution.energy_error: the balance residual h − h0 − W over the scale
+    # max(|h0|, |T| + |V|) (see _chunk._energy_balance), and the change of h itself
     with np.errstate(invalid="ignore", divide="ignore"):
-        rel = (cat["energy_end"] - e0) / np.maximum(np.abs(e0), np.finfo(float).tiny)
+        rel = cat["energy_balance"] / np.maximum(cat["energy_scale"], np.finfo(float).tiny)
     data["energy_error"] = (sweep_dims, shaped(np.where(ok, rel, np.inf)))
+    change = cat["energy_end"] - cat["energy0"]
+    data["energy_change"] = (sweep_dims, shaped(np.where(ok, change, np.inf)))
     data["ok"] = (sweep_dims, shaped(ok))
     data["result"] = (sweep_dims, shaped(cat["result"]))
     text = messages()
