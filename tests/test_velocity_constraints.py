@@ -326,3 +326,21 @@ def test_velocity_constraint_errors(knife):
     nan_rows = lx.ConstrainedSystem(free, velocity_constraints=lambda q, p: jnp.nan * _blade(q, p))
     with pytest.raises(lx.NonFiniteError, match="velocity constraint matrix"):
         nan_rows.check_state(q, qd, KNIFE)
+
+
+def test_sweep_over_the_thrust(knife):
+    """A sweep of the knife edge: final states against the closed form, max |A q̇| at the
+    end reported, and the energy balance closing (the thrust's work accounted for)."""
+    thrusts = np.array([0.0, 0.7, 1.5])
+    grid = lx.grid({k: jnp.asarray(v) for k, v in KNIFE.items()}, F=thrusts)
+    ds = lx.sweep(knife, *_knife_start(), grid, t1=5.0, rtol=1e-11, atol=1e-11, progress=False)
+    assert bool(ds.ok.all())
+    for i, f in enumerate(thrusts):
+        x, y, th, v = knife_exact(np.array(5.0), f / KNIFE["m"])
+        np.testing.assert_allclose(ds.q.values[i], [x, y, th], rtol=0, atol=1e-8)
+    assert ds.velocity_constraint_violation.dims == ("F",)
+    assert float(ds.velocity_constraint_violation.max()) < 1e-10
+    assert "constraint_violation" not in ds.data_vars
+    assert float(np.abs(ds.energy_error).max()) < 1e-8
+    s = V0 * 5.0 + 0.5 * thrusts / KNIFE["m"] * 25.0  # the thrust's work F s
+    np.testing.assert_allclose(ds.energy_change.values, thrusts * s, rtol=0, atol=1e-8)

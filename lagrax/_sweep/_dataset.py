@@ -68,8 +68,8 @@ def dataset(
     # max(|h0|, |T| + |V|) (see _chunk._energy_balance), and the change of h itself
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = cat["energy_balance"] / np.maximum(cat["energy_scale"], np.finfo(float).tiny)
+        change = cat["energy_end"] - cat["energy0"]  # inf − inf where invalid: masked
     data["energy_error"] = (sweep_dims, shaped(np.where(ok, rel, np.inf)))
-    change = cat["energy_end"] - cat["energy0"]
     data["energy_change"] = (sweep_dims, shaped(np.where(ok, change, np.inf)))
     data["ok"] = (sweep_dims, shaped(ok))
     data["result"] = (sweep_dims, shaped(cat["result"]))
