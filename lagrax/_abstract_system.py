@@ -37,7 +37,7 @@ class AbstractSystem(eqx.Module):
     **Hooks with defaults:** :meth:`initial_state` (identity), :meth:`observables` (none),
     :meth:`components` (none), :meth:`failure_hint` (none), :meth:`jacobi_integral`
     (:meth:`energy`), :meth:`explicit_power` (none), :meth:`input_power` (``q̇·τ``),
-    :meth:`energy_magnitude` (``|h|``).
+    :meth:`energy_and_magnitude` (``h`` and ``|h|``).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -103,11 +103,13 @@ class AbstractSystem(eqx.Module):
         ``q̇·τ``. Never raises."""
         return None if tau is None else jnp.dot(qd, tau)
 
-    def energy_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """A magnitude of the energy at one state that does not vanish where ``h`` does
-        (``|T| + |V|``), the scale of ``Solution.energy_error``. Default: ``|h|``. Never
-        raises."""
-        return jnp.abs(self.jacobi_integral(t, q, qd, params))
+    def energy_and_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """``(h, m)`` at one state: the Jacobi integral (:meth:`jacobi_integral`) and a
+        magnitude of the energy that does not vanish where ``h`` does (``|T| + |V|``), from
+        which ``Solution.energy_error`` takes its scale; both from one evaluation of the
+        energies. Default: ``(h, |h|)``. Never raises."""
+        h = self.jacobi_integral(t, q, qd, params)
+        return h, jnp.abs(h)
 
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any

@@ -235,9 +235,9 @@ class ConstrainedSystem(AbstractSystem):
         ``q̇·(Jᵀλ + Aᵀμ) = λ·J q̇ + μ·A q̇ = 0`` on admissible velocities)."""
         return self.system.input_power(t, q, qd, params, tau)
 
-    def energy_magnitude(self, t, q, qd, params):
-        """The system's ``|T| + |V|``."""
-        return self.system.energy_magnitude(t, q, qd, params)
+    def energy_and_magnitude(self, t, q, qd, params):
+        """The system's ``(h, |T| + |V|)``."""
+        return self.system.energy_and_magnitude(t, q, qd, params)
 
     def kinetic_energy(
         self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0

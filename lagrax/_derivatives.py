@@ -122,6 +122,12 @@ def jacobi(e: Energies, q, qd, params, t=None):
     return t_dot - t_val + potential(e, q, params, t)
 
 
+def kinetic_and_jacobi(e: Energies, q, qd, params, t, potential):
+    """``(T, h)`` from one JVP of ``T`` along ``q̇`` (see :func:`jacobi`), given ``V``."""
+    t_val, t_dot = jax.jvp(lambda b: kinetic(e, q, b, params, t), (qd,), (qd,))
+    return t_val, t_dot - t_val + potential
+
+
 def explicit_power(e: Energies, q, qd, params, t):
     """``−∂L/∂t`` (``∂V/∂t − ∂T/∂t``): the rate at which an explicit time dependence
     changes the Jacobi integral, ``dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)``."""

@@ -125,7 +125,9 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
             qd = jnp.where(reached[:, None], qd, inf)
         result = RESULTS.promote(sol.result)
         stats = dict(sol.stats)
-    energy = jax.vmap(lambda s, a, b: system.jacobi_integral(s, a, b, params))(ts, q, qd)
+    energy, magnitude = jax.vmap(lambda s, a, b: system.energy_and_magnitude(s, a, b, params))(
+        ts, q, qd
+    )
     energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
     # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
     finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
@@ -135,7 +137,7 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
     extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
     work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
-    scale = energy_scale(system, params, ts, q, qd, energy)
+    scale = energy_scale(ts, energy, magnitude)
     return Solution(
         ts,
         q,
@@ -152,12 +154,13 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     )
 
 
-def energy_scale(system, params, ts, q, qd, energy):
-    """``max(|h(t_0)|, max_k (|T| + |V|)(t_k))`` over the reached saves: the scale of
+def energy_scale(ts, energy, magnitude):
+    """``max(|h(t_0)|, max_k (|T| + |V|)(t_k))`` over the reached saves, from ``h`` and
+    ``|T| + |V|`` there (:meth:`AbstractSystem.energy_and_magnitude`): the scale of
     ``Solution.energy_error`` (``0`` without saves)."""
     if ts.shape[0] == 0:
         return jnp.zeros((), energy.dtype)
-    mag = jax.vmap(lambda s, a, b: system.energy_magnitude(s, a, b, params))(ts, q, qd)
+    mag = magnitude
     reached = jnp.isfinite(ts) & jnp.isfinite(mag)
     e0 = jnp.where(jnp.isfinite(energy[0]), jnp.abs(energy[0]), 0.0)
     return jnp.maximum(e0, jnp.max(jnp.where(reached, mag, 0.0)))

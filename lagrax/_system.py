@@ -259,12 +259,21 @@ class LagrangianSystem(AbstractSystem):
         q, qd = self._state(q, qd)
         return jnp.dot(qd, d.applied(self, t, q, qd, params, tau))
 
-    def energy_magnitude(self, t: Time, q: Vector, qd: Vector, params: Params) -> Scalar:
-        """``|T| + |V|`` at one state (at time ``t`` for a time-dependent system): the
-        scale of ``Solution.energy_error``, which does not vanish where ``h`` does."""
+    def energy_and_magnitude(
+        self, t: Time, q: Vector, qd: Vector, params: Params
+    ) -> tuple[Scalar, Scalar]:
+        """``(h, |T| + |V|)`` at one state (at time ``t`` for a time-dependent system): the
+        Jacobi integral (as :meth:`jacobi_integral`) and the magnitude from which
+        ``Solution.energy_error`` takes its scale, which does not vanish where ``h``
+        does. One evaluation of ``T`` (with its JVP along ``q̇``) and ``V``."""
         q, qd = self._state(q, qd)
-        kinetic = d.kinetic(self, q, qd, params, t)
-        return jnp.abs(kinetic) + jnp.abs(d.potential(self, q, params, t))
+        potential = d.potential(self, q, params, t)
+        if self.equations is not None and not self.time_dependent:
+            kinetic = d.kinetic(self, q, qd, params, t)
+            h = kinetic + potential
+        else:
+            kinetic, h = d.kinetic_and_jacobi(self, q, qd, params, t, potential)
+        return h, jnp.abs(kinetic) + jnp.abs(potential)
 
     # ------------------------------------------------------------------ derivatives
     def mass_matrix(

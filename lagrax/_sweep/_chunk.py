@@ -123,16 +123,18 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     system = setup.config.system
     field = LagrangianVectorField(system, setup.config.tau_fn)
     # the Jacobi integral h at the saves, the start and the end (see Solution.energy)
+    # (with |T| + |V| there, for the scale of energy_error)
     energy = jax.vmap(
-        jax.vmap(system.jacobi_integral, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
+        jax.vmap(system.energy_and_magnitude, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
     )
     q, qd = out.ys
-    e = energy(ts, q, qd, members) if q.shape[1] else q[..., 0]
+    e, mag = energy(ts, q, qd, members) if q.shape[1] else (q[..., 0], q[..., 0])
     e = jnp.where(jnp.isfinite(e), e, jnp.inf)
     q0, qd0 = y0s
-    e0 = jax.vmap(system.jacobi_integral, in_axes=(None, 0, 0, 0))(t0, q0, qd0, members)
+    at_start = jax.vmap(system.energy_and_magnitude, in_axes=(None, 0, 0, 0))
+    e0, m0 = at_start(t0, q0, qd0, members)
     q_end, qd_end = out.y_end
-    e_end = jax.vmap(system.jacobi_integral)(out.t_end, q_end, qd_end, members)
+    e_end, m_end = jax.vmap(system.energy_and_magnitude)(out.t_end, q_end, qd_end, members)
     balance, scale = _energy_balance(
         system,
         field,
@@ -142,9 +144,9 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
         ts,
         q,
         qd,
-        e,
-        (q0, qd0, e0),
-        (out.t_end, q_end, qd_end, e_end),
+        (e, mag),
+        (q0, qd0, e0, m0),
+        (e_end, m_end),
     )
     # the system's observables at the end state (a constrained system: max |φ(q)| there)
     at_end = jax.vmap(
@@ -159,7 +161,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     reduced = None
     if setup.reduce is not None:
 
-        def reduce_one(p, i_q, i_qd, i_e, res, t_end, qe, qde, st, acc, rej):
+        def reduce_one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej):
             stats = dict(
                 num_steps=st,
                 num_accepted_steps=acc,
@@ -182,7 +184,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
                 qde,
                 **extras,
                 work=work,
-                energy_scale=energy_scale(system, p, i_ts, i_q, i_qd, i_e),
+                energy_scale=energy_scale(i_ts, i_e, i_m),
             )
             return setup.reduce(sol)
 
@@ -191,6 +193,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
             q,
             qd,
             e,
+            mag,
             out.result,
             out.t_end,
             q_end,
@@ -202,7 +205,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     return out, e, e0, e_end, reduced, violation, balance, scale
 
 
-def _energy_balance(system, field, members, tau_const, t0, ts, q, qd, e, start, end):
+def _energy_balance(system, field, members, tau_const, t0, ts, q, qd, saved, start, end):
     """Per member: the energy balance residual and its scale, as ``Solution.energy_error``
     computes them (its numerator and denominator).
 
@@ -210,23 +213,19 @@ def _energy_balance(system, field, members, tau_const, t0, ts, q, qd, e, start, 
     With them it is ``h − h₀ − W`` over the saves (the first to the last reached one),
     ``W`` the work integrated along them (``sweep`` saves internally for that when
     ``keep="final"``); NaN when there are no saves. The scale is
-    ``max(|h(t0)|, |T| + |V|)`` over the start, the saves and the end."""
-    q0, qd0, e0 = start
-    t_end, q_end, qd_end, e_end = end
+    ``max(|h(t0)|, |T| + |V|)`` over the start, the saves and the end (``h`` and
+    ``|T| + |V|`` given there: ``saved``, ``start``, ``end``)."""
+    e, mag = saved
+    q0, qd0, e0, m0 = start
+    e_end, m_end = end
     first = jtu.tree_map(lambda x: x[0], members)
     has_power = power_of(system, field, first, tau_const, t0, q0[0], qd0[0]) is not None
-    magnitude = jax.vmap(system.energy_magnitude)
-    m0 = magnitude(jnp.broadcast_to(t0, e0.shape), q0, qd0, members)
-    m_end = magnitude(t_end, q_end, qd_end, members)
     scale = jnp.maximum(jnp.abs(e0), m0)
     scale = jnp.maximum(scale, jnp.where(jnp.isfinite(m_end), m_end, 0.0))
     if ts.shape[0]:
         reached = jnp.all(jnp.isfinite(q), axis=2)  # (members, T)
         member_ts = jnp.where(reached, ts, jnp.inf)
-        path = jax.vmap(lambda p, s, a, b, h: energy_scale(system, p, s, a, b, h))(
-            members, member_ts, q, qd, e
-        )
-        scale = jnp.maximum(scale, path)
+        scale = jnp.maximum(scale, jax.vmap(energy_scale)(member_ts, e, mag))
     if not has_power:
         return e_end - e0, scale
     if not ts.shape[0]:
