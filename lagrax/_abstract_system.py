@@ -42,7 +42,9 @@ class AbstractSystem(eqx.Module):
     [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none),
     [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]
     ([`energy`][lagrax.AbstractSystem.energy]),
-    [`explicit_power`][lagrax.AbstractSystem.explicit_power] (none).
+    [`explicit_power`][lagrax.AbstractSystem.explicit_power] (none),
+    [`input_power`][lagrax.AbstractSystem.input_power] (`q̇·τ`),
+    [`energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude] (`h` and `|h|`).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -100,6 +102,21 @@ class AbstractSystem(eqx.Module):
         [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None` (the default) for an
         autonomous system, whose `h` only inputs and dissipation change. Never raises."""
         return None
+
+    def input_power(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Any:
+        """`q̇·(τ + F − ∂D/∂q̇)` at one state: the rate at which the inputs, applied forces
+        and dissipation change [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None`
+        when there are none (`tau` is `None` and the system has no force or dissipation). Default:
+        `q̇·τ`. Never raises."""
+        return None if tau is None else jnp.dot(qd, tau)
+
+    def energy_and_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """`(h, m)` at one state: the Jacobi integral
+        ([`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]) and a magnitude of the energy
+        that does not vanish where `h` does (`|T| + |V|`), from which `Solution.energy_error` takes
+        its scale; both from one evaluation of the energies. Default: `(h, |h|)`. Never raises."""
+        h = self.jacobi_integral(t, q, qd, params)
+        return h, jnp.abs(h)
 
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any

@@ -122,6 +122,12 @@ def jacobi(e: Energies, q, qd, params, t=None):
     return t_dot - t_val + potential(e, q, params, t)
 
 
+def kinetic_and_jacobi(e: Energies, q, qd, params, t, potential):
+    """`(T, h)` from one JVP of `T` along `q̇` (see `jacobi`), given `V`."""
+    t_val, t_dot = jax.jvp(lambda b: kinetic(e, q, b, params, t), (qd,), (qd,))
+    return t_val, t_dot - t_val + potential
+
+
 def explicit_power(e: Energies, q, qd, params, t):
     """`−∂L/∂t` (`∂V/∂t − ∂T/∂t`): the rate at which an explicit time dependence
     changes the Jacobi integral, `dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)`."""
@@ -260,7 +266,7 @@ def eom_small(e: Energies, q, qd, params, t=None):
     return rows, rhs
 
 
-def _has_applied(e: Energies, tau) -> bool:
+def has_applied(e: Energies, tau) -> bool:
     return tau is not None or e.force is not None or e.dissipation is not None
 
 
@@ -290,11 +296,11 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     Structure-aware `equations` (a chain's articulated-body algorithm) take precedence.
     """
     if e.equations is not None:
-        f = applied(e, t, q, qd, params, tau) if _has_applied(e, tau) else None
+        f = applied(e, t, q, qd, params, tau) if has_applied(e, tau) else None
         return e.equations.accelerations(q, qd, params, f)
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params, t)
-        if _has_applied(e, tau):
+        if has_applied(e, tau):
             f_applied = applied(e, t, q, qd, params, tau)
             rhs = [r + f_applied[i] for i, r in enumerate(rhs)]
         return solve_spd_unrolled(rows, rhs)

@@ -1,24 +1,24 @@
-"""Events: zero crossings of ``condition(t, q, q̇, params)`` located on the dense output,
-recorded, and either ending the solve (``terminal``) or continuing it from a new state
-(``reset``: an impact, a joint limit).
+"""Events: zero crossings of `condition(t, q, q̇, params)` located on the dense output,
+recorded, and either ending the solve (`terminal`) or continuing it from a new state
+(`reset`: an impact, a joint limit).
 
-``integrate_events`` is a third scheduler over the stepping engine of ``_integrate``
-(``init_state`` / ``advance`` / ``interpolate`` / ``save_due``), beside ``integrate``
+`integrate_events` is a third scheduler over the stepping engine of `_integrate`
+(`init_state` / `advance` / `interpolate` / `save_due`), beside `integrate`
 (no events: its compiled code is untouched by this module) and the sweep's lane queue.
-After each accepted step ``[t_a, t_b]`` it compares the sign of every condition at
-``t_b`` with its sign at ``t_a``; where it changed in the event's ``direction``, the
+After each accepted step `[t_a, t_b]` it compares the sign of every condition at
+`t_b` with its sign at `t_a`; where it changed in the event's `direction`, the
 root is located on the step's dense interpolant by a safeguarded Newton–bisection
-iteration (bracketed, so it cannot leave the step; to a few ulps of ``t``). Then the
+iteration (bracketed, so it cannot leave the step; to a few ulps of `t`). Then the
 earliest root of a terminal or resetting event cuts the step there:
 
-- terminal: the solve ends at the root (``t_end``, ``q_end``, ``q̇_end``), the saves
-  after it are ``inf`` (as after any stop), and ``result`` is ``event_occurred``;
-- reset: the state at the root is replaced by ``reset(t, q, q̇, params)`` and the
-  solver restarts there (a fresh ``solver.init``; the next step as long as the last one);
-- a cascade (an event more than ``max_events`` times, or a reset at the time of the
-  previous one: events accumulating at a point, as a ball with restitution ``e < 1``
+- terminal: the solve ends at the root (`t_end`, `q_end`, `q̇_end`), the saves
+  after it are `inf` (as after any stop), and `result` is `event_occurred`;
+- reset: the state at the root is replaced by `reset(t, q, q̇, params)` and the
+  solver restarts there (a fresh `solver.init`; the next step as long as the last one);
+- a cascade (an event more than `max_events` times, or a reset at the time of the
+  previous one: events accumulating at a point, as a ball with restitution `e < 1`
   bouncing infinitely often before it comes to rest) ends the solve at that time with
-  ``RESULTS.event_cascade``: it is reported, never looped.
+  `RESULTS.event_cascade`: it is reported, never looped.
 """
 
 from collections.abc import Callable, Sequence
@@ -40,43 +40,43 @@ _ROOT_ITERATIONS = 48  # worst case all bisections: 2**-48 of the step, ~1e-14 r
 
 
 class Event(eqx.Module):
-    r"""An event: a zero crossing of ``condition(t, q, q̇, params)`` along a solve.
+    r"""An event: a zero crossing of `condition(t, q, q̇, params)` along a solve.
 
-    Pass one or a list to :func:`lagrax.simulate` (``events=``) or :func:`lagrax.sweep`.
+    Pass one or a list to [`lagrax.simulate`][] (`events=`) or [`lagrax.sweep`][].
     After each accepted step the solver compares the sign of the condition at the step's
-    ends; where it changed (in ``direction``), the crossing time ``t*`` is found on the
+    ends; where it changed (in `direction`), the crossing time `t*` is found on the
     step's dense output (the solver's interpolant) by a bracketed Newton–bisection
-    iteration, to a few ulps of ``t`` (the interpolant's own error, about the solver's
-    tolerance, is the limit on ``t*``). Crossings are recorded in
-    :attr:`Solution.events` (time and state). At most one crossing of an event per step
+    iteration, to a few ulps of `t` (the interpolant's own error, about the solver's
+    tolerance, is the limit on `t*`). Crossings are recorded in
+    `Solution.events` (time and state). At most one crossing of an event per step
     is seen: a condition that crosses zero twice within one step is missed (as in SciPy's
-    ``solve_ivp``): tighten the tolerances or use ``dt0``/``max_steps`` accordingly.
+    `solve_ivp`): tighten the tolerances or use `dt0`/`max_steps` accordingly.
 
     A zero of the condition at the start, or right after a reset of this event, is not a
-    crossing: the sign there is taken from the condition's rate ``ġ`` along the motion.
+    crossing: the sign there is taken from the condition's rate `ġ` along the motion.
 
     **Arguments:**
 
-    - ``condition``: ``condition(t, q, qd, params) -> scalar``, the function whose zeros
-      are the events (e.g. ``lambda t, q, qd, p: q[0]`` for a pendulum passing the
+    - `condition`: `condition(t, q, qd, params) -> scalar`, the function whose zeros
+      are the events (e.g. `lambda t, q, qd, p: q[0]` for a pendulum passing the
       vertical; the height of a ball above the floor).
-    - ``direction``: ``0`` (default) any crossing; ``+1`` only from negative to positive;
-      ``-1`` only from positive to negative.
-    - ``terminal``: end the solve at the first crossing (``Solution.t_end`` is the root;
-      ``Solution.result`` is ``RESULTS.event_occurred`` and ``ok`` stays true).
-    - ``reset``: ``reset(t, q, qd, params) -> (q, qd)``, the state after the event, from
+    - `direction`: `0` (default) any crossing; `+1` only from negative to positive;
+      `-1` only from positive to negative.
+    - `terminal`: end the solve at the first crossing (`Solution.t_end` is the root;
+      `Solution.result` is `RESULTS.event_occurred` and `ok` stays true).
+    - `reset`: `reset(t, q, qd, params) -> (q, qd)`, the state after the event, from
       the state just before it; the solve continues from there. An impact with
-      restitution ``e``: ``lambda t, q, qd, p: (q, -e * qd)``. Not with ``terminal``.
-    - ``max_events``: the most crossings recorded (the size of the arrays in
-      :attr:`Solution.events`, default 100). One more ends the solve with
-      ``RESULTS.event_cascade`` (a ``SimulationError`` with ``throw=True``): an event
+      restitution `e`: `lambda t, q, qd, p: (q, -e * qd)`. Not with `terminal`.
+    - `max_events`: the most crossings recorded (the size of the arrays in
+      `Solution.events`, default 100). One more ends the solve with
+      `RESULTS.event_cascade` (a `SimulationError` with `throw=True`): an event
       that happens without end (a Zeno cascade of impacts) is reported, not looped.
 
-    **Raises:** ``ArgumentTypeError`` when ``condition`` or ``reset`` is not callable;
-    ``ConfigurationError`` for a ``direction`` other than ``-1, 0, 1``, a terminal event
-    with a reset, or ``max_events`` not a positive integer. A condition that does not
-    return a scalar, or a reset that does not return ``(q, qd)`` of the state's shapes,
-    raise a ``ShapeError`` from ``simulate``.
+    **Raises:** `ArgumentTypeError` when `condition` or `reset` is not callable;
+    `ConfigurationError` for a `direction` other than `-1, 0, 1`, a terminal event
+    with a reset, or `max_events` not a positive integer. A condition that does not
+    return a scalar, or a reset that does not return `(q, qd)` of the state's shapes,
+    raise a `ShapeError` from `simulate`.
 
     **Example:**
 
@@ -132,18 +132,18 @@ class Event(eqx.Module):
 
 
 class EventRecord(eqx.Module):
-    """The crossings of one :class:`Event` found along a solve.
+    """The crossings of one [`Event`][lagrax.Event] found along a solve.
 
-    **Fields:** (``K`` is the event's ``max_events``; under ``vmap`` or in a sweep every
+    **Fields:** (`K` is the event's `max_events`; under `vmap` or in a sweep every
     field gains the batch axes in front)
 
-    - ``times``: the crossing times in order, shape ``(K,)``; entries past ``count`` are
-      ``inf``.
-    - ``q``, ``qd``: the state at each crossing (before a reset), shape ``(K, n)``;
-      ``inf`` past ``count``.
-    - ``count``: how many crossings were recorded (an ``int32`` scalar).
+    - `times`: the crossing times in order, shape `(K,)`; entries past `count` are
+      `inf`.
+    - `q`, `qd`: the state at each crossing (before a reset), shape `(K, n)`;
+      `inf` past `count`.
+    - `count`: how many crossings were recorded (an `int32` scalar).
 
-    ``record.times[: record.count]`` are the crossings of an eager solve.
+    `record.times[: record.count]` are the crossings of an eager solve.
     """
 
     times: Float[Array, " K"]
@@ -153,12 +153,12 @@ class EventRecord(eqx.Module):
 
     @property
     def first(self) -> Float[Array, ""]:
-        """The first crossing time (``inf`` when there was none)."""
+        """The first crossing time (`inf` when there was none)."""
         return self.times[..., 0]
 
 
 def as_events(events: Any) -> tuple[Event, ...] | None:
-    """``events=`` as a tuple of :class:`Event` (``None`` for none), or an error."""
+    """`events=` as a tuple of [`Event`][lagrax.Event] (`None` for none), or an error."""
     if events is None:
         return None
     if isinstance(events, Event):
@@ -180,8 +180,8 @@ def as_events(events: Any) -> tuple[Event, ...] | None:
 
 
 def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
-    """Shapes of every condition (a scalar) and reset (``(q, qd)`` as the state), from
-    their traces at the initial state: a ``ShapeError`` naming the event otherwise."""
+    """Shapes of every condition (a scalar) and reset (`(q, qd)` as the state), from
+    their traces at the initial state: a `ShapeError` naming the event otherwise."""
     q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
 
     def call(i, name, fn):
@@ -234,7 +234,7 @@ def _crossed(direction: int, g_a, g_b):
 
 
 def _along(ev: Event, t, y, field, args):
-    """``g`` and its rate ``ġ`` along the motion at ``(t, y)``."""
+    """`g` and its rate `ġ` along the motion at `(t, y)`."""
     params = args[0]
     _, qdd = field(t, y, args)
     q, qd = y
@@ -246,17 +246,17 @@ def _along(ev: Event, t, y, field, args):
 
 
 def _signed(g, rate):
-    """``g``, with an exact zero replaced by a tiny number of the sign of its rate."""
+    """`g`, with an exact zero replaced by a tiny number of the sign of its rate."""
     tiny = jnp.finfo(g.dtype).tiny
     return jnp.where(g == 0, jnp.sign(rate) * tiny, g)
 
 
 def _locate(ev: Event, solver, dense, ta, tb, g_a, g_b, params):
-    """The root of ``g(t) = condition(t, y(t))`` on the interpolant of ``[ta, tb]``,
-    bracketed by the signs ``g_a``, ``g_b``: Newton steps where they stay inside the
+    """The root of `g(t) = condition(t, y(t))` on the interpolant of `[ta, tb]`,
+    bracketed by the signs `g_a`, `g_b`: Newton steps where they stay inside the
     shrinking bracket and halve it at least, bisection otherwise (a fixed number of
     iterations, so it runs inside a reverse-differentiable loop); a last Newton step
-    makes the root's derivatives those of the implicit function ``g(t*) = 0``."""
+    makes the root's derivatives those of the implicit function `g(t*) = 0`."""
 
     def g(t):
         q, qd = _integrate.interpolate(solver, dense, ta, tb, t)
@@ -312,10 +312,10 @@ class _Carry(eqx.Module):
 def integrate_events(
     term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int, events, field
 ):
-    """:func:`_integrate.integrate` with ``events`` (a tuple of :class:`Event`).
+    """`_integrate.integrate` with `events` (a tuple of [`Event`][lagrax.Event]).
 
-    **Returns:** ``(ys, state, records)``: as ``integrate``, plus one
-    :class:`EventRecord` per event.
+    **Returns:** `(ys, state, records)`: as `integrate`, plus one
+    [`EventRecord`][lagrax.EventRecord] per event.
     """
     n_save = ts.shape[0]
     n_events = len(events)
@@ -479,7 +479,7 @@ def integrate_events(
 
 
 def cascade_message(events: tuple[Event, ...], records, t_end) -> str:
-    """Why a solve ended with ``RESULTS.event_cascade``: which event, when, how often."""
+    """Why a solve ended with `RESULTS.event_cascade`: which event, when, how often."""
     parts = []
     for i, (ev, rec) in enumerate(zip(events, records, strict=True)):
         count = int(rec.count)

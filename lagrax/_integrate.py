@@ -1,22 +1,22 @@
 """A lean stepping loop for one trajectory, on diffrax's own steps.
 
-``diffrax.diffeqsolve`` is general: events, jump times, several kinds of saving, progress
+`diffrax.diffeqsolve` is general: events, jump times, several kinds of saving, progress
 meters, SDEs. Each of those costs a little on every step, and for the small systems
 mechanics produces (n = 1 … 10 coordinates) the step itself is cheap, so the machinery
 dominates: about 4 µs a step for the 2R arm against well under 1 µs for the stepping alone.
 
-``integrate`` keeps only what ``simulate`` needs: ``solver.step``, the step-size
-controller's ``adapt_step_size``, diffrax's clipping of the last step to ``t1``, and
-dense output at the save times (``solver.interpolation_cls``). Each step is therefore the
-one ``diffeqsolve`` would take. The loops are ``equinox.internal.while_loop`` with
-``kind="checkpointed"`` (as diffrax's default adjoint), so reverse-mode ``jax.grad``
+`integrate` keeps only what `simulate` needs: `solver.step`, the step-size
+controller's `adapt_step_size`, diffrax's clipping of the last step to `t1`, and
+dense output at the save times (`solver.interpolation_cls`). Each step is therefore the
+one `diffeqsolve` would take. The loops are `equinox.internal.while_loop` with
+`kind="checkpointed"` (as diffrax's default adjoint), so reverse-mode `jax.grad`
 works through them with recursive checkpointing, and the saved outputs are written in
-place (``buffers``).
+place (`buffers`).
 
-The engine is ``StepState`` with ``init_state`` / ``advance`` (one attempted step, its
-counts and result) and ``interpolate`` / ``save_due`` (dense saving). ``integrate`` is the
-single-trajectory scheduler over it; the sweep's lane queue (``_lanes.run_lanes``) is the
-other, running ``advance`` under ``vmap``.
+The engine is `StepState` with `init_state` / `advance` (one attempted step, its
+counts and result) and `interpolate` / `save_due` (dense saving). `integrate` is the
+single-trajectory scheduler over it; the sweep's lane queue (`_lanes.run_lanes`) is the
+other, running `advance` under `vmap`.
 """
 
 from typing import Any
@@ -35,7 +35,7 @@ DEFAULT_DT0 = 0.01
 
 
 def tree_where(pred, a, b):
-    """``where`` over matching pytrees, broadcasting a (batched) scalar ``pred``."""
+    """`where` over matching pytrees, broadcasting a (batched) scalar `pred`."""
 
     def pick(x, y):
         if not (eqx.is_array(x) or eqx.is_array(y)):
@@ -48,12 +48,12 @@ def tree_where(pred, a, b):
 
 
 def t1_floor(t1):
-    """diffrax snaps a step end within ~100 ulps of ``t1`` to ``t1``."""
+    """diffrax snaps a step end within ~100 ulps of `t1` to `t1`."""
     return t1 - 100 * jnp.finfo(t1.dtype).eps * jnp.maximum(jnp.abs(t1), 1.0)
 
 
 def init(term, solver, controller, t0, t1, y0, dt0, args):
-    """``(tnext, solver_state, controller_state)`` at the start of a solve."""
+    """`(tnext, solver_state, controller_state)` at the start of a solve."""
     if dt0 is None:
         # What diffeqsolve ends up doing: it wraps the terms (diffrax.WrapTerm), and its
         # PID controller's initial-step heuristic then falls back to 0.01. Matching it
@@ -67,12 +67,12 @@ def init(term, solver, controller, t0, t1, y0, dt0, args):
 
 
 def step(term, solver, controller, t, tnext, y, args, sstate, cstate, t1):
-    """One attempted step ``[t, tnext]``, accepted or rejected by the controller.
+    """One attempted step `[t, tnext]`, accepted or rejected by the controller.
 
-    **Returns:** ``(keep, tprev, tnew, y, solver_state, controller_state, result, dense)``:
-    whether the step was accepted, the new current time (``tnext`` if accepted, else
-    ``t``), the end of the next attempt (clipped to ``t1``), the state at ``tprev``, the
-    new solver/controller states, a ``RESULTS`` code and the dense-output information of
+    **Returns:** `(keep, tprev, tnew, y, solver_state, controller_state, result, dense)`:
+    whether the step was accepted, the new current time (`tnext` if accepted, else
+    `t`), the end of the next attempt (clipped to `t1`), the state at `tprev`, the
+    new solver/controller states, a `RESULTS` code and the dense-output information of
     the attempt.
     """
     error_order = solver.error_order(term)
@@ -100,7 +100,7 @@ def step(term, solver, controller, t, tnext, y, args, sstate, cstate, t1):
 
 
 def _known_success(result) -> bool:
-    """Whether ``result`` is the constant ``RESULTS.successful`` (known at trace time)."""
+    """Whether `result` is the constant `RESULTS.successful` (known at trace time)."""
     value = code_of(result)
     if isinstance(value, jax.core.Tracer):
         return False
@@ -108,7 +108,7 @@ def _known_success(result) -> bool:
 
 
 def _promote(result):
-    """``RESULTS.promote``, without eager ops when ``result`` is a constant success."""
+    """`RESULTS.promote`, without eager ops when `result` is a constant success."""
     return RESULTS.successful if _known_success(result) else RESULTS.promote(result)
 
 
@@ -119,8 +119,8 @@ def all_finite(y) -> jax.Array:
 class StepState(eqx.Module):
     """The state of one trajectory between two attempted steps.
 
-    Both schedulers carry it: ``integrate`` one of them, the lane queue
-    (``_lanes.run_lanes``) one per lane under ``vmap``.
+    Both schedulers carry it: `integrate` one of them, the lane queue
+    (`_lanes.run_lanes`) one per lane under `vmap`.
     """
 
     t: jax.Array  # the current time (the end of the last accepted step)
@@ -135,21 +135,21 @@ class StepState(eqx.Module):
 
 
 def init_state(term, solver, controller, t0, t1, y0, dt0, args) -> StepState:
-    """The :class:`StepState` at the start of a solve."""
+    """The `StepState` at the start of a solve."""
     tnext, sstate, cstate = init(term, solver, controller, t0, t1, y0, dt0, args)
     zero = jnp.asarray(0, jnp.int32)
     return StepState(t0, tnext, y0, sstate, cstate, zero, zero, zero, RESULTS.successful)
 
 
 def advance(term, solver, controller, state: StepState, args, t1, max_steps: int):
-    """One attempted step from ``state``, with the step counts and the result updated.
+    """One attempted step from `state`, with the step counts and the result updated.
 
-    The result becomes the solver's or controller's failure, ``non_finite_state`` as soon
-    as an accepted state is not finite, or ``max_steps_reached`` when the budget is spent
-    before ``t1``.
+    The result becomes the solver's or controller's failure, `non_finite_state` as soon
+    as an accepted state is not finite, or `max_steps_reached` when the budget is spent
+    before `t1`.
 
-    **Returns:** ``(new_state, keep, dense)``: whether the step was accepted, and the
-    dense-output information of the attempt over ``[state.t, state.tnext]``.
+    **Returns:** `(new_state, keep, dense)`: whether the step was accepted, and the
+    dense-output information of the attempt over `[state.t, state.tnext]`.
     """
     keep, tprev, tnew, y, sstate, cstate, res, dense = step(
         term,
@@ -182,26 +182,26 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
 
 
 def interpolate(solver, dense, ta, tb, t):
-    """The solver's dense output of the attempted step ``[ta, tb]``, evaluated at ``t``."""
+    """The solver's dense output of the attempted step `[ta, tb]`, evaluated at `t`."""
     return solver.interpolation_cls(t0=ta, t1=tb, **dense).evaluate(t)
 
 
 def save_due(keep, i, tnext, ts):
-    """Whether save time ``ts[i]`` lies inside the accepted step that ends at ``tnext``."""
+    """Whether save time `ts[i]` lies inside the accepted step that ends at `tnext`."""
     n_save = ts.shape[0]
     return keep & (i < n_save) & (ts[jnp.minimum(i, n_save - 1)] <= tnext)
 
 
 def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int):
-    """Solve ``y' = f(t, y, args)`` on ``[t0, t1]`` and save at ``ts``: the
-    single-trajectory scheduler over :func:`advance`.
+    """Solve `y' = f(t, y, args)` on `[t0, t1]` and save at `ts`: the
+    single-trajectory scheduler over `advance`.
 
-    **Arguments:** as ``diffrax.diffeqsolve``; ``ts`` are sorted save times inside
-    ``[t0, t1]``, ``max_steps`` the budget of attempted steps.
+    **Arguments:** as `diffrax.diffeqsolve`; `ts` are sorted save times inside
+    `[t0, t1]`, `max_steps` the budget of attempted steps.
 
-    **Returns:** ``(ys, state)``: the states at ``ts`` (``inf`` where not reached) and the
-    final :class:`StepState` (the last time and state reached, ``t1`` on success; the
-    ``RESULTS`` code; the step counts; how many of ``ts`` were reached).
+    **Returns:** `(ys, state)`: the states at `ts` (`inf` where not reached) and the
+    final `StepState` (the last time and state reached, `t1` on success; the
+    `RESULTS` code; the step counts; how many of `ts` were reached).
     """
     n_save = ts.shape[0]
     state = init_state(term, solver, controller, t0, t1, y0, dt0, args)
@@ -243,6 +243,6 @@ def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: in
 
 
 def is_lean(controller: dfx.AbstractStepSizeController | None) -> bool:
-    """Whether ``integrate`` reproduces ``diffeqsolve`` with this controller."""
+    """Whether `integrate` reproduces `diffeqsolve` with this controller."""
     # (diffrax's step_ts / jump_ts live in ClipStepSizeController, which is not lean)
     return controller is None or type(controller) in (dfx.ConstantStepSize, dfx.PIDController)

@@ -1,4 +1,4 @@
-"""One trajectory: ``simulate``, on diffrax's steps."""
+"""One trajectory: `simulate`, on diffrax's steps."""
 
 import functools
 from collections.abc import Callable, Sequence
@@ -27,8 +27,8 @@ from .integrators import Variational
 class SolveConfig(eqx.Module):
     """What fixes the compiled program of a solve: the model and the method.
 
-    ``simulate`` compiles one program per configuration and caches it; ``sweep`` runs
-    the same solve under ``vmap`` or on its lane queue.
+    `simulate` compiles one program per configuration and caches it; `sweep` runs
+    the same solve under `vmap` or on its lane queue.
     """
 
     system: AbstractSystem
@@ -57,15 +57,15 @@ class SolveInputs(eqx.Module):
 
 
 def solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
-    """The solve of ``simulate``, never raising: the start from
-    :meth:`AbstractSystem.initial_state`, then :func:`solve_from`."""
+    """The solve of `simulate`, never raising: the start from
+    [`AbstractSystem.initial_state`][lagrax.AbstractSystem.initial_state], then `solve_from`."""
     q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
     return solve_from(config, inputs, (q0, qd0), started)
 
 
 def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solution:
-    """Integrate from ``y0`` (already the system's initial state; ``started`` says whether
-    it could be formed) and collect the :class:`Solution`."""
+    """Integrate from `y0` (already the system's initial state; `started` says whether
+    it could be formed) and collect the [`Solution`][lagrax.Solution]."""
     system, solver, params = config.system, config.solver, inputs.params
     t0, t1, ts, max_steps = inputs.t0, inputs.t1, inputs.ts, config.max_steps
     saveat = config.saveat
@@ -145,7 +145,9 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
             qd = jnp.where(reached[:, None], qd, inf)
         result = RESULTS.promote(sol.result)
         stats = dict(sol.stats)
-    energy = jax.vmap(lambda s, a, b: system.jacobi_integral(s, a, b, params))(ts, q, qd)
+    energy, magnitude = jax.vmap(lambda s, a, b: system.energy_and_magnitude(s, a, b, params))(
+        ts, q, qd
+    )
     energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
     # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
     finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
@@ -155,26 +157,72 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
     extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
     work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
+    scale = energy_scale(ts, energy, magnitude)
     return Solution(
-        ts, q, qd, energy, result, stats, t_end, q_end, qd_end, **extras, work=work, events=records
+        ts,
+        q,
+        qd,
+        energy,
+        result,
+        stats,
+        t_end,
+        q_end,
+        qd_end,
+        **extras,
+        work=work,
+        energy_scale=scale,
+        events=records,
     )
 
 
+def energy_scale(ts, energy, magnitude):
+    """`max(|h(t_0)|, max_k (|T| + |V|)(t_k))` over the reached saves, from `h` and
+    `|T| + |V|` there
+    ([`AbstractSystem.energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude]): the
+    scale of `Solution.energy_error` (`0` without saves)."""
+    if ts.shape[0] == 0:
+        return jnp.zeros((), energy.dtype)
+    mag = magnitude
+    reached = jnp.isfinite(ts) & jnp.isfinite(mag)
+    e0 = jnp.where(jnp.isfinite(energy[0]), jnp.abs(energy[0]), 0.0)
+    return jnp.maximum(e0, jnp.max(jnp.where(reached, mag, 0.0)))
+
+
+def power_of(system, field, params, tau_const, t, q, qd):
+    """The rate of change of the Jacobi integral along the motion, ``−∂L/∂t +
+    q̇·(τ + F − ∂D/∂q̇)`, at one state, or `None` when nothing changes `h`` (an
+    autonomous system without inputs, applied forces or dissipation)."""
+    explicit = system.explicit_power(t, q, qd, params)
+    inputs = system.input_power(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    if explicit is None:
+        return inputs
+    return explicit if inputs is None else explicit + inputs
+
+
 def work_along(system, field, params, tau_const, ts, q, qd):
-    r"""``W(t_k) = ∫_{t_0}^{t_k} −∂L/∂t dt`` at the saved times (from the first save; ``inf``
-    where not reached), or ``None`` for an autonomous system.
+    r"""`W(t_k) = ∫_{t_0}^{t_k} P dt` at the saved times (from the first save; `inf`
+    where not reached), with the power `P = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)` of the explicit
+    time dependence, the inputs, the applied force and the dissipation; `None` when
+    there is no such power (see `power_of`).
 
-    The rate ``P = −∂L/∂t`` (:meth:`AbstractSystem.explicit_power`) and its first two
-    derivatives along the motion (JVPs along ``(1, q̇, q̈)``; ``q̈`` from the vector field
-    and ``q⃛`` from a JVP of it) at the saves give the two-point Hermite rule
+    The rate `P` ([`AbstractSystem.explicit_power`][lagrax.AbstractSystem.explicit_power] plus
+    [`AbstractSystem.input_power`][lagrax.AbstractSystem.input_power]) and its first two derivatives
+    along the motion (JVPs along `(1, q̇, q̈)`; `q̈` from the vector field and `q⃛` from a JVP of
+    it) at the saves give the two-point Hermite rule
 
-    .. math::  W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
-               + \tfrac{Δ^2}{10}(Ṗ_k − Ṗ_{k+1}) + \tfrac{Δ^3}{120}(P̈_k + P̈_{k+1}),
+    $$
+    W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
 
-    sixth order in the save spacing ``Δ``: the saves must resolve the time dependence
-    (about 15 saves per period of it give ~1e-10).
+    + \tfrac{Δ^2}{10}(Ṗ_k − Ṗ_{k+1}) + \tfrac{Δ^3}{120}(P̈_k + P̈_{k+1}),
+    $$
+
+    sixth order in the save spacing `Δ`: the saves must resolve the time dependence and
+    the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
+    smooth between saves (a switch inside a save interval costs accuracy).
     """
-    if ts.shape[0] == 0 or system.explicit_power(ts[0], q[0], qd[0], params) is None:
+    if ts.shape[0] == 0:
+        return None
+    if power_of(system, field, params, tau_const, ts[0], q[0], qd[0]) is None:
         return None
     reached = jnp.isfinite(ts) & jnp.all(jnp.isfinite(q), axis=1)
     reached = reached & jnp.all(jnp.isfinite(qd), axis=1)
@@ -188,7 +236,7 @@ def work_along(system, field, params, tau_const, ts, q, qd):
 
     def along(t, a, b, v, w):  # P and its derivative along the tangent (1, v, w)
         return jax.jvp(
-            lambda c, x, y: system.explicit_power(c, x, y, params),
+            lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
             (t, a, b),
             (jnp.ones_like(t), v, w),
         )
@@ -212,7 +260,7 @@ def work_along(system, field, params, tau_const, ts, q, qd):
 
 
 def observables(system, field, params, tau_const, ts, q, qd) -> dict[str, Any]:
-    """The system's extra observables at the saved states (``inf`` where not reached)."""
+    """The system's extra observables at the saved states (`inf` where not reached)."""
     out = jax.vmap(
         lambda t, a, b: system.observables(t, a, b, params, field.tau(t, a, b, tau_const))
     )(ts, q, qd)
@@ -229,8 +277,8 @@ _solve = eqx.filter_jit(solve)
 def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
     """In-graph validity of a solve's inputs: the initial state could be formed, finite
     parameters and state, finite energy, and finite accelerations at the start (which
-    also requires a positive-definite mass matrix). A ``False`` here sends ``simulate`` to
-    the eager, precise ``check_state``."""
+    also requires a positive-definite mass matrix). A `False` here sends `simulate` to
+    the eager, precise `check_state`."""
     params, system = inputs.params, config.system
     leaves = [
         jnp.all(jnp.isfinite(x))
@@ -268,12 +316,12 @@ def _checked_once(config: SolveConfig, inputs: SolveInputs):
 
 @eqx.filter_jit
 def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
-    """``solve`` plus the two flags ``simulate`` needs on the host, fetched at once:
+    """`solve` plus the two flags `simulate` needs on the host, fetched at once:
     whether the inputs were valid, and whether the solve succeeded with finite saves.
 
     Only called on concrete inputs (never differentiated), so the whole program can sit
-    in a ``lax.while_loop`` that runs once: XLA:CPU then compiles it into one kernel (see
-    ``_xla_flags``) instead of running dozens of small ones around the solver loop, which
+    in a `lax.while_loop` that runs once: XLA:CPU then compiles it into one kernel (see
+    `_xla_flags`) instead of running dozens of small ones around the solver loop, which
     cost ~0.1 ms a call.
     """
     shapes = eqx.filter_eval_shape(_checked_once, config, inputs)  # traced once; reused
@@ -294,11 +342,11 @@ def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
 
 @functools.lru_cache(maxsize=64)
 def _compiled_checked(config: SolveConfig):
-    """A ``jax.jit`` of ``_simulate_checked`` for one configuration.
+    """A `jax.jit` of `_simulate_checked` for one configuration.
 
-    ``equinox.filter_jit`` sorts arrays from static values on every call, which for
-    ``simulate``'s arguments costs about as much as a short solve; with the configuration
-    fixed here and every input an array, a call is ``jax.jit``'s C++ fast path.
+    `equinox.filter_jit` sorts arrays from static values on every call, which for
+    `simulate`'s arguments costs about as much as a short solve; with the configuration
+    fixed here and every input an array, a call is `jax.jit`'s C++ fast path.
     """
     out_static = []
 
@@ -312,7 +360,7 @@ def _compiled_checked(config: SolveConfig):
 
 
 def _call_checked(config: SolveConfig, inputs: SolveInputs):
-    """``_simulate_checked(config, inputs)``, through a cached ``jax.jit`` when it can be."""
+    """`_simulate_checked(config, inputs)`, through a cached `jax.jit` when it can be."""
     try:
         if not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(inputs)):
             raise TypeError  # e.g. strings in params: equinox sorts them out
@@ -350,81 +398,82 @@ def simulate(
     events: Event | Sequence[Event] | None = None,
     throw: bool = True,
 ) -> Solution:
-    """Integrate ``M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇`` from ``(q0, q̇0)`` over ``[t0, t1]``.
+    """Integrate `M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇` from `(q0, q̇0)` over `[t0, t1]`.
 
-    The state ``(q, q̇)`` is integrated as a first-order system with diffrax; the
-    accelerations come from :meth:`LagrangianSystem.forward_dynamics` (unchecked inside the
-    solver loop; failures are diagnosed after it, see *Raises*).
+    The state `(q, q̇)` is integrated as a first-order system with diffrax; the
+    accelerations come from
+    [`LagrangianSystem.forward_dynamics`][lagrax.LagrangianSystem.forward_dynamics] (unchecked
+    inside the solver loop; failures are diagnosed after it, see *Raises*).
 
-    A :class:`ConstrainedSystem` is integrated the same way with its constrained
-    accelerations (KKT system with Baumgarte stabilization); its initial state is first
-    projected onto ``φ(q) = 0``, ``J q̇ = 0`` (unless ``project_initial=False``), so
-    ``Solution.q[0]`` may differ from ``q0``; ``Solution.constraint_violation`` and
-    ``Solution.multipliers`` report ``φ`` and ``λ`` along the path. The variational
+    A [`ConstrainedSystem`][lagrax.ConstrainedSystem] is integrated the same way with its
+    constrained accelerations (KKT system with Baumgarte stabilization); its initial state is first
+    projected onto `φ(q) = 0`, `J q̇ = 0` (unless `project_initial=False`), so
+    `Solution.q[0]` may differ from `q0`; `Solution.constraint_violation` and
+    `Solution.multipliers` report `φ` and `λ` along the path. The variational
     integrators do not apply to constrained systems.
 
     **Arguments:**
 
-    - ``system``, ``q0``, ``qd0``, ``params``: the model, its initial state and parameters.
-    - ``t1``, ``t0``: time interval.
-    - ``ts``: times at which to save; default ``n_save`` evenly spaced points in
-      ``[t0, t1]``. ``saveat`` (a ``diffrax.SaveAt``) overrides both.
-    - ``tau``: input generalized forces, a constant ``(n,)`` array or a function
-      ``tau(t, q, qd) -> (n,)`` (a controller). Added to the system's own ``force``.
-    - ``solver``: a method name or a diffrax solver. Names (see ``lagrax.METHODS``):
-      ``"tsit5"`` (default; explicit 5(4), adaptive), ``"dopri5"``, ``"dopri8"`` (tight
-      tolerances), ``"kvaerno5"`` (implicit; stiff springs and dampers), ``"rk4"`` (fixed
-      step), ``"variational"`` / ``"variational4"`` (symplectic, fixed step; bounded
+    - `system`, `q0`, `qd0`, `params`: the model, its initial state and parameters.
+    - `t1`, `t0`: time interval.
+    - `ts`: times at which to save; default `n_save` evenly spaced points in
+      `[t0, t1]`. `saveat` (a `diffrax.SaveAt`) overrides both.
+    - `tau`: input generalized forces, a constant `(n,)` array or a function
+      `tau(t, q, qd) -> (n,)` (a controller). Added to the system's own `force`.
+    - `solver`: a method name or a diffrax solver. Names (see `lagrax.METHODS`):
+      `"tsit5"` (default; explicit 5(4), adaptive), `"dopri5"`, `"dopri8"` (tight
+      tolerances), `"kvaerno5"` (implicit; stiff springs and dampers), `"rk4"` (fixed
+      step), `"variational"` / `"variational4"` (symplectic, fixed step; bounded
       energy error over long horizons).
-    - ``rtol``, ``atol``: error-control tolerances of the adaptive step (default 1e-8);
+    - `rtol`, `atol`: error-control tolerances of the adaptive step (default 1e-8);
       for implicit methods at a fixed step, the tolerances of their Newton iterations.
-      Changing them, ``params``, the initial state, ``t1`` or ``dt`` does not recompile.
-    - ``dt``: run at this fixed step instead (``diffrax.ConstantStepSize``). Required by
+      Changing them, `params`, the initial state, `t1` or `dt` does not recompile.
+    - `dt`: run at this fixed step instead (`diffrax.ConstantStepSize`). Required by
       the fixed-step methods; allowed with every method.
-    - ``dt0``: initial step of an adaptive solve (default: chosen by diffrax).
-    - ``max_steps``: step budget (accepted + rejected). Default: 100,000 for an adaptive
-      solve; at a fixed step, enough steps for ``[t0, t1]``.
-    - ``stepsize_controller``: override the default ``diffrax.PIDController(rtol, atol)``.
-    - ``adjoint``: how to differentiate the solve. Default ``None``: lagrax's own lean
-      stepping loop (diffrax's steps without ``diffeqsolve``'s per-step machinery; about
-      2–3× faster for small mechanisms), differentiable by reverse mode (``jax.grad``,
+    - `dt0`: initial step of an adaptive solve (default: chosen by diffrax).
+    - `max_steps`: step budget (accepted + rejected). Default: 100,000 for an adaptive
+      solve; at a fixed step, enough steps for `[t0, t1]`.
+    - `stepsize_controller`: override the default `diffrax.PIDController(rtol, atol)`.
+    - `adjoint`: how to differentiate the solve. Default `None`: lagrax's own lean
+      stepping loop (diffrax's steps without `diffeqsolve`'s per-step machinery; about
+      2–3× faster for small mechanisms), differentiable by reverse mode (`jax.grad`,
       recursive checkpointing, as diffrax's default). Pass a diffrax adjoint to run
-      ``diffrax.diffeqsolve`` with it instead, e.g. ``diffrax.ForwardMode()`` for
-      ``jax.jacfwd`` / ``jax.jvp`` (few parameters, many outputs) or
-      ``diffrax.RecursiveCheckpointAdjoint()`` for diffrax's default. A custom ``saveat``
-      or a step-size controller other than ``PIDController`` / ``ConstantStepSize``
-      also runs ``diffeqsolve``.
-    - ``events``: a :class:`lagrax.Event` or a sequence of them: zero crossings of
-      ``condition(t, q, qd, params)``, located on the solver's dense output and recorded
-      in ``Solution.events``; a terminal event ends the solve at its root, an event with
-      a ``reset`` continues from the reset state (an impact), a cascade of events (more
-      than ``max_events``, or resets accumulating at a point) ends it with
-      ``RESULTS.event_cascade``. Events run on lagrax's own stepping loop: not with
-      ``adjoint``, ``saveat`` or a controller other than ``PIDController`` /
-      ``ConstantStepSize``, nor with the variational integrators (their linear dense
+      `diffrax.diffeqsolve` with it instead, e.g. `diffrax.ForwardMode()` for
+      `jax.jacfwd` / `jax.jvp` (few parameters, many outputs) or
+      `diffrax.RecursiveCheckpointAdjoint()` for diffrax's default. A custom `saveat`
+      or a step-size controller other than `PIDController` / `ConstantStepSize`
+      also runs `diffeqsolve`.
+    - `events`: a [`lagrax.Event`][] or a sequence of them: zero crossings of
+      `condition(t, q, qd, params)`, located on the solver's dense output and recorded
+      in `Solution.events`; a terminal event ends the solve at its root, an event with
+      a `reset` continues from the reset state (an impact), a cascade of events (more
+      than `max_events`, or resets accumulating at a point) ends it with
+      `RESULTS.event_cascade`. Events run on lagrax's own stepping loop: not with
+      `adjoint`, `saveat` or a controller other than `PIDController` /
+      `ConstantStepSize`, nor with the variational integrators (their linear dense
       output would locate events to second order only, and a reset breaks their discrete
-      variational structure); the fixed-step ``"rk4"`` is supported (cubic Hermite
+      variational structure); the fixed-step `"rk4"` is supported (cubic Hermite
       output).
-    - ``throw``: raise on failure (default). With ``throw=False`` the failure is reported
-      in ``Solution.result`` / ``Solution.ok`` instead, which is what ``vmap`` and sweeps
+    - `throw`: raise on failure (default). With `throw=False` the failure is reported
+      in `Solution.result` / `Solution.ok` instead, which is what `vmap` and sweeps
       need: one bad member does not kill the batch.
 
-    **Returns:** a :class:`Solution`.
+    **Returns:** a [`Solution`][lagrax.Solution].
 
-    **Raises:** ``ConfigurationError`` for a bad option (``t0``/``t1`` not finite or
-    ``t1 <= t0``; ``dt`` or ``dt0`` not positive and finite, ``dt`` longer than
-    ``t1 - t0`` or given with ``dt0``; ``rtol``/``atol`` negative, non-finite or both zero;
-    ``max_steps``/``n_save`` not a positive integer; under ``jit`` a traced option fails at
-    run time), ``ArgumentTypeError`` for the wrong kind of object;
-    ``ShapeError``, ``NonFiniteError``, ``ParameterError``, ``MassMatrixError``
-    for bad input (checked at the initial state), ``ConstraintError`` for a constrained
+    **Raises:** `ConfigurationError` for a bad option (`t0`/`t1` not finite or
+    `t1 <= t0`; `dt` or `dt0` not positive and finite, `dt` longer than
+    `t1 - t0` or given with `dt0`; `rtol`/`atol` negative, non-finite or both zero;
+    `max_steps`/`n_save` not a positive integer; under `jit` a traced option fails at
+    run time), `ArgumentTypeError` for the wrong kind of object;
+    `ShapeError`, `NonFiniteError`, `ParameterError`, `MassMatrixError`
+    for bad input (checked at the initial state), `ConstraintError` for a constrained
     system whose initial state cannot be projected onto its constraints or whose
-    constraint Jacobian is rank-deficient there, and ``SimulationError`` when the solve
+    constraint Jacobian is rank-deficient there, and `SimulationError` when the solve
     fails: the message names the cause (step budget, non-finite state, singular mass
     matrix, an event cascade with its time and counts), the time reached and what to try.
     An event whose condition is not a scalar or whose reset returns the wrong shapes
-    raises a ``ShapeError``; events with an option they cannot run with a
-    ``ConfigurationError``.
+    raises a `ShapeError`; events with an option they cannot run with a
+    `ConfigurationError`.
 
     **Example:**
 
@@ -539,7 +588,7 @@ def simulate(
 
 
 def events_supported(solver, controller, saveat, adjoint) -> None:
-    """A ``ConfigurationError`` where ``events=`` cannot run (see ``simulate``)."""
+    """A `ConfigurationError` where `events=` cannot run (see `simulate`)."""
     if isinstance(solver, Variational):
         raise ConfigurationError(
             "events are not supported with the variational integrators (their dense output "

@@ -60,9 +60,10 @@ class LagrangianSystem(AbstractSystem):
     autonomous system (the default) `t` is ignored and the code is exactly that of a
     system without the option. The energy a solution reports is the Jacobi integral
     `h = q̇·∂L/∂q̇ − L` ([`jacobi_integral`][lagrax.LagrangianSystem.jacobi_integral]), which
-    changes at the rate `dh/dt = −∂L/∂t` (without inputs and dissipation): `Solution.work`
-    integrates that rate, and `Solution.energy_error` is the balance `h(t) − h(t0) − W(t)`,
-    relative. The structure-aware `equations` of chains are for autonomous energies only.
+    changes at the rate `dh/dt = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)`: `Solution.work` integrates that
+    rate, and `Solution.energy_error` is the balance `h(t) − h(t0) − W(t)` over the path's energy
+    scale `max(|h(t0)|, |T| + |V|)`.
+    The structure-aware `equations` of chains are for autonomous energies only.
 
     **Terms linear in q̇.** `T` may contain terms linear in `q̇` (`T ⊃ a(q)·q̇`, a
     charge in a magnetic field with `a = e A(q)`, or a rotating frame): the equations are
@@ -258,6 +259,32 @@ class LagrangianSystem(AbstractSystem):
             return None
         q, qd = self._state(q, qd)
         return d.explicit_power(self, q, qd, params, t)
+
+    def input_power(self, t: Time, q: Vector, qd: Vector, params: Params, tau) -> Scalar | None:
+        """`q̇·(τ + F − ∂D/∂q̇)` at one state: the power of the inputs `τ`, the applied
+        force `F` and the dissipation (`−q̇·∂D/∂q̇ = −2D` for a quadratic `D`), the
+        rate at which they change [`jacobi_integral`][lagrax.LagrangianSystem.jacobi_integral];
+        `None` without any of them."""
+        if not d.has_applied(self, tau):
+            return None
+        q, qd = self._state(q, qd)
+        return jnp.dot(qd, d.applied(self, t, q, qd, params, tau))
+
+    def energy_and_magnitude(
+        self, t: Time, q: Vector, qd: Vector, params: Params
+    ) -> tuple[Scalar, Scalar]:
+        """`(h, |T| + |V|)` at one state (at time `t` for a time-dependent system): the
+        Jacobi integral (as [`jacobi_integral`][lagrax.LagrangianSystem.jacobi_integral]) and the
+        magnitude from which `Solution.energy_error` takes its scale, which does not vanish where
+        `h` does. One evaluation of `T` (with its JVP along `q̇`) and `V`."""
+        q, qd = self._state(q, qd)
+        potential = d.potential(self, q, params, t)
+        if self.equations is not None and not self.time_dependent:
+            kinetic = d.kinetic(self, q, qd, params, t)
+            h = kinetic + potential
+        else:
+            kinetic, h = d.kinetic_and_jacobi(self, q, qd, params, t, potential)
+        return h, jnp.abs(kinetic) + jnp.abs(potential)
 
     # ------------------------------------------------------------------ derivatives
     def mass_matrix(

@@ -69,11 +69,14 @@ def joint_trajectories(
 
 
 def energy_error(sol: Solution, *, ax=None):
-    """Relative energy error `|E(t) − E(0)| / |E(0)|` against time, on a log scale.
+    """The energy error `|h(t) − h(0) − W(t)| / scale` against time, on a log scale.
 
-    Times where the error is exactly zero (always `t = 0`, and any step that conserves
-    `E` to the last bit) cannot be drawn on a log axis: they are left out (a gap in the
-    line), so the axis spans the errors that occur rather than reaching down to 1e-16.
+    `Solution.energy_error`: the balance residual of the Jacobi integral `h` (the work
+    `W` of inputs, applied forces, dissipation and explicit time dependence subtracted),
+    relative to the path's energy scale `max(|h(0)|, max |T| + |V|)`. Times where the
+    error is exactly zero (always `t = 0`, and any step that conserves `h` to the last
+    bit) cannot be drawn on a log axis: they are left out (a gap in the line), so the
+    axis spans the errors that occur rather than reaching down to 1e-16.
 
     **Arguments:** `sol`, a `lagrax.Solution`; `ax`, axes to draw on (default: a new
     figure).
@@ -89,7 +92,7 @@ def energy_error(sol: Solution, *, ax=None):
     if not shown.any():
         ax.text(0.5, 0.5, "E(t) = E(0) exactly", transform=ax.transAxes, ha="center")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("|E(t) − E(0)| / |E(0)|")
+    ax.set_ylabel("|h(t) − h(0) − W(t)| / scale")
     return ax
 
 

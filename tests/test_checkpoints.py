@@ -202,7 +202,7 @@ def test_damaged_manifest_is_rewritten_chunks_decide(oscillator, batch, referenc
         ds = run(oscillator, batch, ckpt)
     assert_same(ds, reference)
     assert counted == []
-    assert json.loads((ckpt / "manifest.json").read_text())["version"] == 2
+    assert json.loads((ckpt / "manifest.json").read_text())["version"] == _checkpoint.FORMAT_VERSION
 
 
 # --------------------------------------------------------------------------- another sweep

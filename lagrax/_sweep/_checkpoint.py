@@ -27,7 +27,9 @@ import numpy as np
 
 from .._errors import CheckpointError, CheckpointWarning
 
-FORMAT_VERSION = 2  # 2: chunk files carry the sweep fingerprint and a SHA-256 of their arrays
+# 2: chunk files carry the sweep fingerprint and a SHA-256 of their arrays;
+# 3: and the energy balance and scale (energy_balance, energy_scale)
+FORMAT_VERSION = 3
 
 CHUNK_KIND = "lagrax.sweep.chunk"
 HEADER_KEY = "__lagrax__"

@@ -12,7 +12,15 @@ import numpy as np
 from .._checks import pivot_threshold
 from .._lanes import LaneOutput, run_lanes
 from .._results import RESULTS, code_of, from_code
-from .._simulate import SolveConfig, SolveInputs, observables, solve_from, work_along
+from .._simulate import (
+    SolveConfig,
+    SolveInputs,
+    energy_scale,
+    observables,
+    power_of,
+    solve_from,
+    work_along,
+)
 from .._solution import Solution
 from .._vector_field import LagrangianVectorField
 from ._devices import to_device, to_host
@@ -122,33 +130,45 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
     system = setup.config.system
     field = LagrangianVectorField(system, setup.config.tau_fn)
     # the Jacobi integral h at the saves, the start and the end (see Solution.energy)
+    # (with |T| + |V| there, for the scale of energy_error)
     energy = jax.vmap(
-        jax.vmap(system.jacobi_integral, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
+        jax.vmap(system.energy_and_magnitude, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
     )
     q, qd = out.ys
-    e = energy(ts, q, qd, members) if q.shape[1] else q[..., 0]
+    e, mag = energy(ts, q, qd, members) if q.shape[1] else (q[..., 0], q[..., 0])
     e = jnp.where(jnp.isfinite(e), e, jnp.inf)
     q0, qd0 = y0s
-    e0 = jax.vmap(system.jacobi_integral, in_axes=(None, 0, 0, 0))(t0, q0, qd0, members)
-    first = jtu.tree_map(lambda x: x[0], members)
-    if system.explicit_power(t0, q0[0], qd0[0], first) is not None:
-        # h changes by the work of the explicit time dependence, which needs the path:
-        # the sweep's energy_error is NaN (use simulate's Solution.energy_error, or a
-        # keep= reduction of it)
-        e0 = jnp.full_like(e0, jnp.nan)
+    at_start = jax.vmap(system.energy_and_magnitude, in_axes=(None, 0, 0, 0))
+    e0, m0 = at_start(t0, q0, qd0, members)
     q_end, qd_end = out.y_end
-    e_end = jax.vmap(system.jacobi_integral)(out.t_end, q_end, qd_end, members)
+    e_end, m_end = jax.vmap(system.energy_and_magnitude)(out.t_end, q_end, qd_end, members)
+    balance, scale = _energy_balance(
+        system,
+        field,
+        members,
+        tau_const,
+        t0,
+        ts,
+        q,
+        qd,
+        (e, mag),
+        (q0, qd0, e0, m0),
+        (e_end, m_end),
+    )
     # the system's observables at the end state (a constrained system: max |φ(q)| there)
     at_end = jax.vmap(
         lambda t, a, b, p: system.observables(t, a, b, p, field.tau(t, a, b, tau_const))
     )(jnp.minimum(out.t_end, t1), q_end, qd_end, members)
-    violation = at_end.get("constraint_violation")
-    if violation is not None:
-        violation = jnp.max(jnp.abs(violation), axis=1)
+    # max |φ(q)| and max |A(q) q̇| at the end state (each present when the system has them)
+    violation = {
+        k: jnp.max(jnp.abs(at_end[k]), axis=1)
+        for k in ("constraint_violation", "velocity_constraint_violation")
+        if k in at_end
+    }
     reduced = None
     if setup.reduce is not None:
 
-        def reduce_one(p, i_q, i_qd, i_e, res, t_end, qe, qde, st, acc, rej):
+        def reduce_one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej):
             stats = dict(
                 num_steps=st,
                 num_accepted_steps=acc,
@@ -160,7 +180,18 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
             extras = observables(system, field, p, tau_const, i_ts, i_q, i_qd)
             work = work_along(system, field, p, tau_const, i_ts, i_q, i_qd)
             sol = Solution(
-                i_ts, i_q, i_qd, i_e, from_code(res), stats, t_end, qe, qde, **extras, work=work
+                i_ts,
+                i_q,
+                i_qd,
+                i_e,
+                from_code(res),
+                stats,
+                t_end,
+                qe,
+                qde,
+                **extras,
+                work=work,
+                energy_scale=energy_scale(i_ts, i_e, i_m),
             )
             return setup.reduce(sol)
 
@@ -169,6 +200,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
             q,
             qd,
             e,
+            mag,
             out.result,
             out.t_end,
             q_end,
@@ -177,7 +209,41 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
             out.num_accepted_steps,
             out.num_rejected_steps,
         )
-    return out, e, e0, e_end, reduced, violation
+    return out, e, e0, e_end, reduced, violation, balance, scale
+
+
+def _energy_balance(system, field, members, tau_const, t0, ts, q, qd, saved, start, end):
+    """Per member: the energy balance residual and its scale, as `Solution.energy_error`
+    computes them (its numerator and denominator).
+
+    Without inputs, dissipation or time dependence the residual is `h(t_end) − h(t0)`.
+    With them it is `h − h₀ − W` over the saves (the first to the last reached one),
+    `W` the work integrated along them (`sweep` saves internally for that when
+    `keep="final"`); NaN when there are no saves. The scale is
+    `max(|h(t0)|, |T| + |V|)` over the start, the saves and the end (`h` and
+    `|T| + |V|` given there: `saved`, `start`, `end`)."""
+    e, mag = saved
+    q0, qd0, e0, m0 = start
+    e_end, m_end = end
+    first = jtu.tree_map(lambda x: x[0], members)
+    has_power = power_of(system, field, first, tau_const, t0, q0[0], qd0[0]) is not None
+    scale = jnp.maximum(jnp.abs(e0), m0)
+    scale = jnp.maximum(scale, jnp.where(jnp.isfinite(m_end), m_end, 0.0))
+    if ts.shape[0]:
+        reached = jnp.all(jnp.isfinite(q), axis=2)  # (members, T)
+        member_ts = jnp.where(reached, ts, jnp.inf)
+        scale = jnp.maximum(scale, jax.vmap(energy_scale)(member_ts, e, mag))
+    if not has_power:
+        return e_end - e0, scale
+    if not ts.shape[0]:
+        return jnp.full_like(e0, jnp.nan), scale
+    work = jax.vmap(lambda p, s, a, b: work_along(system, field, p, tau_const, s, a, b))(
+        members, member_ts, q, qd
+    )
+    ok = jnp.isfinite(work)
+    last = ts.shape[0] - 1 - jnp.argmax(ok[:, ::-1], axis=1)
+    pick = lambda x: jnp.take_along_axis(x, last[:, None], axis=1)[:, 0]  # noqa: E731
+    return pick(e) - e[:, 0] - pick(work), scale
 
 
 @eqx.filter_jit
@@ -190,8 +256,13 @@ def _initial_states(system, q0s, qd0s, members, t0):
     return q0s, qd0s, projected, mass
 
 
-def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt):
-    """Run one chunk (padded to `size` members so every chunk reuses one compilation)."""
+def solve_chunk(
+    setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt, keep_path=True
+):
+    """Run one chunk (padded to `size` members so every chunk reuses one compilation).
+
+    `keep_path=False`: the saves at `ts` only serve the energy balance (`keep="final"`
+    with inputs, dissipation or time dependence) and are not returned."""
     m = q0s.shape[0]
     members = jtu.tree_map(lambda x: np.asarray(x), members)
     # every process computes the whole chunk's initial states (not sharded: no gather)
@@ -222,7 +293,7 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
     pick = lambda x: np.asarray(x)[src]  # noqa: E731
     members_d = jtu.tree_map(lambda x: to_device(pick(x), mesh), members)
     y0s = (to_device(pick(q0s), mesh), to_device(pick(qd0s), mesh))
-    out, e, e0, e_end, reduced, violation = _run_chunk(
+    out, e, e0, e_end, reduced, violation, balance, scale = _run_chunk(
         setup,
         mesh,
         members_d,
@@ -233,9 +304,13 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
         None if dt0 is None else jnp.asarray(dt0, tdt),
         ts,
     )
-    out, e, e0, e_end, reduced, violation = to_host((out, e, e0, e_end, reduced, violation))
+    out, e, e0, e_end, reduced, violation, balance, scale = to_host(
+        (out, e, e0, e_end, reduced, violation, balance, scale)
+    )
     cut = lambda x: x[:m]  # noqa: E731
     q, qd = out.ys
+    if not keep_path:
+        q, qd, e = q[:, :0], qd[:, :0], e[:, :0]
     q_end, qd_end = out.y_end
     res = cut(out.result).copy()
     res[~projected & ((res == _OK) | (res == _EVENT))] = _NOT_PROJECTED
@@ -253,6 +328,8 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
         energy=blank(e),
         energy0=blank(e0),
         energy_end=blank(e_end),
+        energy_balance=blank(balance),
+        energy_scale=blank(scale),
         q_end=blank(q_end),
         qd_end=blank(qd_end),
         t_end=blank(out.t_end),
@@ -263,8 +340,8 @@ def solve_chunk(setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0,
         busy_lane_steps=np.asarray([out.busy_lane_steps.sum()]),
         lane_steps=np.asarray([out.lane_steps.sum()]),
     )
-    if violation is not None:
-        chunk["constraint_violation"] = blank(violation)
+    for k, v in violation.items():
+        chunk[k] = blank(v)
     if out.event_count is not None:
         chunk["event_count"] = np.where(np.asarray(bad)[:, None], 0, cut(out.event_count))
         chunk["first_event_time"] = blank(out.event_first)

@@ -65,10 +65,13 @@ def dataset(
             x = shaped(cat["reduce" + p])
             extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(sweep_dims))]
             data[name] = (sweep_dims + extra, x)
-    e0 = cat["energy0"]
+    # as Solution.energy_error: the balance residual h − h0 − W over the scale
+    # max(|h0|, |T| + |V|) (see _chunk._energy_balance), and the change of h itself
     with np.errstate(invalid="ignore", divide="ignore"):
-        rel = (cat["energy_end"] - e0) / np.maximum(np.abs(e0), np.finfo(float).tiny)
+        rel = cat["energy_balance"] / np.maximum(cat["energy_scale"], np.finfo(float).tiny)
+        change = cat["energy_end"] - cat["energy0"]  # inf − inf where invalid: masked
     data["energy_error"] = (sweep_dims, shaped(np.where(ok, rel, np.inf)))
+    data["energy_change"] = (sweep_dims, shaped(np.where(ok, change, np.inf)))
     data["ok"] = (sweep_dims, shaped(ok))
     data["result"] = (sweep_dims, shaped(cat["result"]))
     text = messages()
@@ -83,8 +86,9 @@ def dataset(
         ]
     )
     data["status"] = (sweep_dims, shaped(status))
-    if "constraint_violation" in cat:
-        data["constraint_violation"] = (sweep_dims, shaped(cat["constraint_violation"]))
+    for k in ("constraint_violation", "velocity_constraint_violation"):
+        if k in cat:
+            data[k] = (sweep_dims, shaped(cat[k]))
     if "event_count" in cat:  # per member and event (simulate's Solution.events)
         data["event_count"] = (sweep_dims + ["event"], shaped(cat["event_count"]))
         data["first_event_time"] = (sweep_dims + ["event"], shaped(cat["first_event_time"]))

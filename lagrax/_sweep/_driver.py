@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import diffrax as dfx
+import jax
 import jax.numpy as jnp
 import jax.tree_util as jtu
 import numpy as np
@@ -17,8 +18,9 @@ from .._abstract_system import AbstractSystem
 from .._errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._events import as_events, check_events
 from .._methods import configure
-from .._simulate import SolveConfig, events_supported
+from .._simulate import SolveConfig, events_supported, power_of
 from .._solution import Solution
+from .._vector_field import LagrangianVectorField
 from ._checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from ._chunk import Setup, solve_chunk
 from ._dataset import dataset
@@ -90,7 +92,8 @@ def sweep(
     - `system`: a `LagrangianSystem`, or a `ConstrainedSystem` (each
       member's initial state is first projected onto its constraints, as in
       `simulate`; the result then also has `constraint_violation`, `max |φ(q)|` at
-      the end).
+      the end, and with velocity constraints `velocity_constraint_violation`,
+      `max |A(q) q̇|` at the end).
     - `q0`, `qd0`: initial state, `(n,)` for all members, or one per member
       (`(members, n)`, or the grid's shape + `(n,)`).
     - `params`: a `Grid` from `grid` / `samples`, or a pytree whose
@@ -144,10 +147,13 @@ def sweep(
     `"time"` (when kept) and `"dof"` (labelled by the system's `coordinate_names`
     where it has them, e.g. a URDF robot's joint names; else `0 … n−1`); variables
     `q`, `qd`, `energy` (at the kept times, or at `t1` for `keep="final"`; the
-    Jacobi integral `h`, see `Solution.energy`), `energy_error` (relative change of
-    `h` from `t0` to the end; NaN for a time-dependent system, whose `h` changes by
-    the work of `−∂L/∂t` along the path: reduce each member's `Solution.energy_error`
-    with `keep=`), `ok`, `result`
+    Jacobi integral `h`, see `Solution.energy`), `energy_error` (at the end, as
+    `Solution.energy_error`: the balance residual `h − h₀ − W` over the scale
+    `max(|h₀|, |T| + |V|)`, where `W` is the work of the explicit time dependence,
+    inputs, applied force and dissipation, integrated along the saves; with
+    `keep="final"` such a system is saved at `n_save` times for it, which are then
+    dropped; with `keep=` times the balance is over the first to the last of them),
+    `energy_change` (`h(t_end) − h(t0)`, the change itself), `ok`, `result`
     (code of `lagrax.RESULTS`), `status` (its message), `t_end`, `num_steps`,
     `num_accepted_steps`, `num_rejected_steps` (or the outputs of `reduce`); swept
     parameters and state components as coordinates (with the grid's `units` as their
@@ -250,6 +256,15 @@ def sweep(
         ts = np.zeros(0) if keep == "final" else np.linspace(t0, t1, int(n_save))
     else:
         ts = np.asarray(keep, dtype=float)
+    keep_path = True
+    if (
+        isinstance(keep, str)
+        and keep == "final"
+        and _has_power(system, tau_fn, tau_const, batch, params, q0s[0], qd0s[0], t0)
+    ):
+        # the energy balance needs the work along the path: saved at n_save times for
+        # it, then dropped
+        ts, keep_path = np.linspace(t0, t1, int(n_save)), False
     ts_dev = jnp.asarray(ts, tdt)
 
     solver_, controller, dt0_, max_steps_ = configure(
@@ -335,6 +350,7 @@ def sweep(
                 ts_dev,
                 chunk_size,
                 tdt,
+                keep_path=keep_path,
             )
             if ckpt is not None:
                 write_chunk(
@@ -465,3 +481,19 @@ def _argument_order(system, q0, qd0, params):
         )
         return system, qd0, params, q0
     return system, q0, qd0, params
+
+
+def _has_power(system, tau_fn, tau_const, batch, params, q0, qd0, t0) -> bool:
+    """Whether anything changes the Jacobi integral of a member (explicit time, inputs,
+    applied force, dissipation; see `_simulate.power_of`): traced, not evaluated."""
+    member = batch.params(0, 1) if batch is not None else params
+    member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
+    field = LagrangianVectorField(system, tau_fn)
+    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+    power = jax.eval_shape(
+        lambda p, a, b: power_of(system, field, p, tau_const, jnp.asarray(t0, a.dtype), a, b),
+        member,
+        q0,
+        qd0,
+    )
+    return power is not None

@@ -43,7 +43,7 @@ class WorkPrecisionPoint:
     setting: str  # "rtol" (= atol) or "dt"
     value: float
     final_error: float  # max-norm of the state (q, q̇) error at t1 against the reference
-    max_energy_error: float  # max_t |E(t) − E(0)| / |E(0)|
+    max_energy_error: float  # max_t |Solution.energy_error| (balance residual / scale)
     time_s: float  # median wall time of the compiled solve
     compile_s: float  # first call (trace + compile + run) minus time_s
     steps: int  # accepted + rejected
