@@ -160,7 +160,7 @@ def test_energy_error_keeps_exact_zeros_off_the_log_axis(sol):
     bottom, top = ax.get_ylim()
     assert bottom > 0.1 * err[1:].min() and top >= err.max()
     assert bottom > 1e-15
-    assert ax.get_ylabel() == "|E(t) − E(0)| / |E(0)|" and ax.get_xlabel() == "t [s]"
+    assert ax.get_ylabel() == "|h(t) − h(0) − W(t)| / scale" and ax.get_xlabel() == "t [s]"
 
 
 def test_sweep_heatmap(arm):
