@@ -8,14 +8,15 @@ chain's energies (``equations=None``) and the independent Newton–Euler oracle
 """
 
 import dataclasses
+from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 import lagrax as lx
+from _random_models import random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import PlanarChain, SpatialChain
@@ -44,29 +45,7 @@ def _random_planar(n, seed):
 
 
 def _random_spatial(types, seed):
-    rng = np.random.default_rng(seed)
-    n = len(types)
-    chain = SpatialChain(
-        types,
-        axes=[tuple(rng.normal(size=3)) for _ in range(n)],
-        rotations=[Rotation.random(random_state=seed + i).as_matrix() for i in range(n)],
-        up=tuple(rng.normal(size=3)),
-    )
-    d = rng.uniform(0.1, 0.8, (n, 3)) ** 2  # a box's second moments: a physical inertia
-    frames = [Rotation.random(random_state=100 + seed + i).as_matrix() for i in range(n)]
-    inertia = np.stack(
-        [
-            r @ np.diag([d[i, 1] + d[i, 2], d[i, 0] + d[i, 2], d[i, 0] + d[i, 1]]) @ r.T
-            for i, r in enumerate(frames)
-        ]
-    )
-    params = chain.params(
-        m=rng.uniform(0.5, 2, n),
-        offset=rng.normal(size=(n, 3)) * 0.5,
-        com=rng.normal(size=(n, 3)) * 0.3,
-        inertia=inertia,
-    )
-    return chain, params, rng
+    return random_spatial(partial(SpatialChain, types), len(types), seed)
 
 
 def _variants(chain):

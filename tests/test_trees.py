@@ -4,12 +4,13 @@ against the definition (autodiff of the energies), the independent Newton–Eule
 """
 
 import dataclasses
+from functools import partial
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
+from _random_models import random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import SpatialChain, Tree
@@ -25,31 +26,7 @@ def _close(a, b, rtol=RTOL):
 
 
 def _random_tree(types, parents, seed):
-    rng = np.random.default_rng(seed)
-    n = len(types)
-    tree = Tree(
-        types,
-        parents,
-        axes=[tuple(rng.normal(size=3)) for _ in range(n)],
-        rotations=[Rotation.random(random_state=seed + i).as_matrix() for i in range(n)],
-        up=tuple(rng.normal(size=3)),
-    )
-    d = rng.uniform(0.1, 0.8, (n, 3)) ** 2  # a box's second moments: a physical inertia
-    frames = [Rotation.random(random_state=100 + seed + i).as_matrix() for i in range(n)]
-    inertia = np.stack(
-        [
-            r @ np.diag([d[i, 1] + d[i, 2], d[i, 0] + d[i, 2], d[i, 0] + d[i, 1]]) @ r.T
-            for i, r in enumerate(frames)
-        ]
-    )
-    params = tree.params(
-        m=rng.uniform(0.5, 2, n),
-        offset=rng.normal(size=(n, 3)) * 0.5,
-        com=rng.normal(size=(n, 3)) * 0.3,
-        inertia=inertia,
-        g=rng.uniform(5, 12),
-    )
-    return tree, params, rng
+    return random_spatial(partial(Tree, types, parents), len(types), seed, gravity=True)
 
 
 def test_tree_recursions_equal_rnea():
