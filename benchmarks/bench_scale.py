@@ -130,7 +130,9 @@ def pinocchio_aba(kind, n, repeats):
     return _pinocchio_time(model, n, repeats)
 
 
-def arm_mjcf():
+def arm_mjcf(dt=None):
+    """The 7-DOF arm as nested MJCF bodies (hinges, link CoM at 0.5 m, gravity −z), at
+    MuJoCo's default step or at `dt`."""
     d = np.diag(ARM_INERTIA)
     body, close = "", ""
     for i, axis in enumerate(ARM_AXES):
@@ -140,8 +142,9 @@ def arm_mjcf():
             f'<inertial pos="0.5 0 0" mass="1" diaginertia="{d[0]} {d[1]} {d[2]}"/>'
         )
         close += "</body>"
+    step = "" if dt is None else f' timestep="{dt}"'
     return (
-        '<mujoco><option gravity="0 0 -9.81" integrator="RK4">'
+        f'<mujoco><option{step} gravity="0 0 -9.81" integrator="RK4">'
         '<flag contact="disable" constraint="disable"/></option>'
         f"<worldbody>{body}{close}</worldbody></mujoco>"
     )

@@ -34,9 +34,7 @@ import argparse
 import dataclasses
 import math
 import os
-import statistics
 import sys
-import time
 from collections.abc import Callable
 from functools import partial
 from typing import Any
@@ -52,6 +50,9 @@ from _optional import available  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(__file__))
 from _lane_schedule import idle_fraction  # noqa: E402
+from bench_scale import arm_mjcf as arm7_mjcf  # noqa: E402
+from bench_scale import chain_of  # noqa: E402
+from bench_sweep import timed  # noqa: E402
 
 Q0 = (-math.pi / 2 + 1.4, 0.8)
 T1 = 10.0
@@ -88,27 +89,7 @@ def arm_mjcf(params, dt: float) -> str:
 """
 
 
-ARM7_AXES = [(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
-ARM7_INERTIA = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1) / 12, (3 * 0.05**2 + 1) / 12])
 ARM7_SWEPT = (3, 6)  # links 4 and 7: their masses are swept
-
-
-def arm7_mjcf(dt: float) -> str:
-    """The 7-DOF arm as nested MJCF bodies (hinges, link CoM at 0.5 m, gravity −z)."""
-    d = np.diag(ARM7_INERTIA)
-    body, close = "", ""
-    for i, axis in enumerate(ARM7_AXES):
-        pos = "0 0 0" if i == 0 else "1 0 0"
-        body += (
-            f'<body pos="{pos}"><joint type="hinge" axis="{axis[0]} {axis[1]} {axis[2]}"/>'
-            f'<inertial pos="0.5 0 0" mass="1" diaginertia="{d[0]} {d[1]} {d[2]}"/>'
-        )
-        close += "</body>"
-    return (
-        f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81" integrator="RK4">'
-        '<flag contact="disable" constraint="disable"/></option>'
-        f"<worldbody>{body}{close}</worldbody></mujoco>"
-    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -146,10 +127,7 @@ def planar_2r_model() -> Model:
 
 
 def arm7_model() -> Model:
-    from lagrax.chains import SpatialChain
-
-    chain = SpatialChain("R" * 7, axes=ARM7_AXES)
-    params = chain.params(inertia=ARM7_INERTIA)
+    chain, params = chain_of("spatial", 7)  # bench_scale's arm
     i, j = ARM7_SWEPT
 
     def batch(p, a, b):  # a pytree with a leading member axis on every leaf
@@ -208,18 +186,6 @@ def mjx_sweep(model: Model, dtype):
         return tuple(np.asarray(x, np.float64) for x in out)
 
     return sweep
-
-
-def timed(fn, repeats: int):
-    t = time.perf_counter()
-    out = fn()
-    first = time.perf_counter() - t
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return out, first, statistics.median(times)
 
 
 def members(n: int, ranges=((0.5, 2.0), (0.5, 1.5))) -> tuple[np.ndarray, np.ndarray, int]:
