@@ -227,18 +227,10 @@ def summary(
     **Arguments:**
 
     - `sol`: a `lagrax.Solution`.
-    - `geometry`: the mechanism's points (joints and tip, in metres) at a configuration;
-      one of
-        - a function `points(q) -> (k, 2)` (any planar mechanism, any angle
-          convention: e.g. a pendulum with angles from the downward vertical);
-        - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
-          convention (`θ1` from +x, `θi` relative to link `i − 1`, see
-          `planar_chain_points`);
-        - a chain object with `joint_positions(q, params)` (e.g.
-          `lagrax.chains.PlanarChain`; then pass `params=`);
-        - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
-          `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
-    - `params`: parameters for a chain object, or for the default's link lengths.
+    - `geometry`, `params`: the mechanism's points at a configuration, as for
+      [`arm_snapshots`][lagrax.plot.arm_snapshots]: a function `points(q) -> (k, 2)`
+      (any angle convention), link lengths, a chain object with `params=`, or `None`
+      (default): the lecture's chain (`θ1` from +x, `θi` relative to link `i − 1`).
     - `title`: a title over the three panels.
 
     **Returns:** the figure.
@@ -331,18 +323,10 @@ def animate(
     **Arguments:**
 
     - `sol`: a `lagrax.Solution` (its saved times are the frames).
-    - `geometry`: the mechanism's points (joints and tip, in metres) at a configuration;
-      one of
-        - a function `points(q) -> (k, 2)` (any planar mechanism, any angle
-          convention: e.g. a pendulum with angles from the downward vertical);
-        - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
-          convention (`θ1` from +x, `θi` relative to link `i − 1`, see
-          `planar_chain_points`);
-        - a chain object with `joint_positions(q, params)` (e.g.
-          `lagrax.chains.PlanarChain`; then pass `params=`);
-        - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
-          `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
-    - `params`: parameters for a chain object, or for the default's link lengths.
+    - `geometry`, `params`: the mechanism's points at a configuration, as for
+      [`arm_snapshots`][lagrax.plot.arm_snapshots]: a function `points(q) -> (k, 2)`
+      (any angle convention), link lengths, a chain object with `params=`, or `None`
+      (default): the lecture's chain (`θ1` from +x, `θi` relative to link `i − 1`).
     - `max_frames`: at most this many frames, evenly spaced over the saved times.
     - `speed`: playback speed relative to real time.
     - `trail`: draw the path of the last point.
