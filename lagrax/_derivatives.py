@@ -30,7 +30,9 @@ FOF_MAX = 6
 
 class Equations(Protocol):
     """A structure-aware evaluation of the equations of the same `T` and `V` (a chain's
-    recursions): `M`, `q̈` for a generalized force, and `M q̈ + C q̇ + G`."""
+    recursions): `M`, `q̈` for a generalized force, and `M q̈ + C q̇ + G`. An
+    implementation may also offer `energies(q, qd, params) -> (T, V) | None` (see
+    `structured_energies`)."""
 
     def mass_matrix(self, q: Any, params: Any) -> Any: ...
     def mass_and_bias(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any]: ...
@@ -120,6 +122,17 @@ def jacobi(e: Energies, q, qd, params, t=None):
     quadratic in `q̇`, up to round-off)."""
     t_val, t_dot = jax.jvp(lambda b: kinetic(e, q, b, params, t), (qd,), (qd,))
     return t_dot - t_val + potential(e, q, params, t)
+
+
+def structured_energies(e: Energies, q, qd, params, t=None):
+    """`(T, V)` of a system with structure-aware `equations`: from the equations'
+    own `energies(q, q̇, params)` where they offer one (a spatial chain's outward pass:
+    no derivative of the pose maps), else from the energy functions."""
+    energies = getattr(e.equations, "energies", None)
+    out = None if energies is None else energies(q, qd, params)
+    if out is not None:
+        return out
+    return kinetic(e, q, qd, params, t), potential(e, q, params, t)
 
 
 def kinetic_and_jacobi(e: Energies, q, qd, params, t, potential):

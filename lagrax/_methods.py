@@ -128,7 +128,7 @@ def configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t
                 f"an adaptive solve, here dt0={dt0}), not both"
             )
         dt = _checks.fixed_step(dt, t0, t1)
-        stepsize_controller = dfx.ConstantStepSize()
+        stepsize_controller = _instance(dfx.ConstantStepSize)  # one instance (see _instance)
         dt0 = dt
         if max_steps is None and (eager or not _checks.is_traced(t0, t1, dt)):
             max_steps = fixed_step_budget(t0, t1, dt)

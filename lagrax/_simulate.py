@@ -1,5 +1,6 @@
 """One trajectory: `simulate`, on diffrax's steps."""
 
+import collections
 import functools
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -12,7 +13,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from . import _checks, _events, _integrate
-from ._abstract_system import AbstractSystem
+from ._abstract_system import AbstractSystem, host_state
 from ._diagnose import diagnose
 from ._errors import ArgumentTypeError, ConfigurationError, ShapeError, SimulationError
 from ._events import Event
@@ -342,15 +343,18 @@ def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
 
 @functools.lru_cache(maxsize=64)
 def _compiled_checked(config: SolveConfig):
-    """A `jax.jit` of `_simulate_checked` for one configuration.
+    """A `jax.jit` of `_simulate_checked` for one configuration, taking the fields of
+    `SolveInputs` as a tuple.
 
     `equinox.filter_jit` sorts arrays from static values on every call, which for
     `simulate`'s arguments costs about as much as a short solve; with the configuration
-    fixed here and every input an array, a call is `jax.jit`'s C++ fast path.
+    fixed here and every input an array, a call is `jax.jit`'s C++ fast path. (Building
+    the `SolveInputs` Module inside the trace also skips equinox's per-instance checks.)
     """
     out_static = []
 
-    def run(inputs):
+    def run(fields):
+        inputs = SolveInputs(*fields)
         leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
         arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
         out_static[:] = [treedef, leaves, arrays]
@@ -359,15 +363,52 @@ def _compiled_checked(config: SolveConfig):
     return jax.jit(run), out_static
 
 
-def _call_checked(config: SolveConfig, inputs: SolveInputs):
-    """`_simulate_checked(config, inputs)`, through a cached `jax.jit` when it can be."""
+# `simulate`'s front cache: the configuration's parts by identity -> (parts, config,
+# compiled or None). Hashing and comparing a `SolveConfig` walks the whole system
+# (~60 µs each for a 7-link chain, and building one as much again); a repeated call
+# with the same objects skips all three. The entry holds the parts themselves, so an
+# `id` cannot be reused while it lives; a miss falls through to `_compiled_checked`,
+# whose cache compares by value (equal systems share one compiled program).
+_FRONT: "collections.OrderedDict[tuple, tuple]" = collections.OrderedDict()
+_FRONT_SIZE = 64
+
+
+def _configured(parts: tuple, n_save: int, max_steps: int):
+    """`(config, compiled)` for `SolveConfig(*parts, n_save, max_steps, None)`, where
+    `compiled` is `_compiled_checked(config)`, or `None` when the configuration is not
+    hashable (a controller or saveat holding arrays)."""
+    key = (*map(id, parts), n_save, max_steps)
+    hit = _FRONT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], parts, strict=True)):
+        return hit[1], hit[2]
+    config = SolveConfig(*parts, n_save, max_steps, None)
     try:
-        if not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(inputs)):
-            raise TypeError  # e.g. strings in params: equinox sorts them out
-        fn, out_static = _compiled_checked(config)
-    except TypeError:  # an unhashable setting (a controller or saveat with arrays)
-        return _simulate_checked(config, inputs)
-    values = fn(inputs)
+        compiled = _compiled_checked(config)
+    except TypeError:
+        compiled = None
+    _FRONT[key] = (parts, config, compiled)
+    if len(_FRONT) > _FRONT_SIZE:
+        _FRONT.popitem(last=False)
+    return config, compiled
+
+
+def _compiled_or_none(config: SolveConfig):
+    """`_compiled_checked(config)`, or `None` for an unhashable configuration."""
+    try:
+        return _compiled_checked(config)
+    except TypeError:
+        return None
+
+
+def _call_checked(config: SolveConfig, fields: tuple, compiled=None):
+    """`_simulate_checked(config, SolveInputs(*fields))`, through the cached `jax.jit`
+    `compiled` (from `_compiled_checked`) when given and every input is an array."""
+    if compiled is None or not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(fields)):
+        # no jit of its own (unhashable settings), or non-array leaves (e.g. strings in
+        # params): equinox sorts them out
+        return _simulate_checked(config, SolveInputs(*fields))
+    fn, out_static = compiled
+    values = fn(fields)
     treedef, leaves, arrays = out_static
     leaves = list(leaves)  # the static leaves, with the arrays put back in their places
     for i, value in zip(arrays, values, strict=True):
@@ -492,7 +533,7 @@ def simulate(
     if eager:
         # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
         # of its own, and a simulate call should cost one dispatch, not a dozen.
-        q0, qd0 = system._host_state(q0, qd0)
+        q0, qd0 = host_state(system, q0, qd0)
         dtype = np.result_type(q0, qd0)
     else:
         q0, qd0 = system._state(q0, qd0)
@@ -533,35 +574,30 @@ def simulate(
         events_supported(solver, stepsize_controller, saveat, adjoint)
         _events.check_events(events, t0, q0, qd0, params)
     asarray = np.asarray if eager else jnp.asarray
-    config = SolveConfig(
-        system,
-        solver,
-        tau_fn,
-        stepsize_controller,
-        saveat,
-        adjoint,
-        n_save,
-        int(max_steps),
-        events,
+    fields = (  # SolveInputs' fields, in order
+        (q0, qd0),
+        params,
+        tau_const,
+        asarray(t0, tdt),
+        asarray(t1, tdt),
+        ts,
+        asarray(rtol, tdt),
+        asarray(atol, tdt),
+        None if dt0 is None else asarray(dt0, tdt),
     )
-    inputs = SolveInputs(
-        y0=(q0, qd0),
-        params=params,
-        tau_const=tau_const,
-        t0=asarray(t0, tdt),
-        t1=asarray(t1, tdt),
-        ts=ts,
-        rtol=asarray(rtol, tdt),
-        atol=asarray(atol, tdt),
-        dt0=None if dt0 is None else asarray(dt0, tdt),
-    )
+    parts = (system, solver, tau_fn, stepsize_controller, saveat, adjoint)
+    if not eager or events is not None:  # (events: a fresh tuple each call, no front cache)
+        config = SolveConfig(*parts, n_save, int(max_steps), events)
+        compiled = None if not eager else _compiled_or_none(config)
+    else:
+        config, compiled = _configured(parts, n_save, int(max_steps))
     if not eager:
-        sol = _solve(config, inputs)
+        sol = _solve(config, SolveInputs(*fields))
         if not throw:
             return sol
         # inside a user's jit: fail at run time, with the failure's own message
         return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
-    sol, flags = _call_checked(config, inputs)
+    sol, flags = _call_checked(config, fields, compiled)
     inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
     if not inputs_ok:
         system.check_state(q0, qd0, params, t=t0)  # raises with the values in the message

@@ -247,7 +247,8 @@ class LagrangianSystem(AbstractSystem):
         """
         q, qd = self._state(q, qd)
         if self.equations is not None and not self.time_dependent:
-            return d.kinetic(self, q, qd, params, t) + d.potential(self, q, params, t)
+            kinetic, potential = d.structured_energies(self, q, qd, params, t)
+            return kinetic + potential
         return d.jacobi(self, q, qd, params, t)
 
     def explicit_power(self, t: Time, q: Vector, qd: Vector, params: Params) -> Scalar | None:
@@ -278,11 +279,11 @@ class LagrangianSystem(AbstractSystem):
         magnitude from which `Solution.energy_error` takes its scale, which does not vanish where
         `h` does. One evaluation of `T` (with its JVP along `q̇`) and `V`."""
         q, qd = self._state(q, qd)
-        potential = d.potential(self, q, params, t)
         if self.equations is not None and not self.time_dependent:
-            kinetic = d.kinetic(self, q, qd, params, t)
+            kinetic, potential = d.structured_energies(self, q, qd, params, t)
             h = kinetic + potential
         else:
+            potential = d.potential(self, q, params, t)
             kinetic, h = d.kinetic_and_jacobi(self, q, qd, params, t, potential)
         return h, jnp.abs(kinetic) + jnp.abs(potential)
 

@@ -1,4 +1,5 @@
-"""Random spatial mechanisms with physical inertias, shared by the chain and tree tests."""
+"""Random spatial mechanisms with physical inertias, and a check of their energies, shared
+by the chain and tree tests."""
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -29,3 +30,20 @@ def random_spatial(make, n, seed, *, gravity=False):
     extra = {"g": rng.uniform(5, 12)} if gravity else {}
     params = model.params(m=m, offset=offset, com=com, inertia=inertia, **extra)
     return model, params, rng
+
+
+def _close(a, b, rtol=1e-12):
+    a, b = np.asarray(a), np.asarray(b)
+    scale = max(np.max(np.abs(b)), 1.0)
+    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
+
+
+def check_energies(fast_systems, definition, q, qd, params):
+    """The energies a solution reports (a spatial chain's outward pass in link frames,
+    `ChainEquations.energies`) equal the definition's `T + V` from the pose maps."""
+    h_ref, mag_ref = definition.energy_and_magnitude(0.0, q, qd, params)
+    for system in fast_systems:
+        h, mag = system.energy_and_magnitude(0.0, q, qd, params)
+        _close(h, h_ref)
+        _close(mag, mag_ref)
+        _close(system.jacobi_integral(0.0, q, qd, params), h_ref)

@@ -1,10 +1,11 @@
 """Chains' structure-aware equations (Featherstone's recursions) against the definition.
 
 Every fast path (the articulated-body algorithm for ``q̈``, the composite-rigid-body
-algorithm for ``M``, recursive Newton–Euler for ``M q̈ + C q̇ + G``), written out link by
-link and as a ``lax.scan``, must equal the autodiff Euler–Lagrange equations of the
-chain's energies (``equations=None``) and the independent Newton–Euler oracle
-``lagrax.newton_euler.rnea``, for random chains, parameters and states.
+algorithm for ``M``, recursive Newton–Euler for ``M q̈ + C q̇ + G``, and the energies
+by one outward pass), written out link by link and as a ``lax.scan``, must equal the
+autodiff Euler–Lagrange equations of the chain's energies (``equations=None``) and the
+independent Newton–Euler oracle ``lagrax.newton_euler.rnea``, for random chains,
+parameters and states.
 """
 
 import dataclasses
@@ -16,7 +17,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _random_models import random_spatial  # tests/_random_models.py
+from _random_models import check_energies, random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import PlanarChain, SpatialChain
@@ -73,6 +74,7 @@ def _check_chain(chain, params, rng, generic=True):
         _close(unrolled.forward_dynamics(q, qd, params, tau), qdd)
         _close(unrolled.mass_matrix(q, params), mass)
         _close(unrolled.inverse_dynamics(q, qd, qdd, params), tau)
+    check_energies((unrolled, scanned), autodiff, q, qd, params)
     if generic:
         _close(autodiff.forward_dynamics(q, qd, params, tau), qdd)
         _close(autodiff.mass_matrix(q, params), mass)

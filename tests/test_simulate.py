@@ -345,6 +345,27 @@ def test_changing_tolerances_params_state_does_not_retrace():
     np.testing.assert_allclose(sol2.ts[-1], 1.5)
 
 
+
+def test_each_system_gets_its_own_compiled_solve():
+    """`simulate` keeps compiled solves by the identity of the system and settings (a
+    front cache) and, on a miss, by value. Systems made one after another (the old one
+    dropped, so its id may be reused by Python) each get their own dynamics: a harmonic
+    oscillator of stiffness k_i matches cos(√k_i t), whatever ran before it."""
+
+    def oscillator(k):
+        return lagrax.LagrangianSystem(
+            lambda q, qd, p: 0.5 * qd[0] ** 2, lambda q, p: 0.5 * k * q[0] ** 2, n_dof=1
+        )
+
+    for k in (1.0, 4.0, 9.0, 4.0):
+        system = oscillator(k)
+        sol = lagrax.simulate(system, [1.0], [0.0], {}, t1=1.0, n_save=3, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(sol.q[:, 0], np.cos(np.sqrt(k) * sol.ts), atol=1e-8)
+        # the same object again, with another save grid and step: its own program too
+        sol = lagrax.simulate(system, [1.0], [0.0], {}, t1=1.0, n_save=5, dt=1e-3, solver="rk4")
+        np.testing.assert_allclose(sol.q[:, 0], np.cos(np.sqrt(k) * sol.ts), atol=1e-8)
+        del system
+
 # --------------------------------------------------------------------------- (g) float32
 def test_float32_simulation(arm):
     system, _ = arm

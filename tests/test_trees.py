@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from _random_models import random_spatial  # tests/_random_models.py
+from _random_models import check_energies, random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import SpatialChain, Tree
@@ -53,6 +53,8 @@ def test_tree_recursions_equal_rnea():
     fast_m, fast_f = mass_and_force(scanned, None, 0.0, q, qd, params, tau)
     _close(fast_m, mass)
     _close(fast_f, mass @ qdd)
+    # the energies by one outward pass over parents equal the pose maps' T + V
+    check_energies((unrolled, scanned), dataclasses.replace(system, equations=None), q, qd, params)
     # bodies on different branches do not couple in M
     related = np.zeros((n, n), bool)
     for i in range(n):
