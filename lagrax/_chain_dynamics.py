@@ -5,6 +5,7 @@ differentiating its energies (see `lagrax._articulated`)."""
 from typing import Any
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -23,10 +24,6 @@ def _check(n: int, q) -> None:
 # whose compile time does not grow with n.
 UNROLL_MAX_PLANAR = 3
 UNROLL_MAX_SPATIAL = 2
-# The energies' pass is short enough to write out for longer chains: `simulate` evaluates
-# it under `vmap` over the saved states, where a scan over the links costs ~3x more
-# (measured on the 7-DOF arm: 0.28 against 0.97 µs a saved state).
-UNROLL_MAX_ENERGIES = 10
 
 
 def _planar_link(carry, x):
@@ -79,68 +76,60 @@ def _spatial_link(carry, x):
     return (rot, origin), (s, a.spatial_inertia(m, tuple(map(tuple, world)), centre))
 
 
-def _transpose_times(m, v):
-    """`mᵀ v` for a 3×3 tuple matrix."""
-    return tuple(a.dot(tuple(m[r][k] for r in range(3)), v) for k in range(3))
-
-
-def _spatial_energy_link(carry, x):
-    # In link frames: angular velocity w, velocity v of the link origin and the `up`
-    # direction, each carried from the parent through the joint rotation J (`Jᵀ`), and
-    # the origin's height h. No world rotation is formed.
+def _energy_link(carry, x):
+    # In link frames: the angular velocity w, the velocity v of the link origin and the
+    # `up` direction, each carried from the parent through the joint rotation J (`Jᵀ`),
+    # and the origin's height h. No world rotation is formed.
     w, v, up, h = carry
     q, qd, big_a, big_b, big_c, slide, axis, rev, offset, com, inertia, m, lift = x
-    step = a.vadd(offset, a.vscale(slide, q))  # parent origin -> this origin, parent axes
-    v = a.vadd(a.vadd(v, a.cross(w, step)), a.vscale(slide, qd))
-    h = a.add(h, a.dot(up, step))
-    sn, cs = jnp.sin(q), 1 - jnp.cos(q)
-    joint = tuple(
-        tuple(
-            a.add(big_a[r][k], a.add(a.mul(sn, big_b[r][k]), a.mul(cs, big_c[r][k])))
-            for k in range(3)
-        )
-        for r in range(3)
-    )
-    w = a.vadd(_transpose_times(joint, w), a.vscale(axis, a.mul(rev, qd)))
-    v, up = _transpose_times(joint, v), _transpose_times(joint, up)
-    v_com = a.vadd(v, a.cross(w, com))
-    kinetic = a.mul(0.5, a.add(a.mul(m, a.dot(v_com, v_com)), a.dot(w, a.matvec(inertia, w))))
-    potential = a.mul(a.mul(m, lift), a.add(h, a.dot(up, com)))
-    return (w, v, up, h), (kinetic, potential)
+    step = offset + slide * q  # parent origin -> this origin, in the parent's axes
+    v = v + jnp.cross(w, step) + slide * qd
+    h = h + up @ step
+    joint_t = (big_a + jnp.sin(q) * big_b + (1 - jnp.cos(q)) * big_c).T
+    w = joint_t @ w + axis * (rev * qd)
+    v, up = joint_t @ v, joint_t @ up
+    v_com = v + jnp.cross(w, com)
+    kinetic = 0.5 * (m * (v_com @ v_com) + w @ (inertia @ w))
+    return (w, v, up, h), (kinetic, m * lift * (h + up @ com))
 
 
-def spatial_energies(chain: Any, q, qd, params: Params, scan: bool | None = None):
+def spatial_energies(chain: Any, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
     """`(T, V)` of a spatial chain or tree by one outward pass in link frames:
     `ω_i = J_iᵀ ω_p + a_i q̇_i`, the origin's velocity `v_i = J_iᵀ (v_p + ω_p × d_i +
-    s_i q̇_i)` (`d_i` the step from the parent's origin), `T_i = ½ m_i |v_i + ω_i × c_i|²
-    + ½ ω_iᵀ Ī_i ω_i` and `V_i = m_i g (h_i + up_i·c_i)` with the height `h_i` of the
-    origin and `up` carried into link axes. About half the work of the recursions'
-    world-frame kinematics (no `R Ī Rᵀ`, no spatial inertias)."""
-    n = chain.n
+    s_i q̇_i)` (`d_i` the step from the parent's origin, `p` the parent), `T_i = ½ m_i
+    |v_i + ω_i × c_i|² + ½ ω_iᵀ Ī_i ω_i` and `V_i = m_i g (h_i + up_i·c_i)`, with the height
+    `h_i` of the origin and `up` carried into link axes.
+
+    About a quarter of the work of the pose maps' JVP (no world rotations, no derivative).
+    Written as a `lax.scan` of small array operations, not in scalars like the
+    recursions: `simulate` evaluates it under `vmap` over the saved states inside its
+    one-kernel program, where scalar code for every link would cost about a second of
+    compilation for a 7-link arm.
+    """
+    n, dtype = chain.n, q.dtype
     _check(n, q)
-    scan = n > UNROLL_MAX_ENERGIES if scan is None else scan
-    passes = a.Passes(n, scan, q.dtype, getattr(chain, "parents", None))
-    big_a, big_b, big_c, slide = chain._joint_constants()
-    axes = np.asarray(chain.axes, float)
-    rev = np.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types])
-    g = jnp.asarray(params["g"], q.dtype)
-    values = [jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m")]
-    lift = jnp.broadcast_to(g, (n,))
-    per_link = (q, qd.astype(q.dtype), big_a, big_b, big_c, slide, axes, rev, *values, lift)
-    zero = (0.0, 0.0, 0.0)
-    up = tuple(float(u) for u in chain.up)
-    _, ys = passes.run(_spatial_energy_link, (zero, zero, up, 0.0), passes.links(per_link))
-    kinetic, potential = passes.split(ys)
-    if passes.scan:
-        return jnp.sum(kinetic), jnp.sum(potential)
-    return _total(kinetic, q.dtype), _total(potential, q.dtype)
+    big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain._joint_constants())
+    axes = jnp.asarray(np.asarray(chain.axes, float), dtype)
+    rev = jnp.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types], dtype)
+    values = [jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m")]
+    lift = jnp.broadcast_to(jnp.asarray(params["g"], dtype), (n,))
+    xs = (q, qd.astype(dtype), big_a, big_b, big_c, slide, axes, rev, *values, lift)
+    zero = jnp.zeros(3, dtype)
+    init = (zero, zero, jnp.asarray(chain.up, dtype), jnp.zeros((), dtype))
+    parents = getattr(chain, "parents", None)
+    if parents is None or tuple(parents) == tuple(range(-1, n - 1)):
+        _, (kinetic, potential) = jax.lax.scan(_energy_link, init, xs)
+    else:  # a tree: every body's carry in a buffer (slot n: the base), read by parent
+        slot = jnp.asarray([p if p >= 0 else n for p in parents])
+        buffers = jax.tree_util.tree_map(lambda v: jnp.broadcast_to(v, (n + 1, *v.shape)), init)
 
+        def body(bufs, x):
+            i, p, xi = x
+            carry, y = _energy_link(jax.tree_util.tree_map(lambda b: b[p], bufs), xi)
+            return jax.tree_util.tree_map(lambda b, c: b.at[i].set(c), bufs, carry), y
 
-def _total(values, dtype):
-    out = 0.0
-    for v in values:
-        out = a.add(out, v)
-    return jnp.asarray(out, dtype)
+        _, (kinetic, potential) = jax.lax.scan(body, buffers, (jnp.arange(n), slot, xs))
+    return jnp.sum(kinetic), jnp.sum(potential)
 
 
 def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.Chain:
@@ -193,11 +182,11 @@ class ChainEquations(eqx.Module):
 
     def energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
         """`(T, V)` of a spatial chain or tree by one outward pass in link frames
-        (`spatial_energies`; ~4x faster than the pose maps' JVP under `vmap`), or `None`
-        for a planar chain, whose vectorized pose maps are already the cheaper route
-        (0.2 against 0.8 µs a state at n = 7)."""
+        (`spatial_energies`: about half the cost of the pose maps' JVP per saved state
+        in `simulate`), or `None` for a planar chain, whose vectorized pose maps are
+        already the cheaper route (0.2 against 0.8 µs a state at n = 7 for a recursion)."""
         if hasattr(self.chain, "joint_types"):
-            return spatial_energies(self.chain, q, qd, params, self.scan)
+            return spatial_energies(self.chain, q, qd, params)
         return None
 
     def mass_matrix(self, q, params: Params) -> jnp.ndarray:

@@ -345,7 +345,6 @@ def test_changing_tolerances_params_state_does_not_retrace():
     np.testing.assert_allclose(sol2.ts[-1], 1.5)
 
 
-
 def test_each_system_gets_its_own_compiled_solve():
     """`simulate` keeps compiled solves by the identity of the system and settings (a
     front cache) and, on a miss, by value. Systems made one after another (the old one
@@ -365,6 +364,7 @@ def test_each_system_gets_its_own_compiled_solve():
         sol = lagrax.simulate(system, [1.0], [0.0], {}, t1=1.0, n_save=5, dt=1e-3, solver="rk4")
         np.testing.assert_allclose(sol.q[:, 0], np.cos(np.sqrt(k) * sol.ts), atol=1e-8)
         del system
+
 
 # --------------------------------------------------------------------------- (g) float32
 def test_float32_simulation(arm):
