@@ -351,16 +351,20 @@ def _compiled_checked(config: SolveConfig):
     fixed here and every input an array, a call is `jax.jit`'s C++ fast path. (Building
     the `SolveInputs` Module inside the trace also skips equinox's per-instance checks.)
     """
-    out_static = []
+    # The output's static part (its treedef and non-array leaves) depends on the inputs'
+    # structure too (a constant `tau` adds the work, `ts` sets the saves): it is kept per
+    # input signature, the key under which `jax.jit` itself caches a trace.
+    out_static: dict = {}
+    tracing: list = [None]  # the signature of the call being traced
 
     def run(fields):
         inputs = SolveInputs(*fields)
         leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
         arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
-        out_static[:] = [treedef, leaves, arrays]
+        out_static[tracing[0]] = (treedef, leaves, arrays)
         return [leaves[i] for i in arrays]
 
-    return jax.jit(run), out_static
+    return jax.jit(run), (out_static, tracing)
 
 
 # `simulate`'s front cache: the configuration's parts by identity -> (parts, config,
@@ -403,13 +407,16 @@ def _compiled_or_none(config: SolveConfig):
 def _call_checked(config: SolveConfig, fields: tuple, compiled=None):
     """`_simulate_checked(config, SolveInputs(*fields))`, through the cached `jax.jit`
     `compiled` (from `_compiled_checked`) when given and every input is an array."""
-    if compiled is None or not all(eqx.is_array(x) for x in jax.tree_util.tree_leaves(fields)):
+    flat, structure = jax.tree_util.tree_flatten(fields)
+    if compiled is None or not all(eqx.is_array(x) for x in flat):
         # no jit of its own (unhashable settings), or non-array leaves (e.g. strings in
         # params): equinox sorts them out
         return _simulate_checked(config, SolveInputs(*fields))
-    fn, out_static = compiled
+    fn, (out_static, tracing) = compiled
+    signature = (structure, *((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in flat))
+    tracing[0] = signature
     values = fn(fields)
-    treedef, leaves, arrays = out_static
+    treedef, leaves, arrays = out_static[signature]
     leaves = list(leaves)  # the static leaves, with the arrays put back in their places
     for i, value in zip(arrays, values, strict=True):
         leaves[i] = value

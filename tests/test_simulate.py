@@ -366,6 +366,24 @@ def test_each_system_gets_its_own_compiled_solve():
         del system
 
 
+def test_one_system_with_inputs_of_other_structures(arm):
+    """One system and settings, called with inputs of other structures in turn (a
+    constant `tau` adds the work to the solution, weakly typed parameters trace anew):
+    each call gets the solution of its own structure back, also when an earlier trace is
+    reused."""
+    system, params = arm
+    weak = {k: jnp.asarray(float(v)) for k, v in params.items()}  # weakly typed scalars
+    q0, qd0 = [0.3, 0.2], [0.0, 0.0]
+    plain = lagrax.simulate(system, q0, qd0, params, t1=0.5, n_save=7)
+    driven = lagrax.simulate(system, q0, qd0, params, t1=0.5, n_save=7, tau=[0.1, 0.0])
+    again = lagrax.simulate(system, q0, qd0, weak, t1=0.5, n_save=7)
+    twice = lagrax.simulate(system, q0, qd0, params, t1=0.5, n_save=7)
+    assert plain.work is None and twice.work is None and again.work is None
+    assert driven.work is not None and driven.work.shape == (7,)
+    np.testing.assert_array_equal(twice.q, plain.q)
+    np.testing.assert_allclose(again.q, plain.q, rtol=1e-12)
+
+
 # --------------------------------------------------------------------------- (g) float32
 def test_float32_simulation(arm):
     system, _ = arm
