@@ -207,9 +207,8 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     there is no such power (see `power_of`).
 
     The rate `P` ([`AbstractSystem.explicit_power`][lagrax.AbstractSystem.explicit_power] plus
-    [`AbstractSystem.input_power`][lagrax.AbstractSystem.input_power]) and its first two derivatives
-    along the motion (JVPs along `(1, q̇, q̈)`; `q̈` from the vector field and `q⃛` from a JVP of
-    it) at the saves give the two-point Hermite rule
+    [`AbstractSystem.input_power`][lagrax.AbstractSystem.input_power]) and its first two
+    derivatives along the motion at the saves give the two-point Hermite rule
 
     $$
     W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
@@ -220,6 +219,14 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     sixth order in the save spacing `Δ`: the saves must resolve the time dependence and
     the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
     smooth between saves (a switch inside a save interval costs accuracy).
+
+    `Ṗ` is a JVP of `P` along `(1, q̇, q̈)`, with `q̈` from the vector field. `P̈`, the
+    derivative of `Ṗ` along the motion, is a central difference of `Ṗ` along the flow
+    with the step `ε = ε_mach^{1/3}` times the local save spacing (relative error about
+    `ε_mach^{2/3}`, ~4e-11 in float64, where the term it enters is already `O(Δ³)`): two
+    more evaluations of the vector field per save, where differentiating the vector
+    field itself (a JVP through the equations of motion) cost about as much to run and
+    took twice as long to compile (a damped 7-joint URDF arm: 12.7 against 6 s).
     """
     if ts.shape[0] == 0:
         return None
@@ -232,25 +239,33 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     q_s = jnp.where(reached[:, None], q, q[first])
     qd_s = jnp.where(reached[:, None], qd, qd[first])
 
-    def acc(t, a, b):
-        return field(t, (a, b), (params, tau_const))[1]
-
-    def along(t, a, b, v, w):  # P and its derivative along the tangent (1, v, w)
-        return jax.jvp(
+    def rate(t, a, b):  # P, its derivative along the motion Ṗ, and q̈, at one state
+        qdd = field(t, (a, b), (params, tau_const))[1]
+        p, dp = jax.jvp(
             lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
             (t, a, b),
-            (jnp.ones_like(t), v, w),
+            (jnp.ones_like(t), b, qdd),
         )
+        return p, dp, qdd
 
-    def rates(t, a, b):
-        one = jnp.ones_like(t)
-        qdd = acc(t, a, b)
-        qddd = jax.jvp(acc, (t, a, b), (one, b, qdd))[1]
-        (p, dp), (_, ddp) = jax.jvp(along, (t, a, b, b, qdd), (one, b, qdd, qdd, qddd))
-        return p, dp, ddp
-
-    p, dp, ddp = jax.vmap(rates)(ts_s, q_s, qd_s)
+    p, dp, qdd = jax.vmap(rate)(ts_s, q_s, qd_s)
     h = jnp.diff(ts_s)
+    # P̈ = dṖ/dt along the motion: a central difference of Ṗ along the flow,
+    # (t, q, q̇) ± ε (1, q̇, q̈), with ε = ε_mach^(1/3) times the local save spacing (the
+    # time scale the saves resolve); one batch of 2N states
+    forward = jnp.concatenate([h, h[-1:]]) if h.shape[0] else jnp.ones_like(ts_s)
+    backward = jnp.concatenate([h[:1], h]) if h.shape[0] else jnp.ones_like(ts_s)
+    spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
+    eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
+    sign = jnp.concatenate([jnp.ones_like(eps), -jnp.ones_like(eps)])
+    step_t = sign * jnp.concatenate([eps, eps])
+    _, dp_pm, _ = jax.vmap(rate)(
+        jnp.concatenate([ts_s, ts_s]) + step_t,
+        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qd_s, qd_s]),
+        jnp.concatenate([qd_s, qd_s]) + step_t[:, None] * jnp.concatenate([qdd, qdd]),
+    )
+    n = ts_s.shape[0]
+    ddp = (dp_pm[:n] - dp_pm[n:]) / (2 * eps)
     step = (
         0.5 * h * (p[:-1] + p[1:])
         + h**2 / 10.0 * (dp[:-1] - dp[1:])
