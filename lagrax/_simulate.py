@@ -2,6 +2,7 @@
 
 import collections
 import functools
+import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -370,13 +371,13 @@ def _compiled_checked(config: SolveConfig):
     # structure too (a constant `tau` adds the work, `ts` sets the saves): it is kept per
     # input signature, the key under which `jax.jit` itself caches a trace.
     out_static: dict = {}
-    tracing: list = [None]  # the signature of the call being traced
+    tracing = threading.local()  # .signature: that of the call being traced (this thread's)
 
     def run(fields):
         inputs = SolveInputs(*fields)
         leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
         arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
-        out_static[tracing[0]] = (treedef, leaves, arrays)
+        out_static[tracing.signature] = (treedef, leaves, arrays)
         return [leaves[i] for i in arrays]
 
     return jax.jit(run), (out_static, tracing)
@@ -429,7 +430,7 @@ def _call_checked(config: SolveConfig, fields: tuple, compiled=None):
         return _simulate_checked(config, SolveInputs(*fields))
     fn, (out_static, tracing) = compiled
     signature = (structure, *((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in flat))
-    tracing[0] = signature
+    tracing.signature = signature
     values = fn(fields)
     treedef, leaves, arrays = out_static[signature]
     leaves = list(leaves)  # the static leaves, with the arrays put back in their places
