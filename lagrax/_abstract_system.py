@@ -155,15 +155,12 @@ class AbstractSystem(eqx.Module):
             out.append(v.astype(jnp.result_type(q, v)))
         return out
 
-    def _host_state(self, q: Coordinates, qd: Velocities):
-        """`(q, q̇)` as NumPy arrays, with `_state`'s checks and no device transfer."""
-        return host_state(self, q, qd)
-
 
 def host_state(system: AbstractSystem, q: Coordinates, qd: Velocities):
-    """`system._host_state(q, qd)` without the method call: equinox binds a method of a
+    """`(q, q̇)` as NumPy arrays, with `_state`'s checks and no device transfer, for
+    `simulate`'s per-call set-up. A function, not a method: equinox binds a method of a
     Module by building a `BoundMethod` Module around it, which walks the system's
-    pytree (~50 µs for a 7-link chain); `simulate`'s per-call set-up uses this."""
+    pytree (~50 µs for a 7-link chain)."""
     n, name = system.n_dof, system.name
     q, qd = coords(q, "q", n, name, host=True), coords(qd, "qd", n, name, host=True)
     same_shape("qd", qd, q)

@@ -116,8 +116,8 @@ def spatial_energies(chain: Any, q, qd, params: Params) -> tuple[jnp.ndarray, jn
     xs = (q, qd.astype(dtype), big_a, big_b, big_c, slide, axes, rev, *values, lift)
     zero = jnp.zeros(3, dtype)
     init = (zero, zero, jnp.asarray(chain.up, dtype), jnp.zeros((), dtype))
-    parents = getattr(chain, "parents", None)
-    if parents is None or tuple(parents) == tuple(range(-1, n - 1)):
+    parents = a.Passes(n, True, dtype, getattr(chain, "parents", None)).parents
+    if parents is None:  # a chain (a tree whose parents form one is one too)
         _, (kinetic, potential) = jax.lax.scan(_energy_link, init, xs)
     else:  # a tree: every body's carry in a buffer (slot n: the base), read by parent
         slot = jnp.asarray([p if p >= 0 else n for p in parents])

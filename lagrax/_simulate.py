@@ -258,8 +258,7 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     backward = jnp.concatenate([h[:1], h]) if h.shape[0] else jnp.ones_like(ts_s)
     spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
     eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
-    sign = jnp.concatenate([jnp.ones_like(eps), -jnp.ones_like(eps)])
-    step_t = sign * jnp.concatenate([eps, eps])
+    step_t = jnp.concatenate([eps, -eps])
     _, dp_pm, _ = jax.vmap(rate)(
         jnp.concatenate([ts_s, ts_s]) + step_t,
         jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qd_s, qd_s]),
@@ -402,10 +401,7 @@ def _configured(parts: tuple, n_save: int, max_steps: int):
     if hit is not None and all(a is b for a, b in zip(hit[0], parts, strict=True)):
         return hit[1], hit[2]
     config = SolveConfig(*parts, n_save, max_steps, None)
-    try:
-        compiled = _compiled_checked(config)
-    except TypeError:
-        compiled = None
+    compiled = _compiled_or_none(config)
     _FRONT[key] = (parts, config, compiled)
     if len(_FRONT) > _FRONT_SIZE:
         _FRONT.popitem(last=False)

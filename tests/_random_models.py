@@ -32,7 +32,8 @@ def random_spatial(make, n, seed, *, gravity=False):
     return model, params, rng
 
 
-def _close(a, b, rtol=1e-12):
+def close(a, b, rtol=1e-12):
+    """`a` equals `b` to `rtol` relative to `max(|b|, 1)`."""
     a, b = np.asarray(a), np.asarray(b)
     scale = max(np.max(np.abs(b)), 1.0)
     assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
@@ -44,6 +45,6 @@ def check_energies(fast_systems, definition, q, qd, params):
     h_ref, mag_ref = definition.energy_and_magnitude(0.0, q, qd, params)
     for system in fast_systems:
         h, mag = system.energy_and_magnitude(0.0, q, qd, params)
-        _close(h, h_ref)
-        _close(mag, mag_ref)
-        _close(system.jacobi_integral(0.0, q, qd, params), h_ref)
+        close(h, h_ref)
+        close(mag, mag_ref)
+        close(system.jacobi_integral(0.0, q, qd, params), h_ref)

@@ -17,19 +17,11 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _random_models import check_energies, random_spatial  # tests/_random_models.py
+from _random_models import check_energies, close, random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import PlanarChain, SpatialChain
 from lagrax.newton_euler import rnea
-
-RTOL = 1e-12
-
-
-def _close(a, b, rtol=RTOL):
-    a, b = np.asarray(a), np.asarray(b)
-    scale = max(np.max(np.abs(b)), 1.0)
-    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
 
 
 def _random_planar(n, seed):
@@ -65,24 +57,24 @@ def _check_chain(chain, params, rng, generic=True):
     unrolled, scanned, autodiff = _variants(chain)
     qdd = scanned.forward_dynamics(q, qd, params, tau)
     # the oracle: recursive Newton–Euler in link frames reproduces tau from qdd
-    _close(rnea(chain, q, qd, qdd, params), tau)
+    close(rnea(chain, q, qd, qdd, params), tau)
     mass = scanned.mass_matrix(q, params)
-    _close(mass, mass.T)
+    close(mass, mass.T)
     assert np.linalg.eigvalsh(np.asarray(mass))[0] > 0
-    _close(scanned.inverse_dynamics(q, qd, qdd, params), tau)
+    close(scanned.inverse_dynamics(q, qd, qdd, params), tau)
     if n <= 8:
-        _close(unrolled.forward_dynamics(q, qd, params, tau), qdd)
-        _close(unrolled.mass_matrix(q, params), mass)
-        _close(unrolled.inverse_dynamics(q, qd, qdd, params), tau)
+        close(unrolled.forward_dynamics(q, qd, params, tau), qdd)
+        close(unrolled.mass_matrix(q, params), mass)
+        close(unrolled.inverse_dynamics(q, qd, qdd, params), tau)
     check_energies((unrolled, scanned), autodiff, q, qd, params)
     if generic:
-        _close(autodiff.forward_dynamics(q, qd, params, tau), qdd)
-        _close(autodiff.mass_matrix(q, params), mass)
+        close(autodiff.forward_dynamics(q, qd, params, tau), qdd)
+        close(autodiff.mass_matrix(q, params), mass)
         # M and M q̈ = f as the constrained (KKT) path asks for them
         fast_m, fast_f = mass_and_force(scanned, None, 0.0, q, qd, params, tau)
         auto_m, auto_f = mass_and_force(autodiff, None, 0.0, q, qd, params, tau)
-        _close(fast_m, auto_m)
-        _close(fast_f, auto_f)
+        close(fast_m, auto_m)
+        close(fast_f, auto_f)
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 8])
@@ -116,8 +108,8 @@ def test_recursions_under_vmap_and_grad():
 
     batched = jax.vmap(lambda m: qdd(fast, m))(masses)
     for i in range(4):
-        _close(batched[i], qdd(fast, masses[i]))
-    _close(
+        close(batched[i], qdd(fast, masses[i]))
+    close(
         jax.grad(lambda m: jnp.sum(qdd(fast, m) ** 2))(masses[0]),
         jax.grad(lambda m: jnp.sum(qdd(autodiff, m) ** 2))(masses[0]),
         rtol=1e-10,

@@ -10,19 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from _random_models import check_energies, random_spatial  # tests/_random_models.py
+from _random_models import check_energies, close, random_spatial  # tests/_random_models.py
 from lagrax._chain_dynamics import ChainEquations
 from lagrax._derivatives import mass_and_force
 from lagrax.chains import SpatialChain, Tree
 from lagrax.newton_euler import rnea
-
-RTOL = 1e-12
-
-
-def _close(a, b, rtol=RTOL):
-    a, b = np.asarray(a), np.asarray(b)
-    scale = max(np.max(np.abs(b)), 1.0)
-    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
 
 
 def _random_tree(types, parents, seed):
@@ -43,16 +35,16 @@ def test_tree_recursions_equal_rnea():
         dataclasses.replace(system, equations=ChainEquations(tree, scan=True)),
     )
     qdd = scanned.forward_dynamics(q, qd, params, tau)
-    _close(rnea(tree, q, qd, qdd, params), tau)  # the oracle reproduces tau from qdd
+    close(rnea(tree, q, qd, qdd, params), tau)  # the oracle reproduces tau from qdd
     mass = scanned.mass_matrix(q, params)
-    _close(mass, mass.T)
+    close(mass, mass.T)
     assert np.linalg.eigvalsh(np.asarray(mass))[0] > 0
-    _close(scanned.inverse_dynamics(q, qd, qdd, params), tau)
-    _close(unrolled.forward_dynamics(q, qd, params, tau), qdd)
-    _close(unrolled.mass_matrix(q, params), mass)
+    close(scanned.inverse_dynamics(q, qd, qdd, params), tau)
+    close(unrolled.forward_dynamics(q, qd, params, tau), qdd)
+    close(unrolled.mass_matrix(q, params), mass)
     fast_m, fast_f = mass_and_force(scanned, None, 0.0, q, qd, params, tau)
-    _close(fast_m, mass)
-    _close(fast_f, mass @ qdd)
+    close(fast_m, mass)
+    close(fast_f, mass @ qdd)
     # the energies by one outward pass over parents equal the pose maps' T + V
     check_energies((unrolled, scanned), dataclasses.replace(system, equations=None), q, qd, params)
     # bodies on different branches do not couple in M
@@ -74,14 +66,14 @@ def test_tree_equals_autodiff_with_damping():
     q, qd, tau = (jnp.asarray(rng.normal(size=3)) for _ in range(3))
     system = tree.system()
     qdd = system.forward_dynamics(q, qd, params, tau)
-    _close(rnea(tree, q, qd, qdd, params), tau - params["damping"] * qd)
+    close(rnea(tree, q, qd, qdd, params), tau - params["damping"] * qd)
     fast_m, fast_f = mass_and_force(system, None, 0.0, q, qd, params, tau)
     auto_m, auto_f = mass_and_force(
         dataclasses.replace(system, equations=None), None, 0.0, q, qd, params, tau
     )
-    _close(fast_m, auto_m)
-    _close(fast_f, auto_f)
-    _close(np.linalg.solve(np.asarray(auto_m), np.asarray(auto_f)), qdd, rtol=1e-10)
+    close(fast_m, auto_m)
+    close(fast_f, auto_f)
+    close(np.linalg.solve(np.asarray(auto_m), np.asarray(auto_f)), qdd, rtol=1e-10)
 
 
 def test_a_tree_that_is_a_chain_equals_the_chain():
@@ -93,7 +85,7 @@ def test_a_tree_that_is_a_chain_equals_the_chain():
         **{k: chain_params[k] for k in ("m", "offset", "com", "inertia", "g")}
     )
     q, qd, tau = (jnp.asarray(rng.normal(size=3)) for _ in range(3))
-    _close(
+    close(
         tree.system().forward_dynamics(q, qd, tree_params, tau),
         chain.system().forward_dynamics(q, qd, chain_params, tau),
     )
