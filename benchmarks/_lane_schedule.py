@@ -1,6 +1,6 @@
 """Idle lane-steps of the sweep's work queue, counted from its members' step counts.
 
-``lagrax._lanes.run_lanes`` advances every busy lane by one attempted step per loop
+``lagrax._solve.lanes.run_lanes`` advances every busy lane by one attempted step per loop
 iteration, so how many lane-steps a chunk spends (busy or idle) follows from the step
 count of each member and the schedule alone: which members start when, and on how many
 lanes. This module replays the schedule on those counts (event by event, not step by

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import lagrax as lx
-from lagrax._lanes import run_lanes
+from lagrax._solve.lanes import run_lanes
 
 sys.path.insert(0, os.path.dirname(__file__))
 from _closed_form import forward_dynamics_2r  # noqa: E402

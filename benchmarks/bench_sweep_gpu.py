@@ -273,7 +273,7 @@ def compare(args, have_mjx: bool = True) -> None:
 
 def schedule(args) -> None:
     """Idle lane-steps at the GPU defaults, from the step counts of a CPU sweep."""
-    from lagrax._sweep import _defaults
+    from lagrax._sweep import defaults as _defaults
 
     system, params = lx.models.planar_2r()
     m2, l1, side = members(args.side**2)

@@ -182,7 +182,7 @@ def main(argv=None):
         f"processes: {', '.join(f'{t:.2f}' for t in firsts)} s (median {firsts[1]:.2f} s)"
     )
     small_loops = "small_while_loop" in os.environ.get("XLA_FLAGS", "")
-    print(f"XLA:CPU small-loop kernels (see lagrax/_xla_flags.py): {small_loops}")
+    print(f"XLA:CPU small-loop kernels (see lagrax/_core/xla_flags.py): {small_loops}")
 
     print("\n1. same tolerance, rtol = atol = 1e-10")
     scipy_res = {}

@@ -8,14 +8,14 @@ lagrax enables JAX's 64-bit mode on import (`jax_enable_x64`): float64 is the de
 for accuracy. Arrays you pass in float32 stay float32. It also lets XLA:CPU compile small
 solver loops into single kernels (an `XLA_FLAGS` entry, added only if JAX has not
 started yet and you have not set `xla_backend_extra_options`; `LAGRAX_XLA_FLAGS=0`
-opts out): see `lagrax/_xla_flags.py`.
+opts out): see `lagrax/_core/xla_flags.py`.
 """
 
 import importlib.metadata
 
-from . import _xla_flags
+from ._core import xla_flags as _xla_flags
 
-_xla_flags.configure()  # before JAX starts its backend: see lagrax/_xla_flags.py
+_xla_flags.configure()  # before JAX starts its backend: see lagrax/_core/xla_flags.py
 
 import jax as _jax  # noqa: E402
 
@@ -29,33 +29,33 @@ from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
 from . import plot as plot  # noqa: E402
 from . import rigid_body as rigid_body  # noqa: E402
-from ._abstract_system import AbstractSystem as AbstractSystem  # noqa: E402
-from ._constraints import ConstrainedSystem as ConstrainedSystem  # noqa: E402
-from ._errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
-from ._errors import CheckpointError as CheckpointError  # noqa: E402
-from ._errors import CheckpointWarning as CheckpointWarning  # noqa: E402
-from ._errors import ConfigurationError as ConfigurationError  # noqa: E402
-from ._errors import ConstraintError as ConstraintError  # noqa: E402
-from ._errors import LagraxError as LagraxError  # noqa: E402
-from ._errors import MassMatrixError as MassMatrixError  # noqa: E402
-from ._errors import NonFiniteError as NonFiniteError  # noqa: E402
-from ._errors import ParameterError as ParameterError  # noqa: E402
-from ._errors import ShapeError as ShapeError  # noqa: E402
-from ._errors import SimulationError as SimulationError  # noqa: E402
-from ._errors import URDFError as URDFError  # noqa: E402
-from ._events import Event as Event  # noqa: E402
-from ._events import EventRecord as EventRecord  # noqa: E402
-from ._methods import METHODS as METHODS  # noqa: E402
-from ._results import RESULTS as RESULTS  # noqa: E402
-from ._simulate import simulate as simulate  # noqa: E402
-from ._solution import Solution as Solution  # noqa: E402
+from ._core.errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
+from ._core.errors import CheckpointError as CheckpointError  # noqa: E402
+from ._core.errors import CheckpointWarning as CheckpointWarning  # noqa: E402
+from ._core.errors import ConfigurationError as ConfigurationError  # noqa: E402
+from ._core.errors import ConstraintError as ConstraintError  # noqa: E402
+from ._core.errors import LagraxError as LagraxError  # noqa: E402
+from ._core.errors import MassMatrixError as MassMatrixError  # noqa: E402
+from ._core.errors import NonFiniteError as NonFiniteError  # noqa: E402
+from ._core.errors import ParameterError as ParameterError  # noqa: E402
+from ._core.errors import ShapeError as ShapeError  # noqa: E402
+from ._core.errors import SimulationError as SimulationError  # noqa: E402
+from ._core.errors import URDFError as URDFError  # noqa: E402
+from ._core.results import RESULTS as RESULTS  # noqa: E402
+from ._solve.events import Event as Event  # noqa: E402
+from ._solve.events import EventRecord as EventRecord  # noqa: E402
+from ._solve.methods import METHODS as METHODS  # noqa: E402
+from ._solve.simulate import simulate as simulate  # noqa: E402
+from ._solve.solution import Solution as Solution  # noqa: E402
 from ._sweep import Grid as Grid  # noqa: E402
 from ._sweep import grid as grid  # noqa: E402
 from ._sweep import load_sweep as load_sweep  # noqa: E402
 from ._sweep import samples as samples  # noqa: E402
 from ._sweep import save_sweep as save_sweep  # noqa: E402
 from ._sweep import sweep as sweep  # noqa: E402
-from ._system import LagrangianSystem as LagrangianSystem  # noqa: E402
+from ._systems.abstract import AbstractSystem as AbstractSystem  # noqa: E402
+from ._systems.constrained import ConstrainedSystem as ConstrainedSystem  # noqa: E402
+from ._systems.lagrangian import LagrangianSystem as LagrangianSystem  # noqa: E402
 
 try:
     __version__ = importlib.metadata.version("lagrax")

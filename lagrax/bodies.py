@@ -66,29 +66,29 @@ axial dashpot), [`TorsionalDamper`][lagrax.bodies.TorsionalDamper] (on a coordin
 [`check_inertia`][lagrax.bodies.check_inertia] (symmetric, positive-definite, `I1 + I2 ≥ I3`).
 """
 
-from ._bodies import AbstractBody as AbstractBody
-from ._bodies import AbstractDamper as AbstractDamper
-from ._bodies import AbstractSpring as AbstractSpring
-from ._bodies import LinearDamper as LinearDamper
-from ._bodies import LinearSpring as LinearSpring
-from ._bodies import Param as Param
-from ._bodies import ParamLike as ParamLike
-from ._bodies import PlanarBody as PlanarBody
-from ._bodies import PointFn as PointFn
-from ._bodies import PointMass as PointMass
-from ._bodies import Scene as Scene
-from ._bodies import SpatialBody as SpatialBody
-from ._bodies import TorsionalDamper as TorsionalDamper
-from ._bodies import TorsionalSpring as TorsionalSpring
-from ._inertia import PrincipalAxes as PrincipalAxes
-from ._inertia import box_inertia as box_inertia
-from ._inertia import check_inertia as check_inertia
-from ._inertia import cylinder_inertia as cylinder_inertia
-from ._inertia import parallel_axis as parallel_axis
-from ._inertia import principal_axes as principal_axes
-from ._inertia import rod_inertia as rod_inertia
-from ._inertia import rotate_inertia as rotate_inertia
-from ._inertia import sphere_inertia as sphere_inertia
+from ._multibody.bodies import AbstractBody as AbstractBody
+from ._multibody.bodies import AbstractDamper as AbstractDamper
+from ._multibody.bodies import AbstractSpring as AbstractSpring
+from ._multibody.bodies import LinearDamper as LinearDamper
+from ._multibody.bodies import LinearSpring as LinearSpring
+from ._multibody.bodies import Param as Param
+from ._multibody.bodies import ParamLike as ParamLike
+from ._multibody.bodies import PlanarBody as PlanarBody
+from ._multibody.bodies import PointFn as PointFn
+from ._multibody.bodies import PointMass as PointMass
+from ._multibody.bodies import Scene as Scene
+from ._multibody.bodies import SpatialBody as SpatialBody
+from ._multibody.bodies import TorsionalDamper as TorsionalDamper
+from ._multibody.bodies import TorsionalSpring as TorsionalSpring
+from ._multibody.inertia import PrincipalAxes as PrincipalAxes
+from ._multibody.inertia import box_inertia as box_inertia
+from ._multibody.inertia import check_inertia as check_inertia
+from ._multibody.inertia import cylinder_inertia as cylinder_inertia
+from ._multibody.inertia import parallel_axis as parallel_axis
+from ._multibody.inertia import principal_axes as principal_axes
+from ._multibody.inertia import rod_inertia as rod_inertia
+from ._multibody.inertia import rotate_inertia as rotate_inertia
+from ._multibody.inertia import sphere_inertia as sphere_inertia
 
 __all__ = [
     "Scene",

@@ -42,14 +42,14 @@ shared 2-core CPU). Use [`SpatialChain`][lagrax.chains.SpatialChain] for anythin
 plane; [`PlanarChain.to_spatial`][lagrax.chains.PlanarChain.to_spatial] converts for comparison.
 """
 
-from ._chains import BodyKind as BodyKind
-from ._chains import PlanarChain as PlanarChain
-from ._chains import SpatialChain as SpatialChain
-from ._chains import axis_angle_rotation as axis_angle_rotation
-from ._chains import planar_chain as planar_chain
-from ._chains import spatial_chain as spatial_chain
-from ._trees import Tree as Tree
-from ._urdf import from_urdf as from_urdf
+from ._multibody.chains import BodyKind as BodyKind
+from ._multibody.chains import PlanarChain as PlanarChain
+from ._multibody.chains import SpatialChain as SpatialChain
+from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
+from ._multibody.chains import planar_chain as planar_chain
+from ._multibody.chains import spatial_chain as spatial_chain
+from ._multibody.trees import Tree as Tree
+from ._multibody.urdf import from_urdf as from_urdf
 
 __all__ = [
     "PlanarChain",

@@ -18,10 +18,10 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._chains import PlanarChain, SpatialChain
-from ._errors import ShapeError
-from ._trees import Tree
-from ._typing import Params
+from ._core.custom_types import Params
+from ._core.errors import ShapeError
+from ._multibody.chains import PlanarChain, SpatialChain
+from ._multibody.trees import Tree
 
 __all__ = ["planar_2r", "planar_2r_free_body", "FreeBody2R", "rnea"]
 

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ._errors import ConfigurationError, ShapeError
-from ._solution import Solution
+from ._core.errors import ConfigurationError, ShapeError
+from ._solve.solution import Solution
 
 Geometry = Callable[[Any], Any] | Sequence[float] | Any
 """What to draw: a function `q -> (k, 2)` points, link lengths, or a chain object."""

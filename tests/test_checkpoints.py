@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax._sweep import _checkpoint, _driver
+from lagrax._sweep import checkpoint as _checkpoint
+from lagrax._sweep import driver as _driver
 
 KS = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
 KW = dict(t1=1.0, chunk_size=2)  # three chunks of two members

@@ -1,4 +1,4 @@
-"""The lean single-trajectory loop (``lagrax._integrate``) against ``diffrax.diffeqsolve``,
+"""The lean single-trajectory loop (``lagrax._solve.integrate``) against ``diffrax.diffeqsolve``,
 forward-mode derivatives through ``adjoint=``, and the XLA:CPU flag set on import.
 
 (Reverse mode through the lean loop: ``test_simulate.py``, against finite differences.)"""
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax._linalg import lu_factor_small, lu_solve_small
+from lagrax._core.linalg import lu_factor_small, lu_solve_small
 
 Q0 = jnp.array([-np.pi / 2 + 1.4, 0.8])
 QD0 = jnp.zeros(2)
@@ -52,7 +52,7 @@ def test_lean_loop_takes_diffeqsolves_steps(arm, kw):
 
 
 def test_simulate_runs_the_lean_loop_unless_given_an_adjoint(monkeypatch):
-    import lagrax._integrate as integrate_module
+    import lagrax._solve.integrate as integrate_module
 
     calls = []
     original = integrate_module.integrate

@@ -17,8 +17,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import lagrax as lx
-from lagrax._derivatives import mass_and_force
-from lagrax._scene_dynamics import SceneEquations
+from lagrax._multibody.scene_equations import SceneEquations
+from lagrax._systems.derivatives import mass_and_force
 from lagrax.bodies import (
     LinearDamper,
     Param,

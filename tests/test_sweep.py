@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax._sweep import _chunk, _driver
+from lagrax._sweep import chunk as _chunk
+from lagrax._sweep import driver as _driver
 
 Q0_2R = [-np.pi / 2 + 1.4, 0.8]
 
@@ -280,7 +281,7 @@ def test_sharded_equals_unsharded():
 CHECKPOINTED = textwrap.dedent(
     """
     import sys, time, numpy as np, lagrax as lx
-    from lagrax._sweep import _driver
+    from lagrax._sweep import driver as _driver
     real = _driver.solve_chunk
     def slow(*a, **k):  # give the test time to kill us between chunks
         out = real(*a, **k)

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax._sweep import _defaults, _driver
-from lagrax._sweep._defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
+from lagrax._sweep import defaults as _defaults
+from lagrax._sweep import driver as _driver
+from lagrax._sweep.defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
 from _lane_schedule import chunk_lane_steps, idle_fraction  # noqa: E402

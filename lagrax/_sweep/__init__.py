@@ -7,9 +7,9 @@ transfers), `_defaults` (chunk size and lanes for the device), `_progress`,
 reads) and `_driver` (`sweep` itself).
 """
 
-from ._driver import sweep as sweep
-from ._grid import Grid as Grid
-from ._grid import grid as grid
-from ._grid import samples as samples
-from ._io import load_sweep as load_sweep
-from ._io import save_sweep as save_sweep
+from .driver import sweep as sweep
+from .grid import Grid as Grid
+from .grid import grid as grid
+from .grid import samples as samples
+from .io import load_sweep as load_sweep
+from .io import save_sweep as save_sweep

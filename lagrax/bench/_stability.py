@@ -9,9 +9,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import LagraxError
-from .._simulate import simulate
-from .._system import LagrangianSystem
+from .._core.errors import LagraxError
+from .._solve.simulate import simulate
+from .._systems.lagrangian import LagrangianSystem
 from ..models import _planar_2r as arm
 
 CHAOTIC_START = (-math.pi / 2 + 1.4, 0.8)

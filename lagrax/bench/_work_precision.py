@@ -13,10 +13,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._methods import METHODS, resolve_solver
-from .._simulate import simulate
-from .._solution import Solution
-from .._system import LagrangianSystem
+from .._solve.methods import METHODS, resolve_solver
+from .._solve.simulate import simulate
+from .._solve.solution import Solution
+from .._systems.lagrangian import LagrangianSystem
 
 # default ladders: tolerances for adaptive methods, steps for fixed-step ones
 DEFAULT_LADDERS: dict[str, tuple[str, tuple[float, ...]]] = {

@@ -9,11 +9,11 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from .. import _derivatives as _d
-from .._errors import ConfigurationError
-from .._linalg import cholesky_solve, lu_factor_small, lu_solve_small
-from .._system import LagrangianSystem
-from .._vector_field import lagrangian_field_of
+from .._core.errors import ConfigurationError
+from .._core.linalg import cholesky_solve, lu_factor_small, lu_solve_small
+from .._systems import derivatives as _d
+from .._systems.lagrangian import LagrangianSystem
+from .._systems.vector_field import lagrangian_field_of
 
 # Yoshida's triple jump: composing a symmetric order-2 map with these step fractions
 # gives order 4 (H. Yoshida, Phys. Lett. A 150, 262 (1990)).

@@ -2,8 +2,8 @@
 
 import jax.numpy as jnp
 
-from .._constraints import ConstrainedSystem
-from .._system import LagrangianSystem
+from .._systems.constrained import ConstrainedSystem
+from .._systems.lagrangian import LagrangianSystem
 
 PARAM_NAMES = ("l1", "l2", "l3", "d", "m1", "m2", "m3", "g")
 

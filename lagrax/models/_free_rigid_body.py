@@ -2,8 +2,8 @@
 
 import jax.numpy as jnp
 
-from .._rigid_body import body_angular_velocity
-from .._system import LagrangianSystem
+from .._multibody.rigid_body import body_angular_velocity
+from .._systems.lagrangian import LagrangianSystem
 
 NAME = "free rigid body in ZYX Euler angles (gimbal lock at pitch q[1] = ±π/2)"
 

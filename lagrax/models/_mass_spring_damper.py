@@ -2,8 +2,8 @@
 
 import jax.numpy as jnp
 
-from .._checks import physical
-from .._system import LagrangianSystem
+from .._core.checks import physical
+from .._systems.lagrangian import LagrangianSystem
 
 
 def _kinetic(q, qd, p):

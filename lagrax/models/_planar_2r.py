@@ -2,8 +2,8 @@
 
 import jax.numpy as jnp
 
-from .._checks import physical
-from .._system import LagrangianSystem
+from .._core.checks import physical
+from .._systems.lagrangian import LagrangianSystem
 
 PARAM_NAMES = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "g")
 

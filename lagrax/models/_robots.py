@@ -5,7 +5,7 @@ and says how)."""
 
 from pathlib import Path
 
-from .._system import LagrangianSystem
+from .._systems.lagrangian import LagrangianSystem
 
 _DIR = Path(__file__).resolve().parent / "urdf"
 _NAMES = ("arm7", "torso_two_arms")
@@ -24,7 +24,7 @@ def urdf_path(name: str) -> Path:
 
 
 def _load(name: str) -> tuple[LagrangianSystem, dict]:
-    from .._urdf import from_urdf
+    from .._multibody.urdf import from_urdf
 
     tree, params = from_urdf(urdf_path(name))
     return tree.system(), params

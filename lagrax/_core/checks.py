@@ -1,0 +1,827 @@
+"""Input checks shared by every entry point, eagerly and under `jit`.
+
+Eager (concrete) inputs are checked in Python with the offending values in the message;
+traced inputs by `equinox.error_if`, which survives `jit`, `vmap` and `scan` and
+costs nothing when its output is unused. Every error raised here is a `LagraxError`.
+"""
+
+import inspect
+import math
+import numbers
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .custom_types import Params
+from .errors import (
+    ArgumentTypeError,
+    ConfigurationError,
+    NonFiniteError,
+    ParameterError,
+    ShapeError,
+)
+from .linalg import PIVOT_RTOL
+
+
+def is_traced(*xs: Any) -> bool:
+    """Whether any leaf of `xs` is a JAX tracer (we are inside `jit`/`vmap`/`grad`)."""
+    return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
+
+
+def pivot_threshold(dtype: Any) -> float:
+    """Relative size below which a mass-matrix pivot/eigenvalue counts as singular."""
+    return PIVOT_RTOL * float(jnp.finfo(dtype).eps)
+
+
+# --------------------------------------------------------------------------- user calls
+
+
+def describe_params(params: Params) -> str:
+    if isinstance(params, dict):
+        return f"params has keys {sorted(map(str, params))}"
+    if hasattr(params, "_fields"):
+        return f"params has fields {list(params._fields)}"
+    return f"params is a {type(params).__name__}"
+
+
+def _is_params_lookup(err: Exception, params: Params) -> bool:
+    """Did `err` come from looking up a missing entry of `params` itself?"""
+    if isinstance(err, KeyError):
+        key = err.args[0] if err.args else None
+        try:
+            return isinstance(params, Mapping) and key not in params
+        except TypeError:  # unhashable key
+            return False
+    return getattr(err, "obj", None) is params  # AttributeError on a NamedTuple/Module
+
+
+def call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
+    """Call a user function `fn(*args, params)`; a missing-parameter lookup becomes a
+    `ParameterError` naming the entry and what `params` has."""
+    try:
+        return fn(*args, params)
+    except TypeError as err:
+        if isinstance(params, (list, tuple)) and not hasattr(params, "_fields"):
+            if "indices must be integers" in str(err):
+                raise ArgumentTypeError(
+                    f"the {role} function looks params up by name, but params is a "
+                    f"{type(params).__name__} ({err}); pass params as a dict (or a "
+                    "NamedTuple / equinox Module) with the names the energies read"
+                ) from err
+        if params is None and "not subscriptable" in str(err):
+            raise ArgumentTypeError(
+                f"the {role} function reads params, but params is None; pass the "
+                "parameters the energies read (a dict, NamedTuple or equinox Module)"
+            ) from err
+        raise
+    except (KeyError, AttributeError) as err:
+        if not _is_params_lookup(err, params):
+            raise
+        missing = err.args[0] if isinstance(err, KeyError) else getattr(err, "name", "?")
+        raise ParameterError(
+            f"the {role} function looked up {missing!r} in params, which is not there; "
+            f"{describe_params(params)}. Add the missing entry to params."
+        ) from err
+
+
+def binds(fn: Callable, n: int) -> bool | None:
+    """Whether `fn` accepts `n` positional arguments (`None`: cannot tell)."""
+    try:
+        sig = inspect.signature(fn)
+    except (TypeError, ValueError):
+        return None
+    try:
+        sig.bind(*range(n))
+    except TypeError:
+        return False
+    return True
+
+
+def time_signature_message(label: str, n_args: int, fn: Callable, time_dependent: bool) -> str:
+    """Why a user energy with `n_args` arguments (`params` included) does not fit."""
+    if time_dependent:
+        return (
+            f"the system was built with time_dependent=True, so lagrax calls its {label}"
+            f" with the time first, but {_name(fn)} does not accept {n_args} arguments: "
+            "add t as the first argument (T(t, q, qd, params), V(t, q, params), "
+            "D(t, q, qd, params)), or drop time_dependent=True if the energies do not "
+            "depend on time"
+        )
+    return (
+        f"lagrax calls the {label} with {n_args} arguments, but {_name(fn)} does not accept "
+        f"them{' (it takes one more: the time?)' if binds(fn, n_args + 1) else ''}: an "
+        "energy that depends on time explicitly needs LagrangianSystem(..., "
+        "time_dependent=True), which calls T(t, q, qd, params), V(t, q, params) and "
+        "D(t, q, qd, params)"
+    )
+
+
+def _name(fn: Callable) -> str:
+    return f"{getattr(fn, '__name__', type(fn).__name__)}{_signature_text(fn)}"
+
+
+def _signature_text(fn: Callable) -> str:
+    try:
+        return str(inspect.signature(fn))
+    except (TypeError, ValueError):
+        return ""
+
+
+def call_energy(fn: Callable, role: str, label: str, params: Params, *args: Any) -> Any:
+    """`call_user` for an energy (`T`, `V`, `D`): a call that fails because the
+    function takes another number of arguments (a `T(q, qd, params)` given to a
+    time-dependent system, or the reverse) becomes an `ArgumentTypeError` naming it, at
+    trace time."""
+    try:
+        return call_user(fn, role, params, *args)
+    except TypeError as err:
+        if binds(fn, len(args) + 1) is False:
+            # the label says "(t, q, ...)" exactly when the system is time-dependent
+            raise ArgumentTypeError(
+                time_signature_message(label, len(args) + 1, fn, label.count("(t,") > 0)
+            ) from err
+        raise
+
+
+# --------------------------------------------------------------------------- arrays
+
+
+def coords(q: Any, name: str, n_dof: int | None, system_name: str, host: bool = False) -> Any:
+    """`q` as a 1-D floating array of length `n_dof` (when given), or a `ShapeError`.
+
+    `host=True` converts with NumPy (no device transfer), for `simulate`'s set-up.
+    """
+    try:
+        q = np.asarray(q) if host else jnp.asarray(q)
+    except (TypeError, ValueError) as err:
+        raise ArgumentTypeError(
+            f"{name} must be an array of real numbers, got {type(q).__name__}: {err}"
+        ) from None
+    if q.dtype == object or not (
+        jnp.issubdtype(q.dtype, jnp.floating)
+        or jnp.issubdtype(q.dtype, jnp.integer)
+        or jnp.issubdtype(q.dtype, jnp.bool_)
+    ):
+        raise ArgumentTypeError(f"{name} must be an array of real numbers, got dtype {q.dtype}")
+    if not jnp.issubdtype(q.dtype, jnp.floating):
+        q = q.astype(jnp.result_type(float))
+    if q.ndim != 1:
+        raise ShapeError(
+            f"{name} must be a 1-D array of generalized coordinates, got shape {q.shape}"
+            " (use jax.vmap for batches)"
+        )
+    if n_dof is not None and q.shape[0] != n_dof:
+        raise ShapeError(
+            f"{name} has length {q.shape[0]} but {system_name} has {n_dof} degrees of freedom"
+        )
+    return q
+
+
+def same_shape(name: str, v: Any, q: Any) -> None:
+    if v.shape != q.shape:
+        raise ShapeError(f"{name} has shape {v.shape} but q has shape {q.shape}; they must match")
+
+
+def finite(x: jax.Array, name: str) -> jax.Array:
+    """Refuse NaN/inf: eagerly with the value when concrete, by `error_if` under jit."""
+    if not is_traced(x):
+        if not bool(np.all(np.isfinite(np.asarray(x)))):
+            raise NonFiniteError(f"{name} contains non-finite values: {np.asarray(x)}")
+        return x
+    return eqx.error_if(
+        x, ~jnp.all(jnp.isfinite(x)), f"{name} contains non-finite values (NaN or inf)"
+    )
+
+
+def finite_params(params: Params) -> None:
+    """Eagerly refuse a non-finite numeric leaf of `params`, naming its path."""
+    for path, leaf in jax.tree_util.tree_leaves_with_path(params):
+        if isinstance(leaf, (int, float, complex, np.ndarray, jax.Array)):
+            if not bool(np.all(np.isfinite(np.asarray(leaf)))):
+                raise NonFiniteError(f"params{jax.tree_util.keystr(path)} is not finite: {leaf}")
+
+
+# --------------------------------------------------------------------------- energies
+#
+# What a user's energy or force returns is checked where it is called, on its shape and
+# dtype only: both are static, so the checks run once while JAX traces and cost nothing
+# when the compiled program runs.
+
+
+def energy_value(out: Any, label: str, q: Any) -> Any:
+    """The result of a user energy (`T`, `V`, `D`) as a real scalar, or a
+    `ShapeError` / `ArgumentTypeError` naming `label` and what it returned."""
+    if out is None:
+        raise ArgumentTypeError(f"the {label} returned None; did it forget `return`?")
+    try:
+        out = jnp.asarray(out)
+    except TypeError as err:
+        raise ArgumentTypeError(
+            f"the {label} returned {type(out).__name__}, not a number: {err}"
+        ) from None
+    if jnp.issubdtype(out.dtype, jnp.complexfloating):
+        raise ArgumentTypeError(
+            f"the {label} returned a complex value (dtype {out.dtype}); energies "
+            "must be real: find the expression that became complex (e.g. a sqrt or power "
+            "of a negative number, or a complex literal) and keep it real"
+        )
+    if not (jnp.issubdtype(out.dtype, jnp.floating) or jnp.issubdtype(out.dtype, jnp.integer)):
+        raise ArgumentTypeError(f"the {label} returned dtype {out.dtype}, not a number")
+    if out.shape != ():
+        hint = " (for one coordinate write qd[0], not qd)" if out.shape == (1,) else ""
+        raise ShapeError(
+            f"the {label} returned an array of shape {out.shape}; it must return "
+            f"a real scalar: sum its terms, e.g. with jnp.sum(...){hint}"
+        )
+    if not jnp.issubdtype(out.dtype, jnp.floating):  # a constant, e.g. V = 0
+        out = out.astype(jnp.result_type(q))
+    return out
+
+
+def force_value(out: Any, who: str, q: Any) -> Any:
+    """The result of a user force (`force`, `tau`): a real array shaped like `q`."""
+    if out is None:
+        raise ArgumentTypeError(f"{who} returned None; did it forget `return`?")
+    try:
+        out = jnp.asarray(out)
+    except TypeError as err:
+        raise ArgumentTypeError(
+            f"{who} returned {type(out).__name__}, not an array: {err}"
+        ) from None
+    if jnp.issubdtype(out.dtype, jnp.complexfloating):
+        raise ArgumentTypeError(
+            f"{who} returned a complex array (dtype {out.dtype}); generalized forces must be real"
+        )
+    if not (jnp.issubdtype(out.dtype, jnp.floating) or jnp.issubdtype(out.dtype, jnp.integer)):
+        raise ArgumentTypeError(f"{who} returned dtype {out.dtype}, not numbers")
+    if out.shape != jnp.shape(q):
+        raise ShapeError(
+            f"{who} returned shape {out.shape}; expected {jnp.shape(q)} (one generalized "
+            "force per coordinate)"
+        )
+    return out
+
+
+# Out-of-range indices. JAX clamps a static index past the end of an array (``q[1]`` of a
+# length-1 ``q`` reads ``q[0]``) instead of raising, so an energy written for more
+# coordinates than it is given runs on silently. JAX lowers an in-range static index to a
+# ``slice``, but an out-of-range one to a ``dynamic_slice`` whose start is computed from
+# literals; ``clamped_reads`` folds those constants in the jaxpr of the user function and
+# reports every such read. Traced once per function and argument shapes (cached), at
+# trace time: nothing is added to the compiled program.
+
+_FOLD = {
+    "add": lambda a, b: a + b,
+    "sub": lambda a, b: a - b,
+    "mul": lambda a, b: a * b,
+    "neg": lambda a: -a,
+    "max": max,
+    "min": min,
+    "lt": lambda a, b: a < b,
+    "le": lambda a, b: a <= b,
+    "gt": lambda a, b: a > b,
+    "ge": lambda a, b: a >= b,
+    "eq": lambda a, b: a == b,
+    "ne": lambda a, b: a != b,
+    "select_n": lambda p, *cases: cases[int(p)],
+    "convert_element_type": lambda a: a,
+}
+
+
+def _jaxprs_of(params: dict) -> list[tuple[Any, bool]]:
+    """Sub-jaxprs of an equation, and whether their inputs are the equation's own."""
+    out = []
+    for key, value in params.items():
+        for v in value if isinstance(value, (tuple, list)) else (value,):
+            jaxpr = getattr(v, "jaxpr", v)
+            if hasattr(jaxpr, "eqns") and hasattr(jaxpr, "invars"):
+                out.append((jaxpr, key in ("jaxpr", "call_jaxpr", "fun_jaxpr")))
+    return out
+
+
+def _clamped(jaxpr: Any, known: dict) -> list[tuple[int, int]]:
+    """`(length, index)` of each out-of-range static read in `jaxpr`."""
+    env = dict(known)
+    found = []
+
+    def value(v):
+        return v.val if type(v).__name__ == "Literal" else env.get(v)
+
+    for eqn in jaxpr.eqns:
+        ins = [value(v) for v in eqn.invars]
+        name = eqn.primitive.name
+        if name == "dynamic_slice":
+            shape = eqn.invars[0].aval.shape
+            for axis, (start, size) in enumerate(
+                zip(ins[1:], eqn.params["slice_sizes"], strict=False)
+            ):
+                if start is not None and (int(start) < 0 or int(start) + size > shape[axis]):
+                    idx = int(start)
+                    found.append((shape[axis], idx if idx >= 0 else idx - shape[axis]))
+        elif name in _FOLD and all(x is not None for x in ins):
+            if all(not getattr(v.aval, "shape", ()) for v in eqn.outvars):
+                try:
+                    env[eqn.outvars[0]] = _FOLD[name](*(np.asarray(x).item() for x in ins))
+                except Exception:  # noqa: BLE001 - folding is best effort
+                    pass
+        for sub, positional in _jaxprs_of(eqn.params):
+            inner = {}
+            if positional and len(sub.invars) == len(ins):
+                inner = {
+                    var: x
+                    for var, x in zip(sub.invars, ins, strict=True)
+                    if x is not None and not getattr(var.aval, "shape", ())
+                }
+            found += _clamped(sub, inner)
+    return found
+
+
+_READS_CHECKED: dict = {}
+
+
+def _signature(x: Any) -> Any:
+    """What tracing depends on: an array's shape and dtype, any other leaf itself."""
+    if isinstance(x, (jax.Array, np.ndarray, np.generic)):
+        return (x.shape, x.dtype)
+    return x
+
+
+def _abstract(x: Any) -> Any:
+    return jax.ShapeDtypeStruct(jnp.shape(x), jnp.result_type(x))
+
+
+def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
+    """Raise a `ShapeError` if `fn(*args, params)` reads past the end of an array.
+
+    `args` are the arrays the function receives before `params` (their values are not
+    used, only shapes and dtypes). A function that cannot be traced abstractly (one that
+    converts a parameter to a Python float, say) is skipped: the real call reports its own
+    errors.
+    """
+    leaves, treedef = jax.tree_util.tree_flatten(params)
+    try:
+        key = (
+            id(fn),
+            label,
+            treedef,
+            *((np.shape(a), getattr(a, "dtype", type(a))) for a in args),
+            *(_signature(x) for x in leaves),
+        )
+        hash(key)
+    except TypeError:  # an unhashable static leaf: check without caching
+        key = None
+    cached = _READS_CHECKED.get(key) if key is not None else None
+    if cached is not None:
+        found = cached[1]
+    else:
+        dyn, static = eqx.partition(params, eqx.is_array)
+        try:
+            closed = jax.make_jaxpr(lambda d, *a: fn(*a, eqx.combine(d, static)))(
+                jax.tree_util.tree_map(_abstract, dyn), *(_abstract(a) for a in args)
+            )
+            found = _clamped(closed.jaxpr, {})
+        except Exception:  # noqa: BLE001 - the real call reports its own errors
+            found = []
+        if key is not None:
+            if len(_READS_CHECKED) > 1024:
+                _READS_CHECKED.clear()
+            _READS_CHECKED[key] = (fn, found)  # holding fn keeps its id from being reused
+    if found:
+        length, index = found[0]
+        sizes = sorted({jnp.shape(a)[0] for a in args if jnp.ndim(a) == 1})
+        raise ShapeError(
+            f"the {label} reads entry {index} of an array of length {length} "
+            f"(it was given coordinates of length {', '.join(map(str, sizes))}). JAX "
+            "clamps an out-of-range index instead of raising, so it would silently read "
+            "another entry: pass q and qd of the length the energies use, and give the "
+            "system n_dof= so that a wrong length is refused up front"
+        )
+
+
+# --------------------------------------------------------------------------- physics
+
+
+def physical(
+    value: Any, label: str, *, what: str = "mass", positive: bool = False, item: str = ""
+) -> Any:
+    """A mass (or another physical amount) that must be `>= 0` (`> 0` with
+    `positive`) and finite, entry by entry; a `ParameterError` names `label`, the
+    entry (`item` and its 1-based number, e.g. "link 2") and the value. A traced
+    value comes back wrapped in `equinox.error_if`. A callable (a parameter looked up
+    later) is returned unchecked."""
+    if callable(value):
+        return value
+    if is_traced(value):
+        x = jnp.asarray(value)
+        bad = ~jnp.isfinite(x) | ((x <= 0) if positive else (x < 0))
+        return eqx.error_if(x, jnp.any(bad), f"{label}: every {what} must be finite and >= 0")
+    arr = np.asarray(value, dtype=float)
+    bad = ~np.isfinite(arr) | ((arr <= 0) if positive else (arr < 0))
+    if np.any(bad):
+        flat = arr.reshape(-1)
+        k = int(np.argmax(bad.reshape(-1)))
+        where = f"[{k}]" if arr.ndim else ""
+        whose = f" ({item} {k + 1})" if item and arr.ndim else ""
+        sign = "positive" if positive else "non-negative"
+        raise ParameterError(
+            f"{label}{where} = {flat[k]:.6g}{whose} is not a {sign} finite {what}: "
+            f"every {what} must be {'> 0' if positive else '>= 0'}; check its sign and units"
+        )
+    return value
+
+
+# --------------------------------------------------------------------------- options
+#
+# Small validators for the options of every entry point (simulate, sweep, the system's
+# methods). A concrete value (a Python number, a NumPy or concrete JAX scalar) is checked
+# in Python and refused with a ``ConfigurationError`` that names the option, the value and
+# the fix; a wrong kind of object (a string, a list, a complex number) is an
+# ``ArgumentTypeError``. A traced value (inside ``jit``/``vmap``) comes back wrapped in
+# ``equinox.error_if``, so the check runs once where the option enters the program, never
+# per step. Each returns the value to use in place of its argument.
+
+
+def _real_scalar(name: str, value: Any, fix: str) -> Any:
+    """`value` as a Python float when concrete, else the tracer; refuses other kinds."""
+    if isinstance(value, jax.core.Tracer):
+        if jnp.ndim(value) != 0:
+            raise ConfigurationError(
+                f"{name} must be a scalar, got an array of shape {jnp.shape(value)}; {fix}"
+            )
+        if not jnp.issubdtype(value.dtype, jnp.floating) and not jnp.issubdtype(
+            value.dtype, jnp.integer
+        ):
+            raise ArgumentTypeError(f"{name} must be a real number, got dtype {value.dtype}")
+        return value
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (numbers.Real, np.ndarray, np.generic, jax.Array)
+    ):
+        raise ArgumentTypeError(
+            f"{name} must be a real number, got {value!r} ({type(value).__name__}); {fix}"
+        )
+    arr = np.asarray(value)
+    if arr.ndim != 0:
+        raise ConfigurationError(f"{name} must be a scalar, got an array of shape {arr.shape}")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+        raise ArgumentTypeError(f"{name} must be a real number, got {value!r} ({arr.dtype})")
+    return float(arr)
+
+
+def finite_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar option (e.g. `t0`)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not math.isfinite(x):
+            raise ConfigurationError(f"{name} must be finite, got {name}={value!r}. {fix}")
+        return value
+    return eqx.error_if(x, ~jnp.isfinite(x), f"{name} must be finite (got NaN or inf). {fix}")
+
+
+def positive_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar `> 0` (a step, a time span)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not (math.isfinite(x) and x > 0):
+            raise ConfigurationError(
+                f"{name} must be a positive finite number, got {name}={value!r}. {fix}"
+            )
+        return value
+    return eqx.error_if(
+        x, ~(jnp.isfinite(x) & (x > 0)), f"{name} must be a positive finite number. {fix}"
+    )
+
+
+def non_negative_real(name: str, value: Any, fix: str = "") -> Any:
+    """A finite real scalar `>= 0` (a tolerance, a gain)."""
+    x = _real_scalar(name, value, fix)
+    if isinstance(x, float):
+        if not (math.isfinite(x) and x >= 0):
+            raise ConfigurationError(
+                f"{name} must be a non-negative finite number, got {name}={value!r}. {fix}"
+            )
+        return value
+    return eqx.error_if(
+        x, ~(jnp.isfinite(x) & (x >= 0)), f"{name} must be a non-negative finite number. {fix}"
+    )
+
+
+def positive_int(name: str, value: Any, fix: str = "") -> int:
+    """A positive whole number (a count: `max_steps`, `n_save`, a chunk size).
+
+    Whole-valued floats (`1e5`) are accepted; counts fix the shape of the compiled
+    program, so a traced value is refused with an `ArgumentTypeError`.
+    """
+    if isinstance(value, jax.core.Tracer):
+        raise ArgumentTypeError(
+            f"{name} must be a Python int (it fixes the size of the compiled program), "
+            f"got a traced value; pass it as a static argument. {fix}"
+        )
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (numbers.Real, np.integer, np.floating)
+    ):
+        raise ArgumentTypeError(
+            f"{name} must be a positive integer, got {value!r} ({type(value).__name__}). {fix}"
+        )
+    x = float(value)
+    if not (math.isfinite(x) and x == math.floor(x) and x >= 1):
+        raise ConfigurationError(f"{name} must be a positive integer, got {name}={value!r}. {fix}")
+    return int(x)
+
+
+def time_interval(t0: Any, t1: Any) -> tuple[Any, Any]:
+    """`(t0, t1)`: finite, with `t1 > t0` (eagerly, or by `error_if` on `t1`)."""
+    fix = "Integrate over a finite interval t0 < t1, e.g. t0=0.0, t1=10.0"
+    t0 = finite_real("t0", t0, fix)
+    t1 = finite_real("t1", t1, fix)
+    if not is_traced(t0, t1):
+        if not float(t1) > float(t0):
+            raise ConfigurationError(
+                f"t1 must be greater than t0, got t0={t0}, t1={t1} (lagrax integrates "
+                "forward in time; to go backwards, negate the velocities)"
+            )
+        return t0, t1
+    t1 = eqx.error_if(jnp.asarray(t1), ~(jnp.asarray(t1) > t0), "t1 must be greater than t0")
+    return t0, t1
+
+
+def tolerances(rtol: Any, atol: Any) -> tuple[Any, Any]:
+    """`(rtol, atol)`: finite, `>= 0` and not both zero."""
+    fix = "Use e.g. rtol=1e-8, atol=1e-8"
+    rtol = non_negative_real("rtol", rtol, fix)
+    atol = non_negative_real("atol", atol, fix)
+    if not is_traced(rtol, atol):
+        if float(rtol) == 0.0 and float(atol) == 0.0:
+            raise ConfigurationError(
+                f"rtol and atol are both 0 (rtol={rtol}, atol={atol}): no step can meet a "
+                f"zero error tolerance. Give at least one a positive value. {fix}"
+            )
+        return rtol, atol
+    atol = eqx.error_if(
+        jnp.asarray(atol),
+        (jnp.asarray(rtol) == 0) & (jnp.asarray(atol) == 0),
+        f"rtol and atol are both 0: no step can meet a zero error tolerance. {fix}",
+    )
+    return rtol, atol
+
+
+def fixed_step(dt: Any, t0: Any, t1: Any) -> Any:
+    """A fixed step `0 < dt <= t1 - t0`.
+
+    A step longer than the interval would silently be cut to `t1 - t0` (one step of
+    another size than asked for), which is nearly always a slip (`dt` and `t1`
+    swapped, or wrong units), so it is refused.
+    """
+    fix = "Pass the step of a fixed-step solve as dt > 0, e.g. dt=0.01"
+    dt = positive_real("dt", dt, fix)
+    if not is_traced(dt, t0, t1):
+        span = float(t1) - float(t0)
+        if float(dt) > span * (1 + 1e-9):
+            raise ConfigurationError(
+                f"the fixed step dt={dt} is longer than the whole interval t1 - t0 = "
+                f"{span:.6g}: the solve would take one step of {span:.6g}, not of dt. Pass "
+                "dt <= t1 - t0 (or t1 = t0 + dt for a single step)"
+            )
+        return dt
+    span = jnp.asarray(t1) - jnp.asarray(t0)
+    return eqx.error_if(
+        jnp.asarray(dt),
+        jnp.asarray(dt) > span * (1 + 1e-9),
+        "the fixed step dt is longer than the whole interval t1 - t0",
+    )
+
+
+def first_step(dt0: Any) -> Any:
+    """The first step `dt0` of an adaptive solve: `None` (automatic) or `> 0`."""
+    if dt0 is None:
+        return None
+    return positive_real(
+        "dt0",
+        dt0,
+        "dt0 is the first step of an adaptive solve (forward in time); leave it None to "
+        "let the controller choose it",
+    )
+
+
+def interval(t0: Any, t1: Any) -> None:
+    """Eagerly require finite `t0 < t1` (see `time_interval`)."""
+    time_interval(t0, t1)
+
+
+def save_times(ts: Any, t0: Any, t1: Any, name: str = "ts") -> None:
+    """Eagerly require finite, sorted save times inside `[t0, t1]`."""
+    ts = np.asarray(ts)
+    if not np.issubdtype(ts.dtype, np.number) or np.iscomplexobj(ts):
+        raise ArgumentTypeError(f"{name} must be an array of real times, got {ts!r}")
+    if not np.all(np.isfinite(ts)):
+        raise ConfigurationError(f"{name} must be finite times, got {ts}")
+    if ts.size and (np.any(np.diff(ts) < 0) or ts[0] < float(t0) or ts[-1] > float(t1)):
+        raise ConfigurationError(
+            f"{name} must be non-decreasing and inside [t0, t1] = [{t0}, {t1}]; got {ts}"
+        )
+
+
+def traced_save_times(ts: jax.Array, t0: jax.Array, t1: jax.Array) -> jax.Array:
+    """Under `jit`: `ts` with a run-time check that it is sorted inside `[t0, t1]`."""
+    if not ts.shape[0]:
+        return ts
+    return eqx.error_if(
+        ts,
+        jnp.any(ts[1:] < ts[:-1]) | (ts[0] < t0) | (ts[-1] > t1) | ~jnp.all(jnp.isfinite(ts)),
+        "ts must be non-decreasing and inside [t0, t1], and finite",
+    )
+
+
+# ----- sweep options
+#
+# Host-side checks of ``sweep``'s options, run once per call before anything is compiled.
+# Wrong kinds of object raise ``ArgumentTypeError``, unusable values ``ConfigurationError``;
+# each message names the option, the value and the fix. (This section keeps its own
+# imports, so that it merges cleanly with edits to the rest of the module.)
+
+import os  # noqa: E402
+
+
+def _kind(value: Any) -> str:
+    return f"{value!r} ({type(value).__name__})"
+
+
+def sweep_times(t0: Any, t1: Any) -> tuple[float, float]:
+    """Finite `t0 < t1` as Python floats (see `time_interval`)."""
+    t0, t1 = time_interval(t0, t1)
+    return float(t0), float(t1)
+
+
+_KEEP_NAMES = ("final", "trajectory")
+
+
+def keep_option(keep: Any, t0: float, t1: float) -> np.ndarray | None:
+    """`keep=`: a known name, a callable, or sorted finite times inside `[t0, t1]`.
+
+    **Returns:** the times as a float array, or `None` for a name or a callable.
+    """
+    if callable(keep):
+        return None
+    if isinstance(keep, str):
+        if keep not in _KEEP_NAMES:
+            import difflib
+
+            close = difflib.get_close_matches(keep, _KEEP_NAMES, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ConfigurationError(
+                f"keep={keep!r} is not a name sweep knows{hint}: pass 'final', "
+                "'trajectory', an array of times, or a function reduce(solution)"
+            )
+        return None
+    try:
+        ts = np.asarray(keep, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise ArgumentTypeError(
+            f"keep must be 'final', 'trajectory', an array of times or a function "
+            f"reduce(solution); got {_kind(keep)}"
+        ) from err
+    if ts.ndim != 1 or ts.size == 0:
+        raise ShapeError(f"keep= times must be a non-empty 1-D array, got shape {ts.shape}")
+    if not np.all(np.isfinite(ts)):
+        raise ConfigurationError(f"keep= times must be finite, got {ts}")
+    save_times(ts, t0, t1, "keep= times")
+    return ts
+
+
+def lanes_option(n_lanes: Any, chunk_size: int | None, n_devices: int) -> int | None:
+    """`n_lanes`: `None` or a positive integer, at most the members of a chunk per
+    device when `chunk_size` was given (more lanes than members would only idle)."""
+    if n_lanes is None:
+        return None
+    lanes = positive_int(
+        "n_lanes", n_lanes, "It is the number of members integrated at once per device."
+    )
+    if chunk_size is not None:
+        per_device = -(-chunk_size // n_devices)
+        if lanes > per_device:
+            raise ConfigurationError(
+                f"n_lanes={lanes} is more than the {per_device} member(s) of a chunk per "
+                f"device (chunk_size={chunk_size} over {n_devices} device(s)): the extra "
+                f"lanes would stay idle. Pass n_lanes <= {per_device} or a larger chunk_size."
+            )
+    return lanes
+
+
+def devices_option(devices: Any) -> None:
+    """`devices`: `None`, a count in `1..len(jax.devices())` or a non-empty list."""
+    if devices is None:
+        return
+    available = len(jax.devices())
+    if isinstance(devices, (int, np.integer)) and not isinstance(devices, (bool, np.bool_)):
+        if not 1 <= devices <= available:
+            raise ConfigurationError(
+                f"devices={devices!r}: pass a count from 1 to {available} (the devices JAX "
+                "sees), a list of devices, or None for all of them"
+            )
+        return
+    if isinstance(devices, (str, bytes, float)) or not hasattr(devices, "__len__"):
+        raise ArgumentTypeError(
+            f"devices must be None, a count or a list of JAX devices; got {_kind(devices)}"
+        )
+    if len(devices) == 0:
+        raise ConfigurationError("devices=[] names no device: pass None for all of them")
+
+
+def sweep_options(
+    *,
+    t0: Any,
+    t1: Any,
+    keep: Any,
+    n_save: Any,
+    rtol: Any,
+    atol: Any,
+    dt: Any,
+    dt0: Any,
+    max_steps: Any,
+    stepsize_controller: Any,
+    chunk_size: Any,
+    schedule: Any,
+    devices: Any,
+    checkpoint: Any,
+    progress: Any,
+) -> tuple[float, float, int | None]:
+    """Check `sweep`'s scalar options on the host, once per call, before anything is
+    traced. **Returns:** `(t0, t1, chunk_size)` as Python numbers."""
+    import diffrax as dfx
+
+    t0, t1 = sweep_times(t0, t1)
+    keep_option(keep, t0, t1)
+    positive_int("n_save", n_save, "It is the number of saved times per member.")
+    if dt is not None:
+        fixed_step(dt, t0, t1)
+    first_step(dt0)
+    if stepsize_controller is not None and not isinstance(
+        stepsize_controller, dfx.AbstractStepSizeController
+    ):
+        raise ArgumentTypeError(
+            "stepsize_controller must be a diffrax.AbstractStepSizeController (e.g. "
+            f"diffrax.PIDController(rtol=1e-8, atol=1e-8)); got {_kind(stepsize_controller)}"
+        )
+    if dt is None and stepsize_controller is None:
+        tolerances(rtol, atol)
+    else:
+        non_negative_real("rtol", rtol)
+        non_negative_real("atol", atol)
+    if max_steps is not None:
+        positive_int("max_steps", max_steps, "It is each member's step budget.")
+    size = None
+    if chunk_size is not None:
+        size = positive_int("chunk_size", chunk_size, "It is the number of members per chunk.")
+    if not isinstance(schedule, str) or schedule not in ("queue", "lockstep"):
+        raise ConfigurationError(f"schedule must be 'queue' or 'lockstep', got {schedule!r}")
+    devices_option(devices)
+    if checkpoint is not None and not isinstance(checkpoint, (str, os.PathLike)):
+        raise ArgumentTypeError(
+            f"checkpoint must be a directory path (str or os.PathLike) or None; got "
+            f"{_kind(checkpoint)}"
+        )
+    if progress is not None and not isinstance(progress, (bool, np.bool_)):
+        raise ArgumentTypeError(f"progress must be True, False or None; got {_kind(progress)}")
+    return t0, t1, size
+
+
+def batch_size(params: Any) -> int:
+    """The member count of batched `params` (every leaf a numeric array with the same
+    leading axis, at least one member), or a `LagraxError` naming the leaves."""
+    leaves = jax.tree_util.tree_leaves_with_path(params)
+    if not leaves:
+        raise ShapeError(
+            f"sweep() params has no array leaves to sweep over (got {_kind(params)}): pass "
+            "lagrax.grid(params, name=values), lagrax.samples(...), or a pytree whose "
+            "leaves carry a leading batch axis"
+        )
+    sizes = {}
+    for path, x in leaves:
+        key = "params" + jax.tree_util.keystr(path)
+        kind = np.asarray(x).dtype.kind if not isinstance(x, jax.Array) else x.dtype.kind
+        if kind not in "biuf":
+            raise ArgumentTypeError(
+                f"{key} must be a numeric array, got {_kind(x)}: parameters are numbers"
+            )
+        sizes[key] = np.shape(x)[0] if np.ndim(x) else None
+    scalars = [k for k, v in sizes.items() if v is None]
+    if scalars:
+        raise ShapeError(
+            f"sweep() params must carry a leading batch axis on every leaf; {scalars} are "
+            "scalars. Use lagrax.grid(params, name=values) or lagrax.samples(...) for a mix "
+            "of fixed and swept parameters."
+        )
+    if len(set(sizes.values())) != 1:
+        raise ShapeError(
+            f"params leaves have different batch sizes (leading axes): {sizes}; every leaf "
+            "needs one entry per member"
+        )
+    n = next(iter(sizes.values()))
+    if n == 0:
+        raise ShapeError(
+            f"sweep() params has 0 members (leading axes {sizes}): pass at least one parameter set"
+        )
+    return n

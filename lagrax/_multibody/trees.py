@@ -1,0 +1,305 @@
+"""Kinematic trees of rigid bodies: robots with branches (a torso with two arms, a hand).
+
+A [`Tree`][lagrax.chains.Tree] holds the *structure* (joint types, the parent of every body, joint
+axes, fixed joint rotations, names, limits); the numbers a sweep may vary (masses, joint
+placements, centres of mass, inertias, damping, g) live in `params` as arrays with a
+leading axis of length `n`, as for chains. Its energies are one batched
+[`SpatialBody`][lagrax.bodies.SpatialBody]; its equations are Featherstone's recursions run over
+parents (`lagrax._multibody.recursions`); [`lagrax.newton_euler.rnea`][] reads its structure
+for the independent oracle. [`lagrax.chains.from_urdf`][] builds one from a URDF file.
+"""
+
+import dataclasses
+import math
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.checks import physical
+from .._core.custom_types import Params, Vector
+from .._core.errors import ShapeError
+from .._systems.lagrangian import LagrangianSystem
+from .bodies import Param, Scene, SpatialBody
+from .chains import _broadcast, _float_dtype, _rotation_tuple, _unit, joint_constants
+from .inertia import check_inertia
+from .tree_equations import ChainEquations
+
+
+def _joint_damping(q, qd, params):
+    """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²`."""
+    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2)
+
+
+def _names(values: Any, n: int, default: str, what: str) -> tuple[str, ...]:
+    if values is None:
+        return tuple(f"{default}{i}" for i in range(n))
+    out = tuple(str(v) for v in values)
+    if len(out) != n:
+        raise ValueError(f"{n} joints need {n} {what}, got {len(out)}")
+    if len(set(out)) != n:
+        raise ValueError(f"{what} must be distinct, got {out}")
+    return out
+
+
+def _limits(values: Any, n: int) -> tuple[tuple[float, float], ...]:
+    if values is None:
+        return tuple((-math.inf, math.inf) for _ in range(n))
+    arr = np.asarray(values, float)
+    if arr.shape != (n, 2) or np.any(np.isnan(arr)) or np.any(arr[:, 0] > arr[:, 1]):
+        raise ValueError(f"limits must be {n} pairs (lower <= upper), got {values!r}")
+    return tuple((float(lo), float(hi)) for lo, hi in arr)
+
+
+def _bounds(values: Any, n: int, what: str) -> tuple[float, ...]:
+    if values is None:
+        return (math.inf,) * n
+    arr = np.broadcast_to(np.asarray(values, float), (n,))
+    if np.any(~(arr > 0)):
+        raise ValueError(f"{what} must be positive (inf: none), got {values!r}")
+    return tuple(float(x) for x in arr)
+
+
+class Tree(eqx.Module):
+    r"""A kinematic tree of rigid bodies joined by revolute (`"R"`) and prismatic
+    (`"P"`) joints, fixed to the world at its base.
+
+    Body `i` hangs from body `parents[i]` (`−1`: the base, i.e. the world), with
+    `parents[i] < i`, so bodies are numbered from the base outwards; a serial chain has
+    `parents = (−1, 0, 1, …)`. Joint `i` connects body `parents[i]` (frame `p`) to
+    body `i` exactly as a [`SpatialChain`][lagrax.chains.SpatialChain]'s joint connects link `i − 1`
+    to `i`: it sits at `offset_i` in frame `p` with a fixed orientation `S_i`
+    (`rotations[i]`), and
+
+    - revolute: `ᵖR_i = S_i Rot(axis_i, q_i)`, `ᵖp_i = offset_i`;
+    - prismatic: `ᵖR_i = S_i`, `ᵖp_i = offset_i + S_i axis_i q_i`.
+
+    This is the URDF joint: `S_i` and `offset_i` are its `<origin rpy xyz>` and
+    `axis_i` its `<axis>` in the joint (= child link) frame. Body `i` has mass
+    `m_i`, centre of mass `com_i` and inertia `inertia_i` about the centre of mass,
+    both in frame `i`. Gravity has magnitude `g` along `−up`. Each joint may have
+    viscous damping `damping_i` (Rayleigh `D = ½ Σ b_i q̇_i²`, a torque `−b_i q̇_i`).
+
+    Fixed joints are not bodies of the tree: [`lagrax.chains.from_urdf`][] merges a link
+    on a fixed joint into the body it is fixed to (mass, centre of mass and inertia by the
+    parallel-axis theorem, rotated into that body's frame), so the equations have one
+    coordinate per moving joint.
+
+    Structure (static): `joint_types`, `parents`, `axes`, `rotations`, `up`,
+    `joint_names`, `body_names`, `limits`, `velocity_limits`, `effort_limits`.
+    Parameters (arrays, from [`params`][lagrax.chains.Tree.params]): `m: (n,)`, `offset: (n, 3)`,
+    `com: (n, 3)`, `inertia: (n, 3, 3)`, `damping: (n,)`, `g: ()`.
+
+    The system's equations are Featherstone's recursions run over parents: `q̈` by the
+    articulated-body algorithm (O(n)), `M` by the composite-rigid-body algorithm
+    (`M_ji = S_jᵀ I^c_i S_i` for `j` on `i`'s path to the base, zero otherwise),
+    `M q̈ + C q̇ + G` by recursive Newton–Euler; the energies remain the definition
+    (`dataclasses.replace(system, equations=None)`).
+
+    **Arguments:**
+
+    - `joint_types`: a string such as `"RRPR"` (`"C"`, continuous, is read as `"R"`).
+    - `parents`: `n` parent indices (`−1`: the base; `parents[i] < i`).
+    - `axes`: `n` joint axes (normalized here); default z.
+    - `rotations`: `n` fixed rotations `S_i`; default the identity.
+    - `up`: the direction opposite to gravity (default `(0, 0, 1)`).
+    - `joint_names`, `body_names`: labels (default `joint0…`, `body0…`).
+    - `limits`: `n` pairs `(lower, upper)` of joint positions (default unlimited),
+      stored for the user (e.g. for events); the equations do not enforce them.
+    - `velocity_limits`, `effort_limits`: `n` positive bounds (default `inf`),
+      stored likewise.
+
+    **Raises:** `ValueError` for an unknown joint type, a parent index that is not an
+    earlier body, or lists of the wrong length.
+
+    **Example:** a torso joint carrying two one-joint arms:
+
+    ```python
+    tree = lagrax.chains.Tree("RRR", parents=(-1, 0, 0), axes=[(0, 0, 1), (0, 1, 0), (0, 1, 0)])
+    params = tree.params(offset=[(0, 0, 0), (0, 0.2, 0.5), (0, -0.2, 0.5)])
+    system = tree.system()
+    ```
+    """
+
+    joint_types: str = eqx.field(static=True)
+    parents: tuple[int, ...] = eqx.field(static=True)
+    axes: tuple[tuple[float, float, float], ...] = eqx.field(static=True)
+    rotations: tuple[tuple[tuple[float, ...], ...], ...] = eqx.field(static=True)
+    up: tuple[float, float, float] = eqx.field(static=True)
+    joint_names: tuple[str, ...] = eqx.field(static=True)
+    body_names: tuple[str, ...] = eqx.field(static=True)
+    limits: tuple[tuple[float, float], ...] = eqx.field(static=True)
+    velocity_limits: tuple[float, ...] = eqx.field(static=True)
+    effort_limits: tuple[float, ...] = eqx.field(static=True)
+
+    def __init__(
+        self,
+        joint_types: str,
+        parents: Any,
+        axes: Any = None,
+        rotations: Any = None,
+        up: Any = (0.0, 0.0, 1.0),
+        *,
+        joint_names: Any = None,
+        body_names: Any = None,
+        limits: Any = None,
+        velocity_limits: Any = None,
+        effort_limits: Any = None,
+    ):
+        types = str(joint_types).upper().replace("C", "R")
+        if not types or set(types) - {"R", "P"}:
+            raise ValueError(
+                f"joint_types must be a non-empty string of 'R' (revolute), 'C' (continuous) "
+                f"and 'P' (prismatic), got {joint_types!r}"
+            )
+        n = len(types)
+        parents = tuple(int(p) for p in parents)
+        if len(parents) != n:
+            raise ValueError(f"{n} joints need {n} parent indices, got {len(parents)}")
+        for i, p in enumerate(parents):
+            if not -1 <= p < i:
+                raise ValueError(
+                    f"parents[{i}] = {p}: a body's parent must be an earlier body (0 <= p < "
+                    f"{i}) or -1 (the base); number the bodies from the base outwards"
+                )
+        axes = [(0.0, 0.0, 1.0)] * n if axes is None else list(axes)
+        rotations = [np.eye(3)] * n if rotations is None else list(rotations)
+        if len(axes) != n or len(rotations) != n:
+            raise ValueError(
+                f"{n} joints need {n} axes and {n} rotations, got {len(axes)}, {len(rotations)}"
+            )
+        self.joint_types = types
+        self.parents = parents
+        self.axes = tuple(_unit(a, f"axes[{i}]") for i, a in enumerate(axes))
+        self.rotations = tuple(
+            _rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
+        )
+        self.up = _unit(up, "up")
+        self.joint_names = _names(joint_names, n, "joint", "joint_names")
+        self.body_names = _names(body_names, n, "body", "body_names")
+        self.limits = _limits(limits, n)
+        self.velocity_limits = _bounds(velocity_limits, n, "velocity_limits")
+        self.effort_limits = _bounds(effort_limits, n, "effort_limits")
+
+    @property
+    def n(self) -> int:
+        """Number of moving joints (and bodies)."""
+        return len(self.joint_types)
+
+    def children(self, i: int) -> tuple[int, ...]:
+        """The bodies hanging from body `i` (`−1`: from the base)."""
+        return tuple(k for k, p in enumerate(self.parents) if p == i)
+
+    def params(
+        self,
+        *,
+        m: Any = 1.0,
+        offset: Any = 0.0,
+        com: Any = 0.0,
+        inertia: Any = None,
+        damping: Any = 0.0,
+        g: Any = 9.81,
+        dtype: Any = None,
+    ) -> dict[str, jnp.ndarray]:
+        """Parameters as arrays, broadcast to all `n` bodies.
+
+        Defaults: 1 kg bodies with their centre of mass at the joint, joints at their
+        parent's origin, the inertia of a solid 1 kg sphere of radius 0.1 m
+        (`0.004 kg m²`) times `m`, no damping, `g = 9.81`.
+
+        **Arguments:** `m`, `damping` (scalar or `(n,)`), `offset` and `com`
+        (`(3,)` or `(n, 3)`), `inertia` (`(3, 3)` or `(n, 3, 3)`), `g`,
+        `dtype` (default float64 with x64).
+
+        **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
+        "damping": (n,), "g": ()}``.
+
+        **Raises:** `ShapeError` if a value does not broadcast; `ParameterError` for a
+        negative mass or damping, or an inertia that is not symmetric positive-semidefinite
+        or violates `I1 + I2 ≥ I3` (naming the body).
+        """
+        n, dtype = self.n, _float_dtype(dtype)
+        m_ = physical(_broadcast("m", m, (n,), dtype), "Tree.params m", item="body")
+        if inertia is None:
+            inertia = m_[:, None, None] * (0.004 * jnp.eye(3, dtype=dtype))[None]
+        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
+        inertia = check_inertia(inertia, name="Tree.params inertia", semidefinite=True)
+        b = _broadcast("damping", damping, (n,), dtype)
+        return {
+            "m": m_,
+            "offset": _broadcast("offset", offset, (n, 3), dtype),
+            "com": _broadcast("com", com, (n, 3), dtype),
+            "inertia": inertia,
+            "damping": physical(b, "Tree.params damping", item="joint"),
+            "g": jnp.asarray(g, dtype=dtype),
+        }
+
+    def _joint_constants(self) -> tuple[np.ndarray, ...]:
+        return joint_constants(self.joint_types, self.axes, self.rotations)
+
+    def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """Forward kinematics: body-frame origins `(n, 3)` and rotations `(n, 3, 3)` in
+        the world frame: `R_i = R_p ᵖR_i`, `o_i = o_p + R_p ᵖp_i` with `p` the parent
+        (the base: `R = 1`, `o = 0`)."""
+        origins, rots, _ = self._kinematics(q, params, with_com=False)
+        return jnp.stack(origins), jnp.stack(rots)
+
+    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
+        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n, 3)`."""
+        return jnp.stack(self._kinematics(q, params, with_com=True)[2])
+
+    def _pose(self, q, params):
+        _, rots, coms = self._kinematics(q, params, with_com=True)
+        return coms, rots
+
+    def _kinematics(self, q, params, *, with_com: bool):
+        if q.shape != (self.n,):
+            raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this tree")
+        offset = jnp.asarray(params["offset"])
+        dtype = jnp.result_type(q, offset)
+        q, offset = q.astype(dtype), offset.astype(dtype)
+        com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
+        base = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
+        origins, rots, coms = [], [], []
+        for i, kind in enumerate(self.joint_types):
+            p = self.parents[i]
+            rot, origin = base if p < 0 else (rots[p], origins[p])
+            step = offset[i] if kind == "R" else offset[i] + q[i] * slide[i]
+            origins.append(origin + rot @ step)
+            if kind == "R":
+                rots.append(rot @ (a[i] + jnp.sin(q[i]) * b[i] + (1 - jnp.cos(q[i])) * c[i]))
+            else:
+                rots.append(rot @ a[i])
+            if com is not None:
+                coms.append(origins[i] + rots[i] @ com[i])
+        return origins, rots, coms
+
+    def _gravity(self, params):
+        g = jnp.asarray(params["g"])
+        return -g * jnp.asarray(self.up, g.dtype)
+
+    def scene(self) -> Scene:
+        """The tree as a [`lagrax.bodies.Scene`][]: one batched
+        [`SpatialBody`][lagrax.bodies.SpatialBody] for all bodies, gravity `−g up`, joint
+        damping as the Rayleigh dissipation `½ Σ b_i q̇_i²`."""
+        body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
+        return Scene(
+            [body],
+            gravity=self._gravity,
+            dissipation=_joint_damping,
+            n_dof=self.n,
+            name=f"{self.n}-joint tree",
+        )
+
+    def system(self) -> LagrangianSystem:
+        """The tree's [`lagrax.LagrangianSystem`][], its equations evaluated by
+        Featherstone's recursions over parents, its coordinates named by
+        `joint_names` (`system.coordinate_names`). ``dataclasses.replace(system,
+        equations=None)`` differentiates the energies instead (the definition)."""
+        return dataclasses.replace(
+            self.scene().system(),
+            equations=ChainEquations(self),
+            coordinate_names=self.joint_names,
+        )

@@ -1,0 +1,497 @@
+"""Events: zero crossings of `condition(t, q, q̇, params)` located on the dense output,
+recorded, and either ending the solve (`terminal`) or continuing it from a new state
+(`reset`: an impact, a joint limit).
+
+`integrate_events` is a third scheduler over the stepping engine of `integrate`
+(`init_state` / `advance` / `interpolate` / `save_due`), beside `integrate`
+(no events: its compiled code is untouched by this module) and the sweep's lane queue.
+After each accepted step `[t_a, t_b]` it compares the sign of every condition at
+`t_b` with its sign at `t_a`; where it changed in the event's `direction`, the
+root is located on the step's dense interpolant by a safeguarded Newton–bisection
+iteration (bracketed, so it cannot leave the step; to a few ulps of `t`). Then the
+earliest root of a terminal or resetting event cuts the step there:
+
+- terminal: the solve ends at the root (`t_end`, `q_end`, `q̇_end`), the saves
+  after it are `inf` (as after any stop), and `result` is `event_occurred`;
+- reset: the state at the root is replaced by `reset(t, q, q̇, params)` and the
+  solver restarts there (a fresh `solver.init`; the next step as long as the last one);
+- a cascade (an event more than `max_events` times, or a reset at the time of the
+  previous one: events accumulating at a point, as a ball with restitution `e < 1`
+  bouncing infinitely often before it comes to rest) ends the solve at that time with
+  `RESULTS.event_cascade`: it is reported, never looped.
+"""
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import equinox as eqx
+import equinox.internal as eqxi
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._core.results import RESULTS
+from . import integrate as _integrate
+
+_ROOT_ITERATIONS = 48  # worst case all bisections: 2**-48 of the step, ~1e-14 relative
+
+
+class Event(eqx.Module):
+    r"""An event: a zero crossing of `condition(t, q, q̇, params)` along a solve.
+
+    Pass one or a list to [`lagrax.simulate`][] (`events=`) or [`lagrax.sweep`][].
+    After each accepted step the solver compares the sign of the condition at the step's
+    ends; where it changed (in `direction`), the crossing time `t*` is found on the
+    step's dense output (the solver's interpolant) by a bracketed Newton–bisection
+    iteration, to a few ulps of `t` (the interpolant's own error, about the solver's
+    tolerance, is the limit on `t*`). Crossings are recorded in
+    `Solution.events` (time and state). At most one crossing of an event per step
+    is seen: a condition that crosses zero twice within one step is missed (as in SciPy's
+    `solve_ivp`): tighten the tolerances or use `dt0`/`max_steps` accordingly.
+
+    A zero of the condition at the start, or right after a reset of this event, is not a
+    crossing: the sign there is taken from the condition's rate `ġ` along the motion.
+
+    **Arguments:**
+
+    - `condition`: `condition(t, q, qd, params) -> scalar`, the function whose zeros
+      are the events (e.g. `lambda t, q, qd, p: q[0]` for a pendulum passing the
+      vertical; the height of a ball above the floor).
+    - `direction`: `0` (default) any crossing; `+1` only from negative to positive;
+      `-1` only from positive to negative.
+    - `terminal`: end the solve at the first crossing (`Solution.t_end` is the root;
+      `Solution.result` is `RESULTS.event_occurred` and `ok` stays true).
+    - `reset`: `reset(t, q, qd, params) -> (q, qd)`, the state after the event, from
+      the state just before it; the solve continues from there. An impact with
+      restitution `e`: `lambda t, q, qd, p: (q, -e * qd)`. Not with `terminal`.
+    - `max_events`: the most crossings recorded (the size of the arrays in
+      `Solution.events`, default 100). One more ends the solve with
+      `RESULTS.event_cascade` (a `SimulationError` with `throw=True`): an event
+      that happens without end (a Zeno cascade of impacts) is reported, not looped.
+
+    **Raises:** `ArgumentTypeError` when `condition` or `reset` is not callable;
+    `ConfigurationError` for a `direction` other than `-1, 0, 1`, a terminal event
+    with a reset, or `max_events` not a positive integer. A condition that does not
+    return a scalar, or a reset that does not return `(q, qd)` of the state's shapes,
+    raise a `ShapeError` from `simulate`.
+
+    **Example:**
+
+    ```python
+    floor = lagrax.Event(lambda t, q, qd, p: q[0], direction=-1,
+                         reset=lambda t, q, qd, p: (q, -0.8 * qd))
+    sol = lagrax.simulate(ball, [1.0], [0.0], params, t1=3.0, events=floor)
+    sol.events[0].times[: sol.events[0].count]   # the bounce times
+    ```
+    """
+
+    condition: Callable[..., Any]
+    direction: int = eqx.field(default=0, static=True)
+    terminal: bool = eqx.field(default=False, static=True)
+    reset: Callable[..., Any] | None = None
+    max_events: int = eqx.field(default=100, static=True)
+
+    def __check_init__(self):
+        if not callable(self.condition):
+            raise ArgumentTypeError(
+                "Event needs a function condition(t, q, qd, params) -> scalar, got "
+                f"{type(self.condition).__name__}: {self.condition!r}"
+            )
+        if self.reset is not None and not callable(self.reset):
+            raise ArgumentTypeError(
+                "Event's reset must be a function reset(t, q, qd, params) -> (q, qd) or "
+                f"None, got {type(self.reset).__name__}: {self.reset!r}"
+            )
+        if isinstance(self.direction, bool) or self.direction not in (-1, 0, 1):
+            raise ConfigurationError(
+                f"Event's direction must be -1 (crossing downwards), 0 (either way) or +1 "
+                f"(upwards), got direction={self.direction!r}"
+            )
+        if not isinstance(self.terminal, (bool, np.bool_)):
+            raise ArgumentTypeError(
+                f"Event's terminal must be True or False, got {self.terminal!r}"
+            )
+        if self.terminal and self.reset is not None:
+            raise ConfigurationError(
+                "an Event is either terminal (the solve ends at it) or has a reset (the "
+                "solve continues from the reset state), not both: drop one of terminal=True "
+                "and reset="
+            )
+        if (
+            isinstance(self.max_events, (bool, np.bool_))
+            or not isinstance(self.max_events, (int, np.integer))
+            or self.max_events < 1
+        ):
+            raise ConfigurationError(
+                f"Event's max_events must be a positive integer (the most crossings "
+                f"recorded), got max_events={self.max_events!r}"
+            )
+
+
+class EventRecord(eqx.Module):
+    """The crossings of one [`Event`][lagrax.Event] found along a solve.
+
+    **Fields:** (`K` is the event's `max_events`; under `vmap` or in a sweep every
+    field gains the batch axes in front)
+
+    - `times`: the crossing times in order, shape `(K,)`; entries past `count` are
+      `inf`.
+    - `q`, `qd`: the state at each crossing (before a reset), shape `(K, n)`;
+      `inf` past `count`.
+    - `count`: how many crossings were recorded (an `int32` scalar).
+
+    `record.times[: record.count]` are the crossings of an eager solve.
+    """
+
+    times: Float[Array, " K"]
+    q: Float[Array, "K n"]
+    qd: Float[Array, "K n"]
+    count: Int[Array, ""]
+
+    @property
+    def first(self) -> Float[Array, ""]:
+        """The first crossing time (`inf` when there was none)."""
+        return self.times[..., 0]
+
+
+def as_events(events: Any) -> tuple[Event, ...] | None:
+    """`events=` as a tuple of [`Event`][lagrax.Event] (`None` for none), or an error."""
+    if events is None:
+        return None
+    if isinstance(events, Event):
+        return (events,)
+    if isinstance(events, Sequence) and not isinstance(events, str):
+        events = tuple(events)
+        for i, ev in enumerate(events):
+            if not isinstance(ev, Event):
+                raise ArgumentTypeError(
+                    f"events must be a lagrax.Event or a sequence of them; events[{i}] is a "
+                    f"{type(ev).__name__}: {ev!r}. Wrap a condition function as "
+                    "lagrax.Event(condition)"
+                )
+        return events or None
+    raise ArgumentTypeError(
+        f"events must be a lagrax.Event or a sequence of them, got {type(events).__name__}: "
+        f"{events!r}. Wrap a condition function as lagrax.Event(condition)"
+    )
+
+
+def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
+    """Shapes of every condition (a scalar) and reset (`(q, qd)` as the state), from
+    their traces at the initial state: a `ShapeError` naming the event otherwise."""
+    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+
+    def call(i, name, fn):
+        try:
+            return jax.eval_shape(fn, t0, q0, qd0, params)
+        except TypeError as err:
+            raise ArgumentTypeError(
+                f"events[{i}]: {name}(t, q, qd, params) cannot be called with the time, "
+                f"the state and params ({err}): it takes those four arguments"
+            ) from err
+
+    for i, ev in enumerate(events):
+        g = call(i, "condition", ev.condition)
+        shape = getattr(g, "shape", None)
+        if shape is None or shape != () or not jnp.issubdtype(g.dtype, jnp.floating):
+            what = f"shape {shape}" if shape is not None else type(g).__name__
+            if shape == () and not jnp.issubdtype(g.dtype, jnp.floating):
+                what = f"dtype {g.dtype}"
+            raise ShapeError(
+                f"events[{i}]: condition(t, q, qd, params) must return a real scalar, got "
+                f"{what}: return one number whose sign change marks the event (e.g. "
+                "q[0], not q)"
+            )
+        if ev.reset is None:
+            continue
+        out = call(i, "reset", ev.reset)
+        ok = isinstance(out, (tuple, list)) and len(out) == 2
+        if ok:
+            ok = all(getattr(o, "shape", None) == q0.shape for o in out)
+        if not ok:
+            got = (
+                tuple(getattr(o, "shape", type(o).__name__) for o in out)
+                if isinstance(out, (tuple, list))
+                else getattr(out, "shape", type(out).__name__)
+            )
+            raise ShapeError(
+                f"events[{i}]: reset(t, q, qd, params) must return the pair (q, qd), each "
+                f"of shape {q0.shape}, got {got}"
+            )
+
+
+def _crossed(direction: int, g_a, g_b):
+    up = (g_a <= 0) & (g_b > 0)
+    down = (g_a >= 0) & (g_b < 0)
+    if direction > 0:
+        return up
+    if direction < 0:
+        return down
+    return up | down
+
+
+def _along(ev: Event, t, y, field, args):
+    """`g` and its rate `ġ` along the motion at `(t, y)`."""
+    params = args[0]
+    _, qdd = field(t, y, args)
+    q, qd = y
+    return jax.jvp(
+        lambda s, a, b: jnp.asarray(ev.condition(s, a, b, params), q.dtype),
+        (t, q, qd),
+        (jnp.ones_like(t), qd, qdd),
+    )
+
+
+def _signed(g, rate):
+    """`g`, with an exact zero replaced by a tiny number of the sign of its rate."""
+    tiny = jnp.finfo(g.dtype).tiny
+    return jnp.where(g == 0, jnp.sign(rate) * tiny, g)
+
+
+def _locate(ev: Event, solver, dense, ta, tb, g_a, g_b, params):
+    """The root of `g(t) = condition(t, y(t))` on the interpolant of `[ta, tb]`,
+    bracketed by the signs `g_a`, `g_b`: Newton steps where they stay inside the
+    shrinking bracket and halve it at least, bisection otherwise (a fixed number of
+    iterations, so it runs inside a reverse-differentiable loop); a last Newton step
+    makes the root's derivatives those of the implicit function `g(t*) = 0`."""
+
+    def g(t):
+        q, qd = _integrate.interpolate(solver, dense, ta, tb, t)
+        return jnp.asarray(ev.condition(t, q, qd, params), q.dtype)
+
+    def g_and_rate(t):
+        return jax.jvp(g, (t,), (jnp.ones_like(t),))
+
+    neg_a = g_a < 0
+    eps = jnp.finfo(g_a.dtype).eps
+
+    def body(_, c):
+        lo, hi, t = c
+        val, rate = g_and_rate(t)
+        same = (val < 0) == neg_a
+        lo = jnp.where(same, t, lo)
+        hi = jnp.where(same, hi, t)
+        lo = jnp.where(val == 0, t, lo)
+        hi = jnp.where(val == 0, t, hi)
+        step = val / jnp.where(rate == 0, jnp.inf, rate)
+        newton = t - step
+        good = (newton > lo) & (newton < hi) & (jnp.abs(step) <= 0.5 * (hi - lo))
+        # converged: the Newton step is below the resolution of t
+        done = (val == 0) | (jnp.abs(step) <= 2 * eps * jnp.abs(t))
+        t = jnp.where(done, t, jnp.where(good, newton, 0.5 * (lo + hi)))
+        return lo, hi, t
+
+    ta_, tb_ = jax.lax.stop_gradient((ta, tb))
+    # the first guess: the secant of the bracket, away from its ends (after a reset the
+    # condition is zero at ta, which is not the crossing sought)
+    w = jnp.where(g_b != g_a, g_a / (g_a - g_b), 0.5)
+    t_first = ta_ + jnp.clip(w, 1 / 16, 15 / 16) * (tb_ - ta_)
+    lo, hi, t = jax.lax.fori_loop(
+        0, _ROOT_ITERATIONS, body, (ta_, tb_, jax.lax.stop_gradient(t_first))
+    )
+    t = jax.lax.stop_gradient(jnp.clip(t, lo, hi))
+    val, rate = g_and_rate(t)
+    polish = t - val / jnp.where(rate == 0, jnp.inf, rate)
+    return jnp.where((polish >= lo) & (polish <= hi), polish, t)
+
+
+class _Carry(eqx.Module):
+    state: _integrate.StepState
+    ys: Any  # the saves
+    g: jax.Array  # (E,) each condition (signed, see _signed) at state.t
+    times: tuple  # per event (K,)
+    qs: tuple  # per event (K, n)
+    qds: tuple
+    counts: jax.Array  # (E,) int32
+    t_reset: jax.Array  # the time of the last reset (-inf before any)
+
+
+def integrate_events(
+    term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int, events, field
+):
+    """`integrate.integrate` with `events` (a tuple of [`Event`][lagrax.Event]).
+
+    **Returns:** `(ys, state, records)`: as `integrate`, plus one
+    [`EventRecord`][lagrax.EventRecord] per event.
+    """
+    n_save = ts.shape[0]
+    n_events = len(events)
+    params = args[0]
+    state = _integrate.init_state(term, solver, controller, t0, t1, y0, dt0, args)
+    ys = jtu.tree_map(lambda a: jnp.full((n_save,) + jnp.shape(a), jnp.inf, a.dtype), y0)
+    q0 = y0[0]
+    dtype = q0.dtype
+    inf = jnp.asarray(jnp.inf, dtype)
+
+    def conditions_at(t, y, winner=None):
+        out = []
+        for i, ev in enumerate(events):
+            g, rate = _along(ev, t, y, field, args)
+            if winner is not None:
+                g = jnp.where(winner == i, jnp.zeros_like(g), g)
+            out.append(_signed(g, rate))
+        return jnp.stack(out)
+
+    init = _Carry(
+        state,
+        ys,
+        conditions_at(t0, y0),
+        tuple(jnp.full((ev.max_events,), inf) for ev in events),
+        tuple(jnp.full((ev.max_events,) + q0.shape, inf) for ev in events),
+        tuple(jnp.full((ev.max_events,) + q0.shape, inf) for ev in events),
+        jnp.zeros((n_events,), jnp.int32),
+        jnp.asarray(-jnp.inf, dtype),
+    )
+    stops = np.asarray([ev.terminal or ev.reset is not None for ev in events])
+    resets = np.asarray([ev.reset is not None for ev in events])
+    capacity = jnp.asarray([ev.max_events for ev in events], jnp.int32)
+    no_progress = 64 * jnp.finfo(dtype).eps
+
+    def cond(c):
+        s = c.state
+        return (s.t < t1) & (s.result == RESULTS.successful)
+
+    def body(c):
+        s = c.state
+        new, keep, dense = _integrate.advance(term, solver, controller, s, args, t1, max_steps)
+        ta, tb = s.t, s.tnext
+        live = keep & (new.result == RESULTS.successful)
+        g_b = jnp.stack(
+            [jnp.asarray(ev.condition(tb, new.y[0], new.y[1], params), dtype) for ev in events]
+        )
+        crossed = jnp.stack([_crossed(ev.direction, c.g[i], g_b[i]) for i, ev in enumerate(events)])
+        crossed = crossed & live
+        roots = jnp.stack(
+            [
+                jax.lax.cond(
+                    crossed[i],
+                    lambda i=i, ev=ev: _locate(
+                        ev, solver, dense, ta, tb, c.g[i], g_b[i], params
+                    ).astype(dtype),
+                    lambda: inf,
+                )
+                for i, ev in enumerate(events)
+            ]
+        )
+        # the earliest crossing of a terminal or resetting event cuts the step there
+        stop_roots = jnp.where(crossed & stops, roots, inf)
+        winner = jnp.argmin(stop_roots)
+        t_stop = stop_roots[winner]
+        recorded = crossed & (roots <= t_stop)
+        overflow = recorded & (c.counts >= capacity)
+        zeno = jnp.isfinite(t_stop) & jnp.asarray(resets)[winner]
+        zeno = zeno & (t_stop - c.t_reset <= no_progress * jnp.maximum(jnp.abs(t_stop), 1.0))
+        t_cascade = jnp.minimum(
+            jnp.min(jnp.where(overflow, roots, inf)), jnp.where(zeno, t_stop, inf)
+        )
+        cascade = jnp.isfinite(t_cascade)
+        t_cut = jnp.minimum(t_stop, t_cascade)
+        recorded = recorded & (roots <= t_cut) & ~overflow
+
+        times, qs, qds = [], [], []
+        for i in range(n_events):
+            k = jnp.minimum(c.counts[i], capacity[i] - 1)
+            yq, yqd = _integrate.interpolate(solver, dense, ta, tb, roots[i])
+            times.append(c.times[i].at[k].set(jnp.where(recorded[i], roots[i], c.times[i][k])))
+            qs.append(c.qs[i].at[k].set(jnp.where(recorded[i], yq, c.qs[i][k])))
+            qds.append(c.qds[i].at[k].set(jnp.where(recorded[i], yqd, c.qds[i][k])))
+        counts = c.counts + recorded.astype(jnp.int32)
+
+        # saves inside the step, up to the cut
+        save_end = jnp.minimum(tb, t_cut)
+
+        def save_cond(sc):
+            return _integrate.save_due(keep, sc[0], save_end, ts)
+
+        def save_body(sc):
+            i, out = sc
+            y_t = _integrate.interpolate(solver, dense, ta, tb, ts[i])
+            return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
+
+        if n_save:
+            save_i, ys = eqxi.while_loop(
+                save_cond,
+                save_body,
+                (s.save_index, c.ys),
+                max_steps=n_save,
+                buffers=lambda sc: sc[1],
+                kind="checkpointed",
+                checkpoints=n_save,
+            )
+        else:
+            save_i, ys = s.save_index, c.ys
+        new = eqx.tree_at(lambda x: x.save_index, new, save_i)
+
+        def cut(_):
+            y_cut = _integrate.interpolate(solver, dense, ta, tb, t_cut)
+            is_reset = ~cascade & jnp.asarray(resets)[winner]
+            if resets.any():
+                branches = [
+                    (lambda y, ev=ev: y)
+                    if ev.reset is None
+                    else (
+                        lambda y, ev=ev: tuple(
+                            jnp.asarray(v, dtype).reshape(q0.shape)
+                            for v in ev.reset(t_cut, y[0], y[1], params)
+                        )
+                    )
+                    for ev in events
+                ]
+                y_after = jax.lax.switch(winner, branches, y_cut)
+                y_next = _integrate.tree_where(is_reset, y_after, y_cut)
+            else:
+                y_next = y_cut
+            result = RESULTS.where(
+                cascade,
+                RESULTS.event_cascade,
+                RESULTS.where(is_reset, RESULTS.successful, RESULTS.event_occurred),
+            )
+            tnext = jnp.minimum(t_cut + (tb - ta), t1)
+            sstate = solver.init(term, t_cut, tnext, y_next, args)
+            g = conditions_at(t_cut, y_next, jnp.where(is_reset, winner, -1))
+            t_reset = jnp.where(is_reset, t_cut, c.t_reset)
+            return (
+                eqx.tree_at(
+                    lambda x: (x.t, x.tnext, x.y, x.solver_state, x.result),
+                    new,
+                    (t_cut, tnext, y_next, sstate, result),
+                ),
+                g,
+                t_reset,
+            )
+
+        def through(_):
+            return new, jnp.where(keep, g_b, c.g), c.t_reset
+
+        new, g, t_reset = jax.lax.cond(jnp.isfinite(t_cut), cut, through, None)
+        return _Carry(new, ys, g, tuple(times), tuple(qs), tuple(qds), counts, t_reset)
+
+    out = eqxi.while_loop(
+        cond, body, init, max_steps=max_steps, buffers=lambda c: c.ys, kind="checkpointed"
+    )
+    records = tuple(
+        EventRecord(out.times[i], out.qs[i], out.qds[i], out.counts[i]) for i in range(n_events)
+    )
+    return out.ys, out.state, records
+
+
+def cascade_message(events: tuple[Event, ...], records, t_end) -> str:
+    """Why a solve ended with `RESULTS.event_cascade`: which event, when, how often."""
+    parts = []
+    for i, (ev, rec) in enumerate(zip(events, records, strict=True)):
+        count = int(rec.count)
+        times = np.asarray(rec.times)[:count]
+        last = f", the last at t={times[-1]:.12g}" if count else ""
+        parts.append(f"events[{i}]: {count} of max_events={ev.max_events} recorded{last}")
+    return (
+        f"an event cascade at t={float(t_end):.12g}: an event occurred more than its "
+        "max_events times, or a reset event recurred at the time of the previous one "
+        "(events accumulating at a point, e.g. a bouncing ball with restitution < 1 "
+        "comes to rest after infinitely many impacts in finite time). "
+        + "; ".join(parts)
+        + ". The solve stopped there; model the resting contact (e.g. a terminal event "
+        "when the rebound speed is small), or raise max_events if the events are real."
+    )

@@ -1,0 +1,248 @@
+"""A lean stepping loop for one trajectory, on diffrax's own steps.
+
+`diffrax.diffeqsolve` is general: events, jump times, several kinds of saving, progress
+meters, SDEs. Each of those costs a little on every step, and for the small systems
+mechanics produces (n = 1 … 10 coordinates) the step itself is cheap, so the machinery
+dominates: about 4 µs a step for the 2R arm against well under 1 µs for the stepping alone.
+
+`integrate` keeps only what `simulate` needs: `solver.step`, the step-size
+controller's `adapt_step_size`, diffrax's clipping of the last step to `t1`, and
+dense output at the save times (`solver.interpolation_cls`). Each step is therefore the
+one `diffeqsolve` would take. The loops are `equinox.internal.while_loop` with
+`kind="checkpointed"` (as diffrax's default adjoint), so reverse-mode `jax.grad`
+works through them with recursive checkpointing, and the saved outputs are written in
+place (`buffers`).
+
+The engine is `StepState` with `init_state` / `advance` (one attempted step, its
+counts and result) and `interpolate` / `save_due` (dense saving). `integrate` is the
+single-trajectory scheduler over it; the sweep's lane queue (`lanes.run_lanes`) is the
+other, running `advance` under `vmap`.
+"""
+
+from typing import Any
+
+import diffrax as dfx
+import equinox as eqx
+import equinox.internal as eqxi
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+import numpy as np
+
+from .._core.results import RESULTS, code_of
+
+DEFAULT_DT0 = 0.01
+
+
+def tree_where(pred, a, b):
+    """`where` over matching pytrees, broadcasting a (batched) scalar `pred`."""
+
+    def pick(x, y):
+        if not (eqx.is_array(x) or eqx.is_array(y)):
+            return x  # static (Python) leaves, e.g. a solver's flags
+        x, y = jnp.asarray(x), jnp.asarray(y)
+        p = pred.reshape(pred.shape + (1,) * (x.ndim - pred.ndim))
+        return jnp.where(p, x, y)
+
+    return jtu.tree_map(pick, a, b)
+
+
+def t1_floor(t1):
+    """diffrax snaps a step end within ~100 ulps of `t1` to `t1`."""
+    return t1 - 100 * jnp.finfo(t1.dtype).eps * jnp.maximum(jnp.abs(t1), 1.0)
+
+
+def init(term, solver, controller, t0, t1, y0, dt0, args):
+    """`(tnext, solver_state, controller_state)` at the start of a solve."""
+    if dt0 is None:
+        # What diffeqsolve ends up doing: it wraps the terms (diffrax.WrapTerm), and its
+        # PID controller's initial-step heuristic then falls back to 0.01. Matching it
+        # keeps the step sequence that of diffeqsolve.
+        dt0 = jnp.asarray(DEFAULT_DT0, t0.dtype)
+    error_order = solver.error_order(term)
+    tnext, cstate = controller.init(term, t0, t1, y0, dt0, args, solver.func, error_order)
+    tnext = jnp.minimum(tnext, t1)
+    sstate = solver.init(term, t0, tnext, y0, args)
+    return tnext, sstate, cstate
+
+
+def step(term, solver, controller, t, tnext, y, args, sstate, cstate, t1):
+    """One attempted step `[t, tnext]`, accepted or rejected by the controller.
+
+    **Returns:** `(keep, tprev, tnew, y, solver_state, controller_state, result, dense)`:
+    whether the step was accepted, the new current time (`tnext` if accepted, else
+    `t`), the end of the next attempt (clipped to `t1`), the state at `tprev`, the
+    new solver/controller states, a `RESULTS` code and the dense-output information of
+    the attempt.
+    """
+    error_order = solver.error_order(term)
+    y1, y_err, dense, sstate1, sres = solver.step(term, t, tnext, y, args, sstate, False)
+    if y_err is not None:  # a NaN error would be accepted by nothing: reject, shrink
+        y_err = jtu.tree_map(lambda e: jnp.where(jnp.isnan(e), jnp.inf, e), y_err)
+    keep, tprev, tnew, _, cstate1, cres = controller.adapt_step_size(
+        t, tnext, y, y1, args, y_err, error_order, cstate
+    )
+    keep = jnp.asarray(keep)
+    tprev = jnp.minimum(tprev, t1)
+    clip = jnp.where(keep, t1, tprev + 0.5 * (t1 - tprev))
+    tnew = jnp.where(tnew > t1_floor(t1), clip, tnew)
+    # explicit methods report a constant success: skip the eager ops on constants (each
+    # would compile a tiny kernel during tracing, ~0.1 s in all on the first call)
+    sres, cres = _promote(sres), _promote(cres)
+    if _known_success(sres):
+        res = cres
+    else:
+        sres = RESULTS.where(keep, sres, RESULTS.successful)
+        res = RESULTS.where(sres == RESULTS.successful, cres, sres)
+    y_next = tree_where(keep, y1, y)
+    sstate_next = tree_where(keep, sstate1, sstate)
+    return keep, tprev, tnew, y_next, sstate_next, cstate1, res, dense
+
+
+def _known_success(result) -> bool:
+    """Whether `result` is the constant `RESULTS.successful` (known at trace time)."""
+    value = code_of(result)
+    if isinstance(value, jax.core.Tracer):
+        return False
+    return bool(np.all(np.asarray(value) == np.asarray(code_of(RESULTS.successful))))
+
+
+def _promote(result):
+    """`RESULTS.promote`, without eager ops when `result` is a constant success."""
+    return RESULTS.successful if _known_success(result) else RESULTS.promote(result)
+
+
+def all_finite(y) -> jax.Array:
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in jtu.tree_leaves(y)]))
+
+
+class StepState(eqx.Module):
+    """The state of one trajectory between two attempted steps.
+
+    Both schedulers carry it: `integrate` one of them, the lane queue
+    (`lanes.run_lanes`) one per lane under `vmap`.
+    """
+
+    t: jax.Array  # the current time (the end of the last accepted step)
+    tnext: jax.Array  # the end of the next attempted step
+    y: Any  # the state at t
+    solver_state: Any
+    controller_state: Any
+    num_steps: jax.Array  # attempted steps so far
+    num_accepted_steps: jax.Array
+    save_index: jax.Array  # how many of the save times have been written
+    result: RESULTS
+
+
+def init_state(term, solver, controller, t0, t1, y0, dt0, args) -> StepState:
+    """The `StepState` at the start of a solve."""
+    tnext, sstate, cstate = init(term, solver, controller, t0, t1, y0, dt0, args)
+    zero = jnp.asarray(0, jnp.int32)
+    return StepState(t0, tnext, y0, sstate, cstate, zero, zero, zero, RESULTS.successful)
+
+
+def advance(term, solver, controller, state: StepState, args, t1, max_steps: int):
+    """One attempted step from `state`, with the step counts and the result updated.
+
+    The result becomes the solver's or controller's failure, `non_finite_state` as soon
+    as an accepted state is not finite, or `max_steps_reached` when the budget is spent
+    before `t1`.
+
+    **Returns:** `(new_state, keep, dense)`: whether the step was accepted, and the
+    dense-output information of the attempt over `[state.t, state.tnext]`.
+    """
+    keep, tprev, tnew, y, sstate, cstate, res, dense = step(
+        term,
+        solver,
+        controller,
+        state.t,
+        state.tnext,
+        state.y,
+        args,
+        state.solver_state,
+        state.controller_state,
+        t1,
+    )
+    steps = state.num_steps + 1
+    result = RESULTS.where(all_finite(y), res, RESULTS.non_finite_state)
+    out_of_steps = (steps >= max_steps) & (tprev < t1) & (result == RESULTS.successful)
+    result = RESULTS.where(out_of_steps, RESULTS.max_steps_reached, result)
+    new = StepState(
+        tprev,
+        tnew,
+        y,
+        sstate,
+        cstate,
+        steps,
+        state.num_accepted_steps + keep,
+        state.save_index,
+        result,
+    )
+    return new, keep, dense
+
+
+def interpolate(solver, dense, ta, tb, t):
+    """The solver's dense output of the attempted step `[ta, tb]`, evaluated at `t`."""
+    return solver.interpolation_cls(t0=ta, t1=tb, **dense).evaluate(t)
+
+
+def save_due(keep, i, tnext, ts):
+    """Whether save time `ts[i]` lies inside the accepted step that ends at `tnext`."""
+    n_save = ts.shape[0]
+    return keep & (i < n_save) & (ts[jnp.minimum(i, n_save - 1)] <= tnext)
+
+
+def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int):
+    """Solve `y' = f(t, y, args)` on `[t0, t1]` and save at `ts`: the
+    single-trajectory scheduler over `advance`.
+
+    **Arguments:** as `diffrax.diffeqsolve`; `ts` are sorted save times inside
+    `[t0, t1]`, `max_steps` the budget of attempted steps.
+
+    **Returns:** `(ys, state)`: the states at `ts` (`inf` where not reached) and the
+    final `StepState` (the last time and state reached, `t1` on success; the
+    `RESULTS` code; the step counts; how many of `ts` were reached).
+    """
+    n_save = ts.shape[0]
+    state = init_state(term, solver, controller, t0, t1, y0, dt0, args)
+    ys = jtu.tree_map(lambda a: jnp.full((n_save,) + jnp.shape(a), jnp.inf, a.dtype), y0)
+
+    def cond(carry):
+        s, _ = carry
+        return (s.t < t1) & (s.result == RESULTS.successful)
+
+    def body(carry):
+        s, ys = carry
+        new, keep, dense = advance(term, solver, controller, s, args, t1, max_steps)
+        if not n_save:
+            return new, ys
+
+        def save_cond(c):
+            return save_due(keep, c[0], s.tnext, ts)
+
+        def save_body(c):
+            i, out = c
+            y_t = interpolate(solver, dense, s.t, s.tnext, ts[i])
+            return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
+
+        save_i, ys = eqxi.while_loop(
+            save_cond,
+            save_body,
+            (s.save_index, ys),
+            max_steps=n_save,
+            buffers=lambda c: c[1],
+            kind="checkpointed",
+            checkpoints=n_save,
+        )
+        return eqx.tree_at(lambda x: x.save_index, new, save_i), ys
+
+    state, ys = eqxi.while_loop(
+        cond, body, (state, ys), max_steps=max_steps, buffers=lambda c: c[1], kind="checkpointed"
+    )
+    return ys, state
+
+
+def is_lean(controller: dfx.AbstractStepSizeController | None) -> bool:
+    """Whether `integrate` reproduces `diffeqsolve` with this controller."""
+    # (diffrax's step_ts / jump_ts live in ClipStepSizeController, which is not lean)
+    return controller is None or type(controller) in (dfx.ConstantStepSize, dfx.PIDController)

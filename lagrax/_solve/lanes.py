@@ -1,0 +1,327 @@
+"""A work queue of ODE solves on a fixed number of vectorized lanes.
+
+Under `vmap`, `diffrax.diffeqsolve` steps every member of a batch until the slowest
+one has finished; members that are done ride along as masked padding. For a sweep of a
+chaotic or stiff model the step counts differ by large factors, and that padding is a
+large share of the work.
+
+`run_lanes` instead keeps `L` lanes busy: each lane integrates one member; when a
+member finishes (reaches `t1`, runs out of steps, or blows up) its results are written
+to the output and the lane is refilled with the next member of the queue, all inside one
+compiled program. The schedule, in three phases:
+
+1. the lanes start free, and the first members fill them, `refill` at a time;
+2. while members are left to start: lanes step until `refill` of them are free (or
+   as many as there are members left), then one block of `refill` members is started
+   on them. A refill initializes only those `refill` members (a fraction of a step's
+   work), so it can be frequent; the stepping loop has no branch inside, so each step
+   is one loop iteration with a single loop test (on an accelerator: one device-to-host
+   read of the predicate), and the refill branch is taken once per block;
+3. when the queue is empty, the lanes still busy finish. This tail is where lanes idle:
+   with `tail_lanes` (`2 <= tail_lanes < L`), once no more than `tail_lanes`
+   members are left, they are gathered into a second, narrower loop of `tail_lanes`
+   lanes (one extra compiled loop body), so the slowest members no longer drag `L`
+   lanes along.
+
+Every member takes the same steps whatever its lane, block or phase: the arithmetic is
+elementwise over lanes, so its numbers do not depend on the schedule (bitwise, for loops
+of two lanes and more: a one-lane loop may round differently, so the tail loop is never
+narrower than two).
+
+The stepping is diffrax's own, through `integrate.advance` (shared with `simulate`'s
+single-trajectory loop): `solver.step`, `stepsize_controller.adapt_step_size`, the
+same clipping to `t1` and the same dense output at the save times, so each member takes
+the steps `diffeqsolve` would take for it (up to round-off in the controller).
+"""
+
+from functools import partial
+from typing import Any
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+
+from .._core.results import RESULTS, code_of
+from . import integrate as _integrate
+
+_OK = int(code_of(RESULTS.successful))
+
+
+class LaneOutput(eqx.Module):
+    """What `run_lanes` returns, indexed by member (leading axis `M`)."""
+
+    ys: Any  # pytree of (M, S, ...): the state at the save times (inf where not reached)
+    y_end: Any  # pytree of (M, ...): the last state reached
+    t_end: jax.Array  # (M,)
+    result: jax.Array  # (M,) int code of lagrax.RESULTS
+    num_steps: jax.Array  # (M,)
+    num_accepted_steps: jax.Array  # (M,)
+    num_rejected_steps: jax.Array  # (M,)
+    busy_lane_steps: jax.Array  # () lane-steps spent on members
+    lane_steps: jax.Array  # () lane-steps in all (busy + idle)
+    event_count: Any = None  # (M, E) with events (lock-step schedule only)
+    event_first: Any = None  # (M, E) the first crossing time of each event (inf: none)
+
+
+class _Queue(eqx.Module):
+    """The lanes and the queue position (the loop state of `run_lanes`)."""
+
+    lane: _integrate.StepState  # (L,): one trajectory per lane
+    member: Any  # (L, ...): each lane's member arguments
+    idx: jax.Array  # (L,) which member each lane integrates (M: none)
+    active: jax.Array  # (L,) whether the lane holds an unfinished member
+    next: jax.Array  # () the next member to start
+    busy: jax.Array  # () lane-steps spent on members so far
+    lane_steps: jax.Array  # () lane-steps in all so far (loop iterations x their width)
+
+
+class _Outputs(eqx.Module):
+    """Per-member results, written when a member finishes (leading axis `M`)."""
+
+    ys: Any
+    y_end: Any
+    t_end: jax.Array
+    result: jax.Array
+    num_steps: jax.Array
+    num_accepted_steps: jax.Array
+
+
+_where = _integrate.tree_where
+
+
+def _take(tree, idx):
+    return jtu.tree_map(lambda a: a[idx], tree)
+
+
+def _scatter(out, rows, vals):
+    return jtu.tree_map(lambda o, v: o.at[rows].set(v, mode="drop"), out, vals)
+
+
+def default_refill(n_lanes: int) -> int:
+    """The refill block of `run_lanes` when none is given: a sixteenth of the lanes."""
+    return max(1, n_lanes // 16)
+
+
+def _scatter_rows(tree, rows, vals):
+    """`tree[rows] = vals` over matching pytrees (rows out of range are dropped); static
+    (Python) leaves pass through."""
+
+    def put(a, v):
+        if not (eqx.is_array(a) or eqx.is_array(v)):
+            return a
+        return jnp.asarray(a).at[rows].set(v, mode="drop")
+
+    return jtu.tree_map(put, tree, vals)
+
+
+def _gather_rows(tree, rows):
+    return jtu.tree_map(lambda a: a[rows] if eqx.is_array(a) else a, tree)
+
+
+def run_lanes(
+    term: dfx.AbstractTerm,
+    solver: dfx.AbstractSolver,
+    controller: dfx.AbstractStepSizeController,
+    members: Any,
+    y0s: Any,
+    extra_args: Any,
+    t0: jax.Array,
+    t1: jax.Array,
+    dt0: jax.Array | None,
+    ts: jax.Array,
+    n_lanes: int,
+    max_steps: int,
+    *,
+    refill: int | None = None,
+    tail_lanes: int = 0,
+) -> LaneOutput:
+    """Solve `y' = f(t, y, (member, extra_args))` for every member on `n_lanes` lanes.
+
+    **Arguments:**
+
+    - `term`, `solver`, `controller`: as for `diffrax.diffeqsolve`.
+    - `members`: pytree whose leaves have a leading axis `M` (per-member arguments).
+    - `y0s`: pytree of initial states with leading axis `M`.
+    - `extra_args`: arguments shared by all members.
+    - `t0`, `t1`, `dt0`: the interval, and the first step (`None`: chosen by the
+      controller, as in diffrax).
+    - `ts`: save times, sorted, inside `[t0, t1]`; may be empty.
+    - `n_lanes`: number of members integrated at once.
+    - `max_steps`: step budget per member (accepted + rejected).
+    - `refill`: members started per refill (default `default_refill`).
+    - `tail_lanes`: width of the narrower loop the last members finish on once the
+      queue is empty (none when below 2 or not below `n_lanes`).
+
+    **Returns:** a `LaneOutput`.
+    """
+    n_members = jtu.tree_leaves(y0s)[0].shape[0]
+    n_lanes = max(1, min(n_lanes, n_members))
+    block = default_refill(n_lanes) if refill is None else max(1, min(refill, n_lanes))
+    # (a one-lane loop may round differently from a vectorized one: never narrower than 2)
+    tail = tail_lanes if 2 <= tail_lanes < n_lanes else 0
+    n_save = ts.shape[0]
+    tdt = t0.dtype
+
+    def init_lane(member, y0):
+        return _integrate.init_state(
+            term, solver, controller, t0, t1, y0, dt0, (member, extra_args)
+        )
+
+    def advance_lane(state, member):
+        return _integrate.advance(
+            term, solver, controller, state, (member, extra_args), t1, max_steps
+        )
+
+    def outputs(x, extra=()):
+        return jtu.tree_map(lambda a: jnp.full((n_members,) + extra + a.shape, jnp.inf, a.dtype), x)
+
+    # A template lane (member 0) fixes the shapes of the per-lane state; all lanes start
+    # free, and the first refills (before any step) fill them block by block.
+    member0 = _take(members, 0)
+    lane0 = init_lane(member0, _take(y0s, 0))
+
+    def lanes(x):
+        return jtu.tree_map(lambda a: jnp.broadcast_to(a, (n_lanes,) + jnp.shape(a)), x)
+
+    count = jnp.int64 if jax.config.jax_enable_x64 else jnp.int32
+    queue = _Queue(
+        lane=lanes(lane0),
+        member=lanes(member0),
+        idx=jnp.full(n_lanes, n_members, jnp.int32),  # n_members: no member
+        active=jnp.zeros(n_lanes, bool),
+        next=jnp.asarray(0, jnp.int32),
+        busy=jnp.asarray(0, count),
+        lane_steps=jnp.asarray(0, count),
+    )
+    out = _Outputs(
+        ys=outputs(lane0.y, (n_save,)),
+        y_end=outputs(lane0.y),
+        t_end=jnp.full(n_members, jnp.inf, tdt),
+        result=jnp.full(n_members, _OK, jnp.int32),
+        num_steps=jnp.zeros(n_members, jnp.int32),
+        num_accepted_steps=jnp.zeros(n_members, jnp.int32),
+    )
+
+    def n_active(q: _Queue):
+        return jnp.sum(q.active, dtype=jnp.int32)
+
+    def want_refill(q: _Queue):
+        # a block of free lanes, or as many as there are members left to start
+        left = n_members - q.next
+        return (left > 0) & (q.active.shape[0] - n_active(q) >= jnp.minimum(block, left))
+
+    def start_block(q: _Queue) -> _Queue:
+        # the first `block` free lanes take the next members; only those are initialized
+        width = q.active.shape[0]
+        free = jnp.nonzero(~q.active, size=block, fill_value=width)[0]
+        j = jnp.arange(block, dtype=jnp.int32)
+        new_idx = q.next + j
+        take = (free < width) & (new_idx < n_members)
+        src = jnp.where(take, new_idx, 0)
+        member = _take(members, src)
+        fresh = jax.vmap(init_lane)(member, _take(y0s, src))
+        dst = jnp.where(take, free, width)  # width: dropped by the scatter
+        return _Queue(
+            lane=_scatter_rows(q.lane, dst, fresh),
+            member=_scatter_rows(q.member, dst, member),
+            idx=q.idx.at[dst].set(new_idx, mode="drop"),
+            active=q.active.at[dst].set(True, mode="drop"),
+            next=q.next + jnp.sum(take, dtype=jnp.int32),
+            busy=q.busy,
+            lane_steps=q.lane_steps,
+        )
+
+    def step(carry):
+        q, out = carry
+        active, old = q.active, q.lane
+        new, keep, dense = jax.vmap(advance_lane)(old, q.member)
+        keep = keep & active
+        rows = jnp.where(active, q.idx, n_members)  # n_members: dropped by the scatter
+
+        ys, save_i = out.ys, new.save_index
+        if n_save:
+            # dense output at the save times inside the accepted step [t, tnext]
+            def pending(carry):
+                return _integrate.save_due(keep, carry[1], old.tnext, ts)
+
+            def save_body(carry):
+                ys, i = carry
+                go = pending(carry)
+                ic = jnp.minimum(i, n_save - 1)
+                y_t = jax.vmap(partial(_integrate.interpolate, solver))(
+                    dense, old.t, old.tnext, ts[ic]
+                )
+                r = jnp.where(go, rows, n_members)
+                ys = jtu.tree_map(lambda o, v: o.at[r, ic].set(v, mode="drop"), ys, y_t)
+                return ys, jnp.where(go, i + 1, i)
+
+            ys, save_i = jax.lax.while_loop(lambda c: jnp.any(pending(c)), save_body, (ys, save_i))
+        new = eqx.tree_at(lambda x: x.save_index, new, save_i)
+        lane = _where(active, new, old)  # idle lanes stay as they are
+        code = code_of(lane.result)
+        end = active & ((lane.t >= t1) | (code != _OK))
+        end_rows = jnp.where(end, rows, n_members)
+        out = _Outputs(
+            ys=ys,
+            y_end=_scatter(out.y_end, end_rows, lane.y),
+            t_end=out.t_end.at[end_rows].set(lane.t, mode="drop"),
+            result=out.result.at[end_rows].set(code, mode="drop"),
+            num_steps=out.num_steps.at[end_rows].set(lane.num_steps, mode="drop"),
+            num_accepted_steps=out.num_accepted_steps.at[end_rows].set(
+                lane.num_accepted_steps, mode="drop"
+            ),
+        )
+        q = _Queue(
+            lane=lane,
+            member=q.member,
+            idx=q.idx,
+            active=active & ~end,
+            next=q.next,
+            busy=q.busy + jnp.sum(active),
+            lane_steps=q.lane_steps + active.shape[0],
+        )
+        return q, out
+
+    def keep_wide(q: _Queue):
+        # the wide loop runs while members are left to start, then (with a tail loop)
+        # until no more than `tail` members are unfinished
+        return (q.next < n_members) | (n_active(q) > tail)
+
+    # phase 2: step until a refill is due (or the wide phase is over), refill, repeat
+    def stepping(carry):
+        q, _ = carry
+        return keep_wide(q) & ~want_refill(q)
+
+    def wide(carry):
+        q, out = jax.lax.while_loop(stepping, step, carry)
+        q = jax.lax.cond(want_refill(q), start_block, lambda x: x, q)
+        return q, out
+
+    q, out = jax.lax.while_loop(lambda c: keep_wide(c[0]), wide, (queue, out))
+
+    # phase 3: the last (at most `tail`) members finish on `tail` lanes
+    if tail:
+        rows = jnp.nonzero(q.active, size=tail, fill_value=0)[0]
+        q = _Queue(
+            lane=_gather_rows(q.lane, rows),
+            member=_gather_rows(q.member, rows),
+            idx=q.idx[rows],
+            active=q.active[rows] & (jnp.arange(tail) < n_active(q)),
+            next=q.next,
+            busy=q.busy,
+            lane_steps=q.lane_steps,
+        )
+        q, out = jax.lax.while_loop(lambda c: jnp.any(c[0].active), step, (q, out))
+    return LaneOutput(
+        ys=out.ys,
+        y_end=out.y_end,
+        t_end=out.t_end,
+        result=out.result,
+        num_steps=out.num_steps,
+        num_accepted_steps=out.num_accepted_steps,
+        num_rejected_steps=out.num_steps - out.num_accepted_steps,
+        busy_lane_steps=q.busy,
+        lane_steps=q.lane_steps,
+    )

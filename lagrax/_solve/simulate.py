@@ -1,0 +1,675 @@
+"""One trajectory: `simulate`, on diffrax's steps."""
+
+import collections
+import functools
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import diffrax as dfx
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._core import checks as _checks
+from .._core.custom_types import Coordinates, Params, Velocities
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError, SimulationError
+from .._core.results import RESULTS, code_of, messages
+from .._systems.abstract import AbstractSystem, host_state
+from .._systems.vector_field import LagrangianVectorField, TauFn
+from ..integrators import Variational
+from . import events as _events
+from . import integrate as _integrate
+from .diagnose import diagnose
+from .events import Event
+from .methods import configure
+from .solution import Solution
+
+
+class SolveConfig(eqx.Module):
+    """What fixes the compiled program of a solve: the model and the method.
+
+    `simulate` compiles one program per configuration and caches it; `sweep` runs
+    the same solve under `vmap` or on its lane queue.
+    """
+
+    system: AbstractSystem
+    solver: dfx.AbstractSolver
+    tau_fn: Callable | None = None
+    stepsize_controller: dfx.AbstractStepSizeController | None = None
+    saveat: dfx.SaveAt | None = None
+    adjoint: dfx.AbstractAdjoint | None = None
+    n_save: int = eqx.field(default=0, static=True)
+    max_steps: int = eqx.field(default=100_000, static=True)
+    events: tuple[_events.Event, ...] | None = None
+
+
+class SolveInputs(eqx.Module):
+    """The arrays of a solve: changing them does not recompile."""
+
+    y0: tuple[Any, Any]
+    params: Any
+    tau_const: Any
+    t0: Any
+    t1: Any
+    ts: Any
+    rtol: Any
+    atol: Any
+    dt0: Any
+
+
+def solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
+    """The solve of `simulate`, never raising: the start from
+    [`AbstractSystem.initial_state`][lagrax.AbstractSystem.initial_state], then `solve_from`."""
+    q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
+    return solve_from(config, inputs, (q0, qd0), started)
+
+
+def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solution:
+    """Integrate from `y0` (already the system's initial state; `started` says whether
+    it could be formed) and collect the [`Solution`][lagrax.Solution]."""
+    system, solver, params = config.system, config.solver, inputs.params
+    t0, t1, ts, max_steps = inputs.t0, inputs.t1, inputs.ts, config.max_steps
+    saveat = config.saveat
+    own_saveat = saveat is None
+    if own_saveat:
+        if ts is None:
+            ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, config.n_save, dtype=t0.dtype)
+        else:  # traced ts (eager calls are checked in simulate)
+            ts = _checks.traced_save_times(ts, t0, t1)
+        saveat = dfx.SaveAt(ts=ts, t1=True)  # the extra last entry: where the solve ended
+    requested_ts = ts
+    controller = config.stepsize_controller
+    if controller is None:
+        controller = dfx.PIDController(rtol=inputs.rtol, atol=inputs.atol)
+    field = LagrangianVectorField(system, config.tau_fn)
+    term = dfx.ODETerm(field)
+    args = (params, inputs.tau_const)
+    records = None
+    if config.adjoint is None and own_saveat and _integrate.is_lean(controller):
+        # the lean loop: the same steps as diffeqsolve, without its per-step machinery
+        if config.events is None:
+            (q, qd), end = _integrate.integrate(
+                term, solver, controller, y0, args, t0, t1, inputs.dt0, ts, max_steps
+            )
+        else:
+            (q, qd), end, records = _events.integrate_events(
+                term,
+                solver,
+                controller,
+                y0,
+                args,
+                t0,
+                t1,
+                inputs.dt0,
+                ts,
+                max_steps,
+                config.events,
+                field,
+            )
+        t_end, (q_end, qd_end), result = end.t, end.y, end.result
+        ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
+        steps, accepted = end.num_steps, end.num_accepted_steps
+        stats = dict(
+            num_steps=steps,
+            num_accepted_steps=accepted,
+            num_rejected_steps=steps - accepted,
+            max_steps=max_steps,
+        )
+    else:
+        sol = dfx.diffeqsolve(
+            term,
+            solver,
+            t0,
+            t1,
+            inputs.dt0,
+            y0,
+            args=args,
+            saveat=saveat,
+            stepsize_controller=controller,
+            max_steps=max_steps,
+            throw=False,
+            **({} if config.adjoint is None else {"adjoint": config.adjoint}),
+        )
+        q, qd = sol.ys
+        ts = sol.ts
+        # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
+        # failure diffrax writes it into the first unreached slot, so unreached slots
+        # (whose time differs from the requested one) are reset to inf.
+        last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
+        t_end, q_end, qd_end = ts[last], q[last], qd[last]
+        if own_saveat:
+            ts, q, qd = ts[:-1], q[:-1], qd[:-1]
+            reached = ts == requested_ts
+            inf = jnp.asarray(jnp.inf, q.dtype)
+            ts = jnp.where(reached, ts, inf)
+            q = jnp.where(reached[:, None], q, inf)
+            qd = jnp.where(reached[:, None], qd, inf)
+        result = RESULTS.promote(sol.result)
+        stats = dict(sol.stats)
+    energy, magnitude = jax.vmap(lambda s, a, b: system.energy_and_magnitude(s, a, b, params))(
+        ts, q, qd
+    )
+    energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
+    # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
+    finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
+    result = RESULTS.where(
+        finite | (result != RESULTS.successful), result, RESULTS.non_finite_state
+    )
+    result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
+    extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
+    work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
+    scale = energy_scale(ts, energy, magnitude)
+    return Solution(
+        ts,
+        q,
+        qd,
+        energy,
+        result,
+        stats,
+        t_end,
+        q_end,
+        qd_end,
+        **extras,
+        work=work,
+        energy_scale=scale,
+        events=records,
+    )
+
+
+def energy_scale(ts, energy, magnitude):
+    """`max(|h(t_0)|, max_k (|T| + |V|)(t_k))` over the reached saves, from `h` and
+    `|T| + |V|` there
+    ([`AbstractSystem.energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude]): the
+    scale of `Solution.energy_error` (`0` without saves)."""
+    if ts.shape[0] == 0:
+        return jnp.zeros((), energy.dtype)
+    mag = magnitude
+    reached = jnp.isfinite(ts) & jnp.isfinite(mag)
+    e0 = jnp.where(jnp.isfinite(energy[0]), jnp.abs(energy[0]), 0.0)
+    return jnp.maximum(e0, jnp.max(jnp.where(reached, mag, 0.0)))
+
+
+def power_of(system, field, params, tau_const, t, q, qd):
+    """The rate of change of the Jacobi integral along the motion, ``−∂L/∂t +
+    q̇·(τ + F − ∂D/∂q̇)`, at one state, or `None` when nothing changes `h`` (an
+    autonomous system without inputs, applied forces or dissipation)."""
+    explicit = system.explicit_power(t, q, qd, params)
+    inputs = system.input_power(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    if explicit is None:
+        return inputs
+    return explicit if inputs is None else explicit + inputs
+
+
+def work_along(system, field, params, tau_const, ts, q, qd):
+    r"""`W(t_k) = ∫_{t_0}^{t_k} P dt` at the saved times (from the first save; `inf`
+    where not reached), with the power `P = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)` of the explicit
+    time dependence, the inputs, the applied force and the dissipation; `None` when
+    there is no such power (see `power_of`).
+
+    The rate `P` ([`AbstractSystem.explicit_power`][lagrax.AbstractSystem.explicit_power] plus
+    [`AbstractSystem.input_power`][lagrax.AbstractSystem.input_power]) and its first two
+    derivatives along the motion at the saves give the two-point Hermite rule
+
+    $$
+    W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
+
+    + \tfrac{Δ^2}{10}(Ṗ_k − Ṗ_{k+1}) + \tfrac{Δ^3}{120}(P̈_k + P̈_{k+1}),
+    $$
+
+    sixth order in the save spacing `Δ`: the saves must resolve the time dependence and
+    the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
+    smooth between saves (a switch inside a save interval costs accuracy).
+
+    `Ṗ` is a JVP of `P` along `(1, q̇, q̈)`, with `q̈` from the vector field. `P̈`, the
+    derivative of `Ṗ` along the motion, is a central difference of `Ṗ` along the flow
+    with the step `ε = ε_mach^{1/3}` times the local save spacing (relative error about
+    `ε_mach^{2/3}`, ~4e-11 in float64, where the term it enters is already `O(Δ³)`): two
+    more evaluations of the vector field per save, where differentiating the vector
+    field itself (a JVP through the equations of motion) cost about as much to run and
+    took twice as long to compile (a damped 7-joint URDF arm: 12.7 against 6 s).
+    """
+    if ts.shape[0] == 0:
+        return None
+    if power_of(system, field, params, tau_const, ts[0], q[0], qd[0]) is None:
+        return None
+    reached = jnp.isfinite(ts) & jnp.all(jnp.isfinite(q), axis=1)
+    reached = reached & jnp.all(jnp.isfinite(qd), axis=1)
+    first = jnp.argmax(reached)  # stand-in values where not reached (masked below)
+    ts_s = jnp.where(reached, ts, ts[first])
+    q_s = jnp.where(reached[:, None], q, q[first])
+    qd_s = jnp.where(reached[:, None], qd, qd[first])
+
+    def rate(t, a, b):  # P, its derivative along the motion Ṗ, and q̈, at one state
+        qdd = field(t, (a, b), (params, tau_const))[1]
+        p, dp = jax.jvp(
+            lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
+            (t, a, b),
+            (jnp.ones_like(t), b, qdd),
+        )
+        return p, dp, qdd
+
+    p, dp, qdd = jax.vmap(rate)(ts_s, q_s, qd_s)
+    h = jnp.diff(ts_s)
+    # P̈ = dṖ/dt along the motion: a central difference of Ṗ along the flow,
+    # (t, q, q̇) ± ε (1, q̇, q̈), with ε = ε_mach^(1/3) times the local save spacing (the
+    # time scale the saves resolve); one batch of 2N states
+    forward = jnp.concatenate([h, h[-1:]]) if h.shape[0] else jnp.ones_like(ts_s)
+    backward = jnp.concatenate([h[:1], h]) if h.shape[0] else jnp.ones_like(ts_s)
+    spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
+    eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
+    step_t = jnp.concatenate([eps, -eps])
+    _, dp_pm, _ = jax.vmap(rate)(
+        jnp.concatenate([ts_s, ts_s]) + step_t,
+        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qd_s, qd_s]),
+        jnp.concatenate([qd_s, qd_s]) + step_t[:, None] * jnp.concatenate([qdd, qdd]),
+    )
+    n = ts_s.shape[0]
+    ddp = (dp_pm[:n] - dp_pm[n:]) / (2 * eps)
+    step = (
+        0.5 * h * (p[:-1] + p[1:])
+        + h**2 / 10.0 * (dp[:-1] - dp[1:])
+        + h**3 / 120.0 * (ddp[:-1] + ddp[1:])
+    )
+    work = jnp.concatenate([jnp.zeros((1,), step.dtype), jnp.cumsum(step)])
+    return jnp.where(reached, work, jnp.inf)
+
+
+def observables(system, field, params, tau_const, ts, q, qd) -> dict[str, Any]:
+    """The system's extra observables at the saved states (`inf` where not reached)."""
+    out = jax.vmap(
+        lambda t, a, b: system.observables(t, a, b, params, field.tau(t, a, b, tau_const))
+    )(ts, q, qd)
+    reached = jnp.isfinite(ts)
+    return {
+        k: jnp.where(reached.reshape(reached.shape + (1,) * (v.ndim - 1)), v, jnp.inf)
+        for k, v in out.items()
+    }
+
+
+_solve = eqx.filter_jit(solve)
+
+
+def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
+    """In-graph validity of a solve's inputs: the initial state could be formed, finite
+    parameters and state, finite energy, and finite accelerations at the start (which
+    also requires a positive-definite mass matrix). A `False` here sends `simulate` to
+    the eager, precise `check_state`."""
+    params, system = inputs.params, config.system
+    leaves = [
+        jnp.all(jnp.isfinite(x))
+        for x in jax.tree_util.tree_leaves(params)
+        if eqx.is_inexact_array(x)
+    ]
+    field = LagrangianVectorField(system, config.tau_fn)
+    q0, qd0 = y0
+    _, qdd = field(inputs.t0, (q0, qd0), (params, inputs.tau_const))
+    energy = system.jacobi_integral(inputs.t0, q0, qd0, params)
+    checks = [
+        *leaves,
+        jnp.asarray(started),
+        jnp.all(jnp.isfinite(q0)),
+        jnp.all(jnp.isfinite(qd0)),
+        jnp.isfinite(energy),
+        jnp.all(jnp.isfinite(qdd)),
+    ]
+    return jnp.all(jnp.stack(checks))
+
+
+@eqx.filter_jit
+def _checked_once(config: SolveConfig, inputs: SolveInputs):
+    q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
+    sol = solve_from(config, inputs, (q0, qd0), started)
+    inputs_ok = _inputs_ok(config, inputs, (q0, qd0), started)
+    if config.events is None:
+        solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q)) & jnp.all(jnp.isfinite(sol.qd))
+    else:  # a terminal event leaves the saves after it unreached (inf)
+        reached = jnp.isfinite(sol.ts)[:, None]
+        solved_ok = sol.ok & jnp.all(jnp.isfinite(sol.q) | ~reached)
+        solved_ok = solved_ok & jnp.all(jnp.isfinite(sol.qd) | ~reached)
+    return sol, jnp.stack([inputs_ok, solved_ok])
+
+
+@eqx.filter_jit
+def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
+    """`solve` plus the two flags `simulate` needs on the host, fetched at once:
+    whether the inputs were valid, and whether the solve succeeded with finite saves.
+
+    Only called on concrete inputs (never differentiated), so the whole program can sit
+    in a `lax.while_loop` that runs once: XLA:CPU then compiles it into one kernel (see
+    `xla_flags`) instead of running dozens of small ones around the solver loop, which
+    cost ~0.1 ms a call.
+    """
+    shapes = eqx.filter_eval_shape(_checked_once, config, inputs)  # traced once; reused
+    init = (
+        jnp.asarray(False),
+        jax.tree_util.tree_map(
+            lambda x: jnp.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
+            shapes,
+        ),
+    )
+
+    def once(_):
+        return _checked_once(config, inputs)
+
+    _, out = jax.lax.while_loop(lambda c: ~c[0], lambda c: (jnp.asarray(True), once(None)), init)
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled_checked(config: SolveConfig):
+    """A `jax.jit` of `_simulate_checked` for one configuration, taking the fields of
+    `SolveInputs` as a tuple.
+
+    `equinox.filter_jit` sorts arrays from static values on every call, which for
+    `simulate`'s arguments costs about as much as a short solve; with the configuration
+    fixed here and every input an array, a call is `jax.jit`'s C++ fast path. (Building
+    the `SolveInputs` Module inside the trace also skips equinox's per-instance checks.)
+    """
+    # The output's static part (its treedef and non-array leaves) depends on the inputs'
+    # structure too (a constant `tau` adds the work, `ts` sets the saves): it is kept per
+    # input signature, the key under which `jax.jit` itself caches a trace.
+    out_static: dict = {}
+    tracing = threading.local()  # .signature: that of the call being traced (this thread's)
+
+    def run(fields):
+        inputs = SolveInputs(*fields)
+        leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
+        arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
+        out_static[tracing.signature] = (treedef, leaves, arrays)
+        return [leaves[i] for i in arrays]
+
+    return jax.jit(run), (out_static, tracing)
+
+
+# `simulate`'s front cache: the configuration's parts by identity -> (parts, config,
+# compiled or None). Hashing and comparing a `SolveConfig` walks the whole system
+# (~60 µs each for a 7-link chain, and building one as much again); a repeated call
+# with the same objects skips all three. The entry holds the parts themselves, so an
+# `id` cannot be reused while it lives; a miss falls through to `_compiled_checked`,
+# whose cache compares by value (equal systems share one compiled program).
+_FRONT: "collections.OrderedDict[tuple, tuple]" = collections.OrderedDict()
+_FRONT_SIZE = 64
+
+
+def _configured(parts: tuple, n_save: int, max_steps: int):
+    """`(config, compiled)` for `SolveConfig(*parts, n_save, max_steps, None)`, where
+    `compiled` is `_compiled_checked(config)`, or `None` when the configuration is not
+    hashable (a controller or saveat holding arrays)."""
+    key = (*map(id, parts), n_save, max_steps)
+    hit = _FRONT.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit[0], parts, strict=True)):
+        return hit[1], hit[2]
+    config = SolveConfig(*parts, n_save, max_steps, None)
+    compiled = _compiled_or_none(config)
+    _FRONT[key] = (parts, config, compiled)
+    if len(_FRONT) > _FRONT_SIZE:
+        _FRONT.popitem(last=False)
+    return config, compiled
+
+
+def _compiled_or_none(config: SolveConfig):
+    """`_compiled_checked(config)`, or `None` for an unhashable configuration."""
+    try:
+        return _compiled_checked(config)
+    except TypeError:
+        return None
+
+
+def _call_checked(config: SolveConfig, fields: tuple, compiled=None):
+    """`_simulate_checked(config, SolveInputs(*fields))`, through the cached `jax.jit`
+    `compiled` (from `_compiled_checked`) when given and every input is an array."""
+    flat, structure = jax.tree_util.tree_flatten(fields)
+    if compiled is None or not all(eqx.is_array(x) for x in flat):
+        # no jit of its own (unhashable settings), or non-array leaves (e.g. strings in
+        # params): equinox sorts them out
+        return _simulate_checked(config, SolveInputs(*fields))
+    fn, (out_static, tracing) = compiled
+    signature = (structure, *((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in flat))
+    tracing.signature = signature
+    values = fn(fields)
+    treedef, leaves, arrays = out_static[signature]
+    leaves = list(leaves)  # the static leaves, with the arrays put back in their places
+    for i, value in zip(arrays, values, strict=True):
+        leaves[i] = value
+    return jax.tree_util.tree_unflatten(treedef, leaves)
+
+
+def simulate(
+    system: AbstractSystem,
+    q0: Coordinates,
+    qd0: Velocities,
+    params: Params,
+    *,
+    t1: float,
+    t0: float = 0.0,
+    ts: Float[Array, " T"] | None = None,
+    n_save: int = 501,
+    tau: Velocities | TauFn | None = None,
+    solver: str | dfx.AbstractSolver | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt: float | None = None,
+    dt0: float | None = None,
+    max_steps: int | None = None,
+    saveat: dfx.SaveAt | None = None,
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    adjoint: dfx.AbstractAdjoint | None = None,
+    events: Event | Sequence[Event] | None = None,
+    throw: bool = True,
+) -> Solution:
+    """Integrate `M(q) q̈ + C q̇ + G = τ + F − ∂D/∂q̇` from `(q0, q̇0)` over `[t0, t1]`.
+
+    The state `(q, q̇)` is integrated as a first-order system with diffrax; the
+    accelerations come from
+    [`LagrangianSystem.forward_dynamics`][lagrax.LagrangianSystem.forward_dynamics] (unchecked
+    inside the solver loop; failures are diagnosed after it, see *Raises*).
+
+    A [`ConstrainedSystem`][lagrax.ConstrainedSystem] is integrated the same way with its
+    constrained accelerations (KKT system with Baumgarte stabilization); its initial state is first
+    projected onto `φ(q) = 0`, `J q̇ = 0` (unless `project_initial=False`), so
+    `Solution.q[0]` may differ from `q0`; `Solution.constraint_violation` and
+    `Solution.multipliers` report `φ` and `λ` along the path. The variational
+    integrators do not apply to constrained systems.
+
+    **Arguments:**
+
+    - `system`, `q0`, `qd0`, `params`: the model, its initial state and parameters.
+    - `t1`, `t0`: time interval.
+    - `ts`: times at which to save; default `n_save` evenly spaced points in
+      `[t0, t1]`. `saveat` (a `diffrax.SaveAt`) overrides both.
+    - `tau`: input generalized forces, a constant `(n,)` array or a function
+      `tau(t, q, qd) -> (n,)` (a controller). Added to the system's own `force`.
+    - `solver`: a method name or a diffrax solver. Names (see `lagrax.METHODS`):
+      `"tsit5"` (default; explicit 5(4), adaptive), `"dopri5"`, `"dopri8"` (tight
+      tolerances), `"kvaerno5"` (implicit; stiff springs and dampers), `"rk4"` (fixed
+      step), `"variational"` / `"variational4"` (symplectic, fixed step; bounded
+      energy error over long horizons).
+    - `rtol`, `atol`: error-control tolerances of the adaptive step (default 1e-8);
+      for implicit methods at a fixed step, the tolerances of their Newton iterations.
+      Changing them, `params`, the initial state, `t1` or `dt` does not recompile.
+    - `dt`: run at this fixed step instead (`diffrax.ConstantStepSize`). Required by
+      the fixed-step methods; allowed with every method.
+    - `dt0`: initial step of an adaptive solve (default: chosen by diffrax).
+    - `max_steps`: step budget (accepted + rejected). Default: 100,000 for an adaptive
+      solve; at a fixed step, enough steps for `[t0, t1]`.
+    - `stepsize_controller`: override the default `diffrax.PIDController(rtol, atol)`.
+    - `adjoint`: how to differentiate the solve. Default `None`: lagrax's own lean
+      stepping loop (diffrax's steps without `diffeqsolve`'s per-step machinery; about
+      2–3× faster for small mechanisms), differentiable by reverse mode (`jax.grad`,
+      recursive checkpointing, as diffrax's default). Pass a diffrax adjoint to run
+      `diffrax.diffeqsolve` with it instead, e.g. `diffrax.ForwardMode()` for
+      `jax.jacfwd` / `jax.jvp` (few parameters, many outputs) or
+      `diffrax.RecursiveCheckpointAdjoint()` for diffrax's default. A custom `saveat`
+      or a step-size controller other than `PIDController` / `ConstantStepSize`
+      also runs `diffeqsolve`.
+    - `events`: a [`lagrax.Event`][] or a sequence of them: zero crossings of
+      `condition(t, q, qd, params)`, located on the solver's dense output and recorded
+      in `Solution.events`; a terminal event ends the solve at its root, an event with
+      a `reset` continues from the reset state (an impact), a cascade of events (more
+      than `max_events`, or resets accumulating at a point) ends it with
+      `RESULTS.event_cascade`. Events run on lagrax's own stepping loop: not with
+      `adjoint`, `saveat` or a controller other than `PIDController` /
+      `ConstantStepSize`, nor with the variational integrators (their linear dense
+      output would locate events to second order only, and a reset breaks their discrete
+      variational structure); the fixed-step `"rk4"` is supported (cubic Hermite
+      output).
+    - `throw`: raise on failure (default). With `throw=False` the failure is reported
+      in `Solution.result` / `Solution.ok` instead, which is what `vmap` and sweeps
+      need: one bad member does not kill the batch.
+
+    **Returns:** a [`Solution`][lagrax.Solution].
+
+    **Raises:** `ConfigurationError` for a bad option (`t0`/`t1` not finite or
+    `t1 <= t0`; `dt` or `dt0` not positive and finite, `dt` longer than
+    `t1 - t0` or given with `dt0`; `rtol`/`atol` negative, non-finite or both zero;
+    `max_steps`/`n_save` not a positive integer; under `jit` a traced option fails at
+    run time), `ArgumentTypeError` for the wrong kind of object;
+    `ShapeError`, `NonFiniteError`, `ParameterError`, `MassMatrixError`
+    for bad input (checked at the initial state), `ConstraintError` for a constrained
+    system whose initial state cannot be projected onto its constraints or whose
+    constraint Jacobian is rank-deficient there, and `SimulationError` when the solve
+    fails: the message names the cause (step budget, non-finite state, singular mass
+    matrix, an event cascade with its time and counts), the time reached and what to try.
+    An event whose condition is not a scalar or whose reset returns the wrong shapes
+    raises a `ShapeError`; events with an option they cannot run with a
+    `ConfigurationError`.
+
+    **Example:**
+
+    ```python
+    system, params = lagrax.models.planar_2r()
+    sol = lagrax.simulate(system, [0.5, 0.8], [0.0, 0.0], params, t1=10.0)
+    sol.q[-1], sol.energy_error.max()
+    ```
+    """
+    if not isinstance(system, AbstractSystem):
+        raise ArgumentTypeError(
+            "simulate needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) "
+            f"as its first argument, got {type(system).__name__}: {system!r}"
+        )
+    eager = not _checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
+    if eager:
+        # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
+        # of its own, and a simulate call should cost one dispatch, not a dozen.
+        q0, qd0 = host_state(system, q0, qd0)
+        dtype = np.result_type(q0, qd0)
+    else:
+        q0, qd0 = system._state(q0, qd0)
+        dtype = jnp.result_type(q0, qd0)
+    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    tdt = np.dtype(dtype)
+    # Python scalars in params would be static under filter_jit (a recompile per value);
+    # as arrays of the state's dtype they behave as JAX's weakly typed scalars would.
+    params = jax.tree_util.tree_map(
+        lambda x: (
+            np.asarray(x, tdt if isinstance(x, float) else None)
+            if isinstance(x, (bool, int, float, complex))
+            else x
+        ),
+        params,
+    )
+    tau_fn = tau if callable(tau) else None
+    tau_const = None
+    if tau is not None and not callable(tau):
+        (tau_const,) = system._state(q0, tau=tau)[1:]
+        tau_const = _checks.finite(tau_const.astype(dtype), "tau")
+    t0, t1 = _checks.time_interval(t0, t1)
+    rtol, atol = _checks.tolerances(rtol, atol)
+    n_save = _checks.positive_int(
+        "n_save", n_save, "It is the number of evenly spaced save times (or pass ts=)"
+    )
+    if saveat is None and ts is not None:
+        ts = (np.asarray if eager else jnp.asarray)(ts, dtype)
+        if ts.ndim != 1:
+            raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
+        if eager:
+            _checks.save_times(ts, t0, t1)
+    solver, stepsize_controller, dt0, max_steps = configure(
+        solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
+    )
+    events = _events.as_events(events)
+    if events is not None:
+        events_supported(solver, stepsize_controller, saveat, adjoint)
+        _events.check_events(events, t0, q0, qd0, params)
+    asarray = np.asarray if eager else jnp.asarray
+    fields = (  # SolveInputs' fields, in order
+        (q0, qd0),
+        params,
+        tau_const,
+        asarray(t0, tdt),
+        asarray(t1, tdt),
+        ts,
+        asarray(rtol, tdt),
+        asarray(atol, tdt),
+        None if dt0 is None else asarray(dt0, tdt),
+    )
+    parts = (system, solver, tau_fn, stepsize_controller, saveat, adjoint)
+    if not eager or events is not None:  # (events: a fresh tuple each call, no front cache)
+        config = SolveConfig(*parts, n_save, int(max_steps), events)
+        compiled = None if not eager else _compiled_or_none(config)
+    else:
+        config, compiled = _configured(parts, n_save, int(max_steps))
+    if not eager:
+        sol = _solve(config, SolveInputs(*fields))
+        if not throw:
+            return sol
+        # inside a user's jit: fail at run time, with the failure's own message
+        return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
+    sol, flags = _call_checked(config, fields, compiled)
+    inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
+    if not inputs_ok:
+        system.check_state(q0, qd0, params, t=t0)  # raises with the values in the message
+    if not throw or solved_ok:
+        return sol
+    if events is not None and sol.result == RESULTS.event_cascade:
+        raise SimulationError(
+            f"simulate failed for {system.name}: "
+            + _events.cascade_message(events, sol.events, sol.t_end)
+        )
+    why = diagnose(
+        system,
+        sol,
+        params,
+        max_steps,
+        rtol,
+        atol,
+        tau_fn=tau_fn,
+        tau_const=tau_const,
+        y0=(q0, qd0),
+        t1=t1,
+    )
+    raise SimulationError(why)
+
+
+def events_supported(solver, controller, saveat, adjoint) -> None:
+    """A `ConfigurationError` where `events=` cannot run (see `simulate`)."""
+    if isinstance(solver, Variational):
+        raise ConfigurationError(
+            "events are not supported with the variational integrators (their dense output "
+            "is linear, so event times would be second order, and a reset breaks their "
+            "discrete variational structure): use solver='rk4' at a fixed dt, or an "
+            "adaptive method such as 'tsit5' or 'dopri8'"
+        )
+    for name, value in (("adjoint", adjoint), ("saveat", saveat)):
+        if value is not None:
+            raise ConfigurationError(
+                f"events run on lagrax's own stepping loop, which {name}= replaces with "
+                f"diffrax.diffeqsolve: drop {name}={value!r}, or use diffrax.Event with "
+                "diffeqsolve directly"
+            )
+    if not _integrate.is_lean(controller):
+        raise ConfigurationError(
+            "events run on lagrax's own stepping loop, which supports the step-size "
+            "controllers diffrax.PIDController and diffrax.ConstantStepSize only, got "
+            f"stepsize_controller={controller!r}"
+        )
+
+
+_JIT_MESSAGES = [
+    f"lagrax.simulate failed: {message} Call simulate outside jit, or with throw=False, "
+    "for a diagnosis."
+    for message in messages()
+]

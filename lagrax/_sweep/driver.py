@@ -1,0 +1,499 @@
+"""`sweep`: many trajectories, chunk by chunk, with checkpoints and progress."""
+
+import math
+import os
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import diffrax as dfx
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+import numpy as np
+
+from .._core import checks as _checks
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._solve.events import as_events, check_events
+from .._solve.methods import configure
+from .._solve.simulate import SolveConfig, events_supported, power_of
+from .._solve.solution import Solution
+from .._systems.abstract import AbstractSystem
+from .._systems.vector_field import LagrangianVectorField
+from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
+from .chunk import Setup, solve_chunk
+from .dataset import dataset
+from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
+from .devices import device_list, mesh_of
+from .grid import Grid
+from .progress import progress_bar, progress_default
+from .unused import read_params
+
+
+def _states(x: Any, name: str, n_members: int) -> np.ndarray:
+    a = np.asarray(x, dtype=float if np.asarray(x).dtype.kind in "biu" else None)
+    if a.ndim == 1:
+        return np.broadcast_to(a, (n_members,) + a.shape)
+    if a.ndim >= 2 and math.prod(a.shape[:-1]) == n_members:
+        return a.reshape(n_members, a.shape[-1])
+    raise ShapeError(
+        f"{name} must have shape (n,) (shared by all members) or (members, n) / grid shape + "
+        f"(n,) with {n_members} members; got {a.shape}"
+    )
+
+
+def sweep(
+    system: AbstractSystem,
+    q0: Any,
+    qd0: Any,
+    params: Any,
+    *,
+    t1: float,
+    t0: float = 0.0,
+    keep: str | Sequence[float] | np.ndarray | Callable[[Solution], Any] = "final",
+    n_save: int = 101,
+    tau: Any = None,
+    solver: str | dfx.AbstractSolver | None = None,
+    rtol: float = 1e-8,
+    atol: float = 1e-8,
+    dt: float | None = None,
+    dt0: float | None = None,
+    max_steps: int | None = None,
+    stepsize_controller: dfx.AbstractStepSizeController | None = None,
+    chunk_size: int | None = None,
+    n_lanes: int | None = None,
+    schedule: str = "queue",
+    devices: Any = None,
+    checkpoint: str | os.PathLike | None = None,
+    progress: bool | None = None,
+    allow_unused: bool = False,
+    events: Any = None,
+):
+    """Simulate `system` for many parameter sets (and initial states) at once.
+
+    Each member is the solve `simulate(system, q0[i], qd0[i], params[i], t1=t1, ...)`;
+    the arguments come in `simulate`'s order.
+    The batch is cut into chunks (bounding memory; the unit of progress and of
+    checkpoints); each chunk is one compiled call, sharded over `devices`. Inside a
+    chunk, members are integrated on `n_lanes` vectorized lanes as a work queue: a lane
+    whose member is done takes the next member, so fast members do not wait for slow ones
+    (`schedule="queue"`). How many of each is chosen for the device (a CPU, a GPU or a
+    TPU: see `chunk_size` and `n_lanes`), and does not change any member's numbers.
+    `schedule="lockstep"` is a plain `vmap` of `simulate` instead (bitwise the same
+    numbers as `simulate`, but every member of a chunk steps until the slowest is done).
+
+    A member that fails (step budget, blow-up, invalid input) is flagged in the result's
+    `ok` / `result` / `status` and never stops the sweep; its values past the failure
+    are `inf`, as in `Solution`.
+
+    **Arguments:**
+
+    - `system`: a `LagrangianSystem`, or a `ConstrainedSystem` (each
+      member's initial state is first projected onto its constraints, as in
+      `simulate`; the result then also has `constraint_violation`, `max |φ(q)|` at
+      the end, and with velocity constraints `velocity_constraint_violation`,
+      `max |A(q) q̇|` at the end).
+    - `q0`, `qd0`: initial state, `(n,)` for all members, or one per member
+      (`(members, n)`, or the grid's shape + `(n,)`).
+    - `params`: a `Grid` from `grid` / `samples`, or a pytree whose
+      every leaf has a leading batch axis (one entry per member).
+    - `t1`, `t0`: time interval (shared).
+    - `keep`: what to keep per member: `"final"` (the state at `t1`; default),
+      `"trajectory"` (`n_save` evenly spaced times), an array of times, or a function
+      `reduce(solution) -> pytree of arrays` applied to each member's
+      `Solution` (saved at `n_save` times) inside the compiled call, so only its
+      output is kept, e.g. `lambda s: jnp.max(jnp.abs(s.energy_error))`.
+    - `tau`, `solver`, `rtol`, `atol`, `dt`, `dt0`, `max_steps`,
+      `stepsize_controller`: as for `lagrax.simulate` (shared by all members).
+    - `chunk_size`: members per compiled call. Default, from the device: on a CPU, up
+      to 8,192 (fewer when the kept output is large: about 64 MiB of it per chunk); on a
+      GPU or TPU, four members a lane (the whole batch when it is smaller), within half
+      the device's memory.
+    - `n_lanes`: members integrated at once inside a chunk, per device. Default, from
+      the device: on a CPU, an eighth of the chunk's members per device, at most 1,024;
+      on a GPU or TPU, enough to fill it: as many as there are members, up to 131,072,
+      fewer for a model whose lanes would not fit in a quarter of the device's memory.
+      The result's `attrs` say what was chosen (`chunk_size`, `n_lanes`); to
+      override, pass `chunk_size=` and/or `n_lanes=` (e.g. `n_lanes=4096` to try
+      fewer lanes on a small GPU, or a CPU's smaller lanes on a GPU shared with other
+      work).
+    - `schedule`: `"queue"` (default) or `"lockstep"`, see above.
+    - `devices`: devices to shard the batch over: `None` (all of `jax.devices()`),
+      a count, or a list. On a multi-host run (after `jax.distributed.initialize()`)
+      every process makes the same call; each gets the whole result.
+    - `checkpoint`: a directory. Each finished chunk is written there atomically, with
+      the sweep's fingerprint (a SHA-256 of the model, parameters, states, solver
+      settings and `keep`) and a SHA-256 checksum of its arrays; the same call again
+      resumes, computing only what is missing. A chunk file that cannot be trusted
+      (unreadable, truncated, empty, a checksum or index that does not match, an older
+      format) is never loaded: a `lagrax.CheckpointWarning` names it and why, and
+      its members are computed again. A directory of a different sweep definition
+      (by its `manifest.json`, or without one by its chunk files) is refused.
+    - `progress`: show a progress bar (tqdm; members/s). Default: on in a terminal or
+      notebook, off otherwise.
+    - `events`: a `lagrax.Event` or a sequence of them, as for
+      `lagrax.simulate`. Each member's events are located as in `simulate` (a
+      terminal event ends that member at its root; its `ok` stays true); the result
+      gains `event_count` and `first_event_time` (dimensions: the members' and
+      `"event"`; `inf` where an event did not occur). A sweep with events runs
+      `schedule="lockstep"` (the lane queue has no event handling).
+    - `allow_unused`: sweep parameters that nothing the solve evaluates reads (energies,
+      force, `tau`, constraints, initial-state projection); by default that is an error,
+      since a misspelt grid name would otherwise sweep nothing. The test is structural
+      (the traced data flow, whichever branch a member takes).
+
+    **Returns:** an `xarray.Dataset` with dimensions the grid's (or `"member"`),
+    `"time"` (when kept) and `"dof"` (labelled by the system's `coordinate_names`
+    where it has them, e.g. a URDF robot's joint names; else `0 … n−1`); variables
+    `q`, `qd`, `energy` (at the kept times, or at `t1` for `keep="final"`; the
+    Jacobi integral `h`, see `Solution.energy`), `energy_error` (at the end, as
+    `Solution.energy_error`: the balance residual `h − h₀ − W` over the scale
+    `max(|h₀|, |T| + |V|)`, where `W` is the work of the explicit time dependence,
+    inputs, applied force and dissipation, integrated along the saves; with
+    `keep="final"` such a system is saved at `n_save` times for it, which are then
+    dropped; with `keep=` times the balance is over the first to the last of them),
+    `energy_change` (`h(t_end) − h(t0)`, the change itself), `ok`, `result`
+    (code of `lagrax.RESULTS`), `status` (its message), `t_end`, `num_steps`,
+    `num_accepted_steps`, `num_rejected_steps` (or the outputs of `reduce`); swept
+    parameters and state components as coordinates (with the grid's `units` as their
+    `attrs["units"]`; `time` and `t_end` in `s`); `attrs` with the failure
+    count, how the batch was cut (`platform`, `chunk_size`, `n_lanes`, and the
+    queue's `refill_lanes` and `tail_lanes`) and the share of lane-steps that were
+    idle (`lane_idle_fraction`).
+    Save it with `save_sweep`.
+
+    **Raises:**
+
+    - `ConfigurationError`: an option with an unusable value (`t1 <= t0`, a
+      non-finite time, `dt`/`dt0 <= 0`, negative tolerances or both zero with an
+      adaptive step, `chunk_size`/`n_lanes`/`max_steps`/`n_save` not a positive
+      integer, `n_lanes` above the members of a chunk per device, an unknown `keep`
+      or `schedule` name, a device count JAX does not have), or a swept parameter that
+      nothing reads (see `allow_unused`).
+    - `ArgumentTypeError`: an option or argument of the wrong kind (a string where a
+      number goes, a non-numeric parameter, ...).
+    - `ShapeError`: batched `params` without members, with scalar leaves or leading
+      axes that disagree; states of the wrong shape.
+    - `CheckpointError`: `checkpoint` is a file, cannot be written (raised before any
+      chunk is computed), or holds another sweep's results or an older format's.
+
+    **Example:**
+
+    ```python
+    system, params = lagrax.models.planar_2r()
+    batch = lagrax.grid(params, m2=np.linspace(0.5, 2, 32), l1=np.linspace(0.5, 1.5, 32))
+    ds = lagrax.sweep(system, [0.5, 0.8], [0.0, 0.0], batch, t1=10.0)
+    ds.q.sel(dof=1).plot()   # final θ2 over the (m2, l1) grid
+
+    # an amplitude study: the initial θ1 swept, the rest of the state from q0, qd0
+    amps = lagrax.grid(params, q0_0=np.linspace(-3.0, 3.0, 61), units={"q0_0": "rad"})
+    ds = lagrax.sweep(system, [0.0, 0.0], [0.0, 0.0], amps, t1=2.0)
+    ds.q.sel(dof=0).plot()   # final θ1 against the initial θ1
+    ```
+    """
+    import xarray as xr
+
+    system, q0, qd0, params = _argument_order(system, q0, qd0, params)
+    # every scalar option, on the host, before anything is traced or written
+    t0, t1, chunk_size = _checks.sweep_options(
+        t0=t0,
+        t1=t1,
+        keep=keep,
+        n_save=n_save,
+        rtol=rtol,
+        atol=atol,
+        dt=dt,
+        dt0=dt0,
+        max_steps=max_steps,
+        stepsize_controller=stepsize_controller,
+        chunk_size=chunk_size,
+        schedule=schedule,
+        devices=devices,
+        checkpoint=checkpoint,
+        progress=progress,
+    )
+    # --- the batch
+    if isinstance(params, Grid):
+        batch, n_members = params, params.size
+        get_params = params.params
+    else:
+        n_members = _checks.batch_size(params)
+        batch = None
+        params = jtu.tree_map(jnp.asarray, params)
+
+        def get_params(a, b):
+            return jtu.tree_map(lambda x: x[a:b], params)
+
+    q0s = _states(q0, "q0", n_members)
+    qd0s = _states(qd0, "qd0", n_members)
+    if q0s.shape != qd0s.shape:
+        raise ShapeError(
+            f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
+            f"and {qd0s.shape[1:]}"
+        )
+    if batch is not None:  # swept initial-state components (q0_i / qd0_i axes)
+        q0s, qd0s = batch.initial_states(q0s, qd0s)
+    dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
+    q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
+    n = q0s.shape[1]
+    # one member through the eager checks of a single trajectory: shapes, params, tau
+    q_probe, _ = system._state(q0s[0], qd0s[0])
+    tdt = jnp.asarray(0.0, dtype).dtype
+    tau_fn = tau if callable(tau) else None
+    tau_const = None
+    if tau is not None and not callable(tau):
+        (tau_const,) = system._state(q_probe, tau=tau)[1:]
+        tau_const = _checks.finite(jnp.asarray(tau_const, dtype), "tau")
+    if not allow_unused:
+        _refuse_unused(system, tau_fn, q0s[0], qd0s[0], tau_const, batch, params)
+
+    # --- what to keep (keep= and n_save were checked above)
+    reduce = None
+    if callable(keep):
+        reduce, ts = keep, np.linspace(t0, t1, int(n_save))
+    elif isinstance(keep, str):
+        ts = np.zeros(0) if keep == "final" else np.linspace(t0, t1, int(n_save))
+    else:
+        ts = np.asarray(keep, dtype=float)
+    keep_path = True
+    if (
+        isinstance(keep, str)
+        and keep == "final"
+        and _has_power(system, tau_fn, tau_const, batch, params, q0s[0], qd0s[0], t0)
+    ):
+        # the energy balance needs the work along the path: saved at n_save times for
+        # it, then dropped
+        ts, keep_path = np.linspace(t0, t1, int(n_save)), False
+    ts_dev = jnp.asarray(ts, tdt)
+
+    solver_, controller, dt0_, max_steps_ = configure(
+        solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, True
+    )
+    if controller is None:
+        controller = dfx.PIDController(rtol=jnp.asarray(rtol, tdt), atol=jnp.asarray(atol, tdt))
+    events = as_events(events)
+    if events is not None:
+        events_supported(solver_, controller, None, None)
+        member = batch.params(0, 1) if batch is not None else get_params(0, 1)
+        member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
+        check_events(events, jnp.asarray(t0, tdt), q0s[0], qd0s[0], member)
+        schedule = "lockstep"  # the lane queue has no event handling
+
+    # --- chunks and devices: defaults from the device (see _defaults)
+    mesh = mesh_of(devices)
+    info = device_info(device_list(devices))
+    n_dev = info.count
+    lanes_given = _checks.lanes_option(n_lanes, chunk_size, n_dev)
+    n_kept = max(len(ts), 1)
+    member_bytes = 8 * (2 * n * n_kept + n_kept + 4 * n + 8)
+    ckpt = Path(checkpoint) if checkpoint is not None else None
+    if chunk_size is None and ckpt is not None:
+        chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
+    member0 = batch.params(0, 1) if batch is not None else params
+    n_params = sum(math.prod(np.shape(x)[1:]) for x in jtu.tree_leaves(member0))
+    cut = plan(
+        info,
+        n_members=n_members,
+        member_bytes=member_bytes,
+        lane_bytes=lane_bytes(n, n_params, jnp.dtype(dtype).itemsize),
+        chunk_size=chunk_size,
+        n_lanes=lanes_given,
+    )
+    chunk_size = cut.chunk_size
+    lanes = cut.n_lanes
+    config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_, events=events)
+    setup = Setup(config, reduce, lanes, schedule, cut.refill, cut.tail_lanes)
+    n_chunks = -(-n_members // chunk_size)
+
+    # --- checkpoint
+    settings = dict(
+        t0=float(t0),
+        t1=float(t1),
+        ts=ts.tolist(),
+        dt0=dt0_,
+        n=n,
+        n_members=n_members,
+        keep=keep if isinstance(keep, str) else None,
+        dtype=str(dtype),
+        tau=None if tau_const is None else np.asarray(tau_const).tolist(),
+    )
+    loaded: dict[int, dict[str, np.ndarray]] = {}
+    fp = None
+    if ckpt is not None:
+        swept = batch.params() if batch is not None else params
+        fp = fingerprint(setup, [swept, q0s, qd0s], settings)
+        loaded = prepare(ckpt, fp, chunk_size, n_members, n_chunks)
+
+    if progress is None:
+        progress = progress_default()
+    bar = progress_bar(progress)(total=n_members, unit="member", disable=not progress, desc="sweep")
+    results = []
+    try:
+        for c in range(n_chunks):
+            a, b = c * chunk_size, min((c + 1) * chunk_size, n_members)
+            if c in loaded:
+                results.append(loaded.pop(c))
+                bar.update(b - a)
+                continue
+            chunk = solve_chunk(
+                setup,
+                mesh,
+                system,
+                get_params(a, b),
+                q0s[a:b],
+                qd0s[a:b],
+                tau_const,
+                t0,
+                t1,
+                dt0_,
+                ts_dev,
+                chunk_size,
+                tdt,
+                keep_path=keep_path,
+            )
+            if ckpt is not None:
+                write_chunk(
+                    chunk_path(ckpt, c),
+                    chunk,
+                    fingerprint=fp,
+                    chunk_size=chunk_size,
+                    chunk=c,
+                    start=a,
+                    stop=b,
+                )
+            results.append(chunk)
+            bar.update(b - a)
+    finally:
+        bar.close()
+    return dataset(
+        xr,
+        results,
+        batch,
+        params if batch is None else None,
+        ts,
+        keep,
+        n,
+        n_members,
+        settings,
+        solver_,
+        rtol,
+        atol,
+        schedule,
+        n_dev,
+        _reported(cut, schedule, info),
+        names=_coordinate_names(system, n),
+    )
+
+
+def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
+    """How the batch was cut, for the result's `attrs` (pass `chunk_size` and
+    `n_lanes` back to `sweep` to repeat it)."""
+    lockstep = schedule == "lockstep"  # then a chunk's members all step at once
+    return dict(
+        platform=info.platform,
+        chunk_size=cut.chunk_size,
+        n_lanes=cut.chunk_size // info.count if lockstep else cut.n_lanes,
+        refill_lanes=0 if lockstep else cut.refill,
+        tail_lanes=0 if lockstep else cut.tail_lanes,
+    )
+
+
+def _coordinate_names(system, n: int) -> tuple[str, ...] | None:
+    """The system's coordinate names (a tree's joint names; a constrained system's
+    unconstrained system's), if it has one per coordinate."""
+    names = getattr(system, "coordinate_names", None)
+    if names is None:
+        names = getattr(getattr(system, "system", None), "coordinate_names", None)
+    return tuple(names) if names is not None and len(names) == n else None
+
+
+def _top_name(path: tuple) -> str:
+    """The top-level entry of `params` a leaf lies under (a dict key or a field)."""
+    key = path[0] if path else None
+    for attr in ("key", "name", "idx"):
+        if hasattr(key, attr):
+            return str(getattr(key, attr))
+    return jtu.keystr(path)
+
+
+def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
+    """A `ConfigurationError` when a swept parameter is read by nothing the solve
+    evaluates (see `_unused`): for a `Grid`, its swept names; for batched
+    `params`, the leaves whose values differ between members."""
+    if batch is not None:
+        member = jtu.tree_map(lambda x: x[0], batch.params(0, 1))
+    else:
+        member = jtu.tree_map(lambda x: x[0], params)
+    read = read_params(system, tau_fn, jnp.asarray(q), jnp.asarray(qd), member, tau_const)
+    if read is None:
+        return
+    paths = [path for path, _ in jtu.tree_flatten_with_path(member)[0]]
+    if batch is not None:
+        # a swept name is read when any leaf under it is
+        names = [_top_name(p) for p in paths]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        unused = [k for k in batch.axes if k not in names_read and k not in batch.states]
+        all_names = list(dict.fromkeys(names))
+    else:
+        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in jtu.tree_leaves(params)]
+        names = ["params" + jtu.keystr(p) for p in paths]
+        unused = [k for k, r, v in zip(names, read, varies, strict=True) if v and not r]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        all_names = names
+    if not unused:
+        return
+    read_list = [k for k in all_names if k in names_read]
+    it = "it" if len(unused) == 1 else "them"
+    raise ConfigurationError(
+        f"the sweep varies {', '.join(unused)} but no energy, force, tau or constraint of "
+        f"the system reads {it}, so every member would give the same result (the system "
+        f"reads {', '.join(read_list) or 'no parameter'}). A misspelt name? Sweep a "
+        f"parameter the model reads, or pass allow_unused=True to sweep {it} anyway (e.g. "
+        "as a label)."
+    )
+
+
+def _is_state(x: Any) -> bool:
+    """Whether `x` reads as an array of numbers (an initial state), not a parameter set."""
+    if isinstance(x, Grid | Mapping) or hasattr(x, "_fields"):
+        return False
+    try:
+        return np.asarray(x).dtype.kind in "biuf"
+    except (TypeError, ValueError):
+        return False
+
+
+def _argument_order(system, q0, qd0, params):
+    """`(system, q0, qd0, params)`, accepting the order before 0.2,
+    `sweep(system, params, q0, qd0)`, with a `DeprecationWarning`."""
+    if not isinstance(system, AbstractSystem):
+        raise ArgumentTypeError(
+            "sweep needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) as "
+            f"its first argument, got {type(system).__name__}: {system!r}"
+        )
+    if not _is_state(q0) and _is_state(params):
+        warnings.warn(
+            "sweep(system, params, q0, qd0) is deprecated: pass the arguments in simulate's "
+            "order, sweep(system, q0, qd0, params); the old order stops working in 0.3",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+        return system, qd0, params, q0
+    return system, q0, qd0, params
+
+
+def _has_power(system, tau_fn, tau_const, batch, params, q0, qd0, t0) -> bool:
+    """Whether anything changes the Jacobi integral of a member (explicit time, inputs,
+    applied force, dissipation; see `simulate.power_of`): traced, not evaluated."""
+    member = batch.params(0, 1) if batch is not None else params
+    member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
+    field = LagrangianVectorField(system, tau_fn)
+    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+    power = jax.eval_shape(
+        lambda p, a, b: power_of(system, field, p, tau_const, jnp.asarray(t0, a.dtype), a, b),
+        member,
+        q0,
+        qd0,
+    )
+    return power is not None

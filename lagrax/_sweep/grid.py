@@ -1,0 +1,188 @@
+"""The batch of a sweep: `Grid`, `grid` and `samples`."""
+
+import math
+import re
+from collections.abc import Mapping
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+
+_STATE = re.compile(r"^(q0|qd0)_(\d+)$")
+
+
+class Grid:
+    """A batch of parameter sets and initial states with labels: fixed values plus swept
+    ones.
+
+    Made by `grid` (the Cartesian product of named 1-D ranges: one sweep dimension per
+    name) or `samples` (named values taken together, member by member: one `"member"`
+    dimension, e.g. Monte-Carlo draws). `sweep` labels its results with these names and
+    values. A name `q0_i` or `qd0_i` (for an integer `i`) sweeps component `i` of the
+    initial coordinates or velocities instead of a parameter (unless the fixed
+    parameters have an entry of that name).
+
+    **Attributes:** `base` (the fixed parameters), `axes` (name → 1-D values), `states`
+    (the state axes: name → `("q0" | "qd0", i)`), `units` (name → unit string, for the
+    result's coordinate attrs), `dims` (the result's sweep dimensions), `shape`, `size`
+    (number of members).
+    """
+
+    def __init__(
+        self,
+        base: Any,
+        axes: Mapping[str, np.ndarray],
+        product: bool,
+        units: Mapping[str, str] | None = None,
+    ):
+        if base is None:
+            base = {}
+        if not (isinstance(base, Mapping) or hasattr(base, "_replace")):
+            raise ArgumentTypeError(
+                "grid/samples need the fixed parameters as a dict or a NamedTuple (got "
+                f"{type(base).__name__}); for other pytrees pass sweep() params whose "
+                "leaves all carry a leading batch axis"
+            )
+        if not axes:
+            raise ConfigurationError(
+                "name at least one swept parameter, e.g. grid(params, m2=[1, 2])"
+            )
+        self.base = base
+        self.axes = {}
+        for name, values in axes.items():
+            v = np.asarray(values)
+            if v.ndim != 1 or v.size == 0:
+                raise ShapeError(
+                    f"swept values of {name!r} must be a non-empty 1-D array, got shape {v.shape}"
+                )
+            self.axes[name] = v
+        fixed = base if isinstance(base, Mapping) else base._asdict()
+        self.states: dict[str, tuple[str, int]] = {}
+        for name in self.axes:
+            match = _STATE.match(name)
+            if match and name not in fixed:
+                self.states[name] = (match.group(1), int(match.group(2)))
+        self.units: dict[str, str] = {}
+        for name, values in axes.items():  # an xarray axis may carry its own units
+            unit = getattr(values, "attrs", {}).get("units")
+            if unit is not None:
+                self.units[name] = str(unit)
+        for name, unit in (units or {}).items():
+            if name not in self.axes:
+                raise ConfigurationError(
+                    f"units= names {name!r}, which is not swept (swept: {list(self.axes)})"
+                )
+            if not isinstance(unit, str):
+                raise ArgumentTypeError(
+                    f"units= gives {name!r} the unit {unit!r}: a unit is a string, e.g. 'kg'"
+                )
+            self.units[name] = unit
+        self.product = product
+        if product:
+            self.dims = tuple(self.axes)
+            self.shape = tuple(v.size for v in self.axes.values())
+        else:
+            sizes = {k: v.size for k, v in self.axes.items()}
+            if len(set(sizes.values())) != 1:
+                raise ShapeError(f"samples() needs values of one length per name, got {sizes}")
+            self.dims = ("member",)
+            self.shape = (next(iter(sizes.values())),)
+        self.size = math.prod(self.shape)
+
+    def __repr__(self) -> str:
+        kind = "grid" if self.product else "samples"
+        return f"Grid({kind}, dims={self.dims}, shape={self.shape}, swept={list(self.axes)})"
+
+    def columns(self, start: int = 0, stop: int | None = None) -> dict[str, np.ndarray]:
+        """The swept values of members `start:stop` (C order over the grid)."""
+        stop = self.size if stop is None else stop
+        if not self.product:
+            return {k: v[start:stop] for k, v in self.axes.items()}
+        idx = np.unravel_index(np.arange(start, stop), self.shape)
+        return {k: v[i] for (k, v), i in zip(self.axes.items(), idx, strict=True)}
+
+    def params(self, start: int = 0, stop: int | None = None) -> Any:
+        """Batched parameters of members `start:stop`: every leaf has a leading axis."""
+        stop = self.size if stop is None else stop
+        cols = {k: v for k, v in self.columns(start, stop).items() if k not in self.states}
+        n = stop - start
+        fixed = dict(self.base) if isinstance(self.base, Mapping) else self.base._asdict()
+        out = {}
+        for k, v in fixed.items():
+            if k not in cols:
+                v = jnp.asarray(v)
+                out[k] = jnp.broadcast_to(v, (n,) + v.shape)
+        for k, v in cols.items():
+            out[k] = jnp.asarray(v)
+        if isinstance(self.base, Mapping):
+            return out
+        unknown = set(cols) - set(fixed)
+        if unknown:
+            raise ConfigurationError(
+                f"{sorted(unknown)} are not fields of {type(self.base).__name__}"
+            )
+        return type(self.base)(**out)
+
+    def initial_states(self, q0: np.ndarray, qd0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every member's initial state `(members, n)`: `q0`, `qd0` (already one row per
+        member) with the swept components (`q0_i`, `qd0_i` axes) set."""
+        if not self.states:
+            return q0, qd0
+        out = {"q0": np.array(q0), "qd0": np.array(qd0)}
+        cols = self.columns()
+        n = q0.shape[-1]
+        for name, (which, i) in self.states.items():
+            if i >= n:
+                raise ShapeError(
+                    f"the sweep axis {name!r} sets {which}[{i}], but the system's state has "
+                    f"{n} coordinates ({which}_0 … {which}_{n - 1})"
+                )
+            out[which][:, i] = cols[name]
+        return out["q0"], out["qd0"]
+
+
+def grid(base: Any = None, /, *, units: Mapping[str, str] | None = None, **axes: Any) -> Grid:
+    """The Cartesian product of named 1-D ranges of parameters and initial-state
+    components, over fixed parameters `base`.
+
+    `grid(params, m2=np.linspace(0.5, 2, 64), l1=np.linspace(0.5, 1.5, 64))` is a
+    64 × 64 sweep: every other entry of `params` stays fixed, and the result of `sweep`
+    gets dimensions `("m2", "l1")` labelled by these values. Members are ordered C-style
+    (the last name varies fastest).
+
+    A name `q0_i` sweeps component `i` of the initial coordinates, `qd0_i` of the
+    initial velocities (the rest of the state is `sweep`'s `q0`, `qd0`): an amplitude
+    study is `grid(params, q0_0=np.linspace(0.1, 3.0, 30))`, with a `q0_0` dimension in
+    the result.
+
+    **Arguments:**
+
+    - `base`: the fixed parameters (a dict or NamedTuple, e.g. from
+      `lagrax.models.planar_2r()`).
+    - `units`: the unit of each swept name (`{"m2": "kg", "q0_0": "rad"}`), set as the
+      `units` attr of the result's coordinates (plots label their axes with it). An
+      `xarray.DataArray` of values may carry its own `attrs["units"]` instead.
+    - `**axes`: swept names and their 1-D values.
+
+    **Returns:** a `Grid`.
+
+    **Raises:** `ShapeError` for values that are not a non-empty 1-D array (and, in
+    `sweep`, a state component the system does not have); `ConfigurationError` for no
+    swept name or a `units` entry naming none; `ArgumentTypeError` for fixed parameters
+    that are not a dict or NamedTuple.
+    """
+    return Grid(base, axes, product=True, units=units)
+
+
+def samples(base: Any = None, /, *, units: Mapping[str, str] | None = None, **values: Any) -> Grid:
+    """Parameter sets and initial-state components taken member by member (no product),
+    over fixed parameters `base`.
+
+    `samples(params, m2=rng.normal(1, 0.1, 1000), r2=rng.normal(0.5, 0.02, 1000))` is a
+    1000-member Monte-Carlo sweep; the result has one `"member"` dimension with `m2` and
+    `r2` as coordinates along it. Names `q0_i` / `qd0_i` draw initial-state components,
+    and `units` gives units, as for `grid`.
+    """
+    return Grid(base, values, product=False, units=units)

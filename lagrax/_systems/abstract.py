@@ -1,0 +1,167 @@
+"""`AbstractSystem`: what `simulate`, `sweep`, the vector field and the integrators
+may ask of any mechanical system."""
+
+import abc
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from .._core.checks import coords, same_shape
+from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
+
+
+class AbstractSystem(eqx.Module):
+    r"""The interface every kind of mechanical system implements.
+
+    A system has `n` generalized coordinates `q` and velocities `q̇` and defines
+    accelerations `q̈(t, q, q̇; params, τ)`. `simulate` and `sweep` integrate the
+    first-order system `(q, q̇)' = (q̇, q̈)` through this interface only, so a new kind
+    of system (a constrained one, one that knows its rigid bodies …) is a subclass that
+    fills in the abstract members below; nothing in the solve and sweep paths asks which
+    kind it is.
+
+    Following equinox's abstract/final rule, this class is never instantiated and its
+    concrete subclasses ([`lagrax.LagrangianSystem`][],
+    [`lagrax.ConstrainedSystem`][]) are never subclassed.
+
+    **Abstract attributes:**
+
+    - `n_dof`: the number of generalized coordinates, or `None` if not fixed.
+    - `name`: a label for messages and plots.
+
+    **Abstract methods** (each documented below): [`energy`][lagrax.AbstractSystem.energy],
+    [`mass_matrix`][lagrax.AbstractSystem.mass_matrix],
+    [`forward_dynamics`][lagrax.AbstractSystem.forward_dynamics] (checked, raising),
+    [`accelerations`][lagrax.AbstractSystem.accelerations] (unchecked, for inside a solver loop),
+    [`check_state`][lagrax.AbstractSystem.check_state].
+
+    **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
+    [`observables`][lagrax.AbstractSystem.observables] (none),
+    [`components`][lagrax.AbstractSystem.components] (none),
+    [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none),
+    [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]
+    ([`energy`][lagrax.AbstractSystem.energy]),
+    [`explicit_power`][lagrax.AbstractSystem.explicit_power] (none),
+    [`input_power`][lagrax.AbstractSystem.input_power] (`q̇·τ`),
+    [`energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude] (`h` and `|h|`).
+    """
+
+    n_dof: eqx.AbstractVar[int | None]
+    name: eqx.AbstractVar[str]
+
+    # ------------------------------------------------------------------ the interface
+    @abc.abstractmethod
+    def energy(self, q: Coordinates, qd: Velocities, params: Params) -> Scalar:
+        """The mechanical energy `T + V`."""
+
+    @abc.abstractmethod
+    def mass_matrix(self, q: Coordinates, params: Params, qd: Velocities | None = None) -> Matrix:
+        """`M(q) = ∂²T/∂q̇²`, shape `(n, n)`; `simulate` and `sweep` check that it is
+        positive-definite at the initial state."""
+
+    @abc.abstractmethod
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Accelerations `q̈`, with every input checked (raises a `LagraxError`)."""
+
+    @abc.abstractmethod
+    def accelerations(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Vector:
+        """Accelerations `q̈` of already-checked 1-D arrays, never raising: NaN where they
+        are undefined (a singular mass matrix, …). This is what a solver integrates;
+        `tau` is the input generalized force or `None`."""
+
+    @abc.abstractmethod
+    def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
+        """Validate a state eagerly (outside `jit`), raising a `LagraxError` that names
+        the problem and the values (at time `t` for a time-dependent system)."""
+
+    # ------------------------------------------------------------------ hooks
+    def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
+        """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
+
+        The default returns it unchanged with `ok = True`; a constrained system projects
+        it onto its constraints (`ok` false where that fails). Never raises.
+        """
+        return q, qd, jnp.asarray(True)
+
+    def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """The energy reported along a solution (`Solution.energy`): the Jacobi integral
+        `h = q̇·∂L/∂q̇ − L` at time `t` (`T + V` when `T` is quadratic in `q̇`).
+        Default: [`energy`][lagrax.AbstractSystem.energy]. Never raises."""
+        return self.energy(q, qd, params)
+
+    def explicit_power(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """`−∂L/∂t` at one state, the rate at which an explicit time dependence changes
+        [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None` (the default) for an
+        autonomous system, whose `h` only inputs and dissipation change. Never raises."""
+        return None
+
+    def input_power(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Any:
+        """`q̇·(τ + F − ∂D/∂q̇)` at one state: the rate at which the inputs, applied forces
+        and dissipation change [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None`
+        when there are none (`tau` is `None` and the system has no force or dissipation). Default:
+        `q̇·τ`. Never raises."""
+        return None if tau is None else jnp.dot(qd, tau)
+
+    def energy_and_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """`(h, m)` at one state: the Jacobi integral
+        ([`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]) and a magnitude of the energy
+        that does not vanish where `h` does (`|T| + |V|`), from which `Solution.energy_error` takes
+        its scale; both from one evaluation of the energies. Default: `(h, |h|)`. Never raises."""
+        h = self.jacobi_integral(t, q, qd, params)
+        return h, jnp.abs(h)
+
+    def observables(
+        self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
+    ) -> dict[str, Any]:
+        """Extra quantities this kind reports at one state of a solution, by
+        [`lagrax.Solution`][] field name (default none). Never raises."""
+        return {}
+
+    def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
+        """The pieces the accelerations are made of at one state, by a readable name
+        (applied forces first, then the energies' derivatives, the mass matrix, …), for
+        a failure diagnosis to say which one is non-finite. Default: none. Never raises
+        on non-finite values."""
+        return {}
+
+    def failure_hint(self, q: Any, params: Params) -> str | None:
+        """Eagerly, a sentence on why the accelerations may be undefined at `q` beyond a
+        singular mass matrix (`None`: nothing to add). Used in failure messages."""
+        return None
+
+    # ------------------------------------------------------------------ input shapes
+    def _coords(self, q: Coordinates, name: str = "q", host: bool = False):
+        return coords(q, name, self.n_dof, self.name, host=host)
+
+    def _state(self, q: Coordinates, qd: Velocities | None = None, **others: Any):
+        """`q` (and `qd`, …) as 1-D arrays of one shape and dtype, or a `ShapeError`."""
+        q = self._coords(q, "q")
+        out = [q]
+        named = {"qd": qd, **others} if qd is not None else dict(others)
+        for key, value in named.items():
+            if value is None:
+                out.append(None)
+                continue
+            v = self._coords(value, key)
+            same_shape(key, v, q)
+            out.append(v.astype(jnp.result_type(q, v)))
+        return out
+
+
+def host_state(system: AbstractSystem, q: Coordinates, qd: Velocities):
+    """`(q, q̇)` as NumPy arrays, with `_state`'s checks and no device transfer, for
+    `simulate`'s per-call set-up. A function, not a method: equinox binds a method of a
+    Module by building a `BoundMethod` Module around it, which walks the system's
+    pytree (~50 µs for a 7-link chain)."""
+    n, name = system.n_dof, system.name
+    q, qd = coords(q, "q", n, name, host=True), coords(qd, "qd", n, name, host=True)
+    same_shape("qd", qd, q)
+    return q, qd

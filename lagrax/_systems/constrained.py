@@ -1,0 +1,679 @@
+"""Holonomic constraints `φ(q) = 0` and velocity (non-holonomic) constraints
+`A(q) q̇ = 0` by Lagrange multipliers: `ConstrainedSystem`."""
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.checks import call_user, finite, is_traced
+from .._core.custom_types import (
+    ConstraintJacobian,
+    ConstraintValues,
+    Coordinates,
+    Matrix,
+    Params,
+    Scalar,
+    Time,
+    Vector,
+    Velocities,
+)
+from .._core.errors import (
+    ArgumentTypeError,
+    ConfigurationError,
+    ConstraintError,
+    NonFiniteError,
+    ShapeError,
+)
+from .._core.linalg import PIVOT_RTOL, cholesky_solve
+from . import derivatives as d
+from .abstract import AbstractSystem
+from .lagrangian import LagrangianSystem
+
+ConstraintFn = Callable[[Vector, Params], ConstraintValues]
+VelocityConstraintFn = Callable[[Vector, Params], ConstraintJacobian]
+
+# Newton iterations to project a state onto φ(q) = 0 (quadratic convergence: a start
+# within the basin needs a handful).
+_PROJECTION_ITERS = 30
+
+
+def solve_kkt(mass: Matrix, jac: ConstraintJacobian, force: Vector, gamma: ConstraintValues):
+    r"""Solve `[[M, Jᵀ], [J, 0]] [x; −λ] = [f; γ]` for `(x, λ)` by the Schur complement.
+
+    `M x = f + Jᵀ λ` and `J x = γ` give `λ = S⁻¹(γ − J M⁻¹ f)` with the Schur
+    complement `S = J M⁻¹ Jᵀ` and `x = M⁻¹(f + Jᵀ λ)`: one Cholesky factorization of
+    `M` (shared by the `1 + m` right-hand sides) and one of `S`. `S` is
+    positive-definite exactly when `M` is and `J` has full row rank; otherwise (a
+    Cholesky pivot below `64 ε` relative to the largest diagonal entry) the result is
+    NaN, never a finite wrong answer.
+    """
+    cols = jnp.concatenate([force[:, None], jac.T], axis=1)
+    sol = jax.vmap(lambda b: cholesky_solve(mass, b), in_axes=1, out_axes=1)(cols)
+    x_free, m_inv_jt = sol[:, 0], sol[:, 1:]
+    schur = jac @ m_inv_jt
+    schur = 0.5 * (schur + schur.T)
+    lam = cholesky_solve(schur, gamma - jac @ x_free)
+    return x_free + m_inv_jt @ lam, lam
+
+
+class ConstrainedSystem(AbstractSystem):
+    r"""A `LagrangianSystem` subject to holonomic constraints `φ(q) = 0` and/or
+    velocity (non-holonomic) constraints `A(q) q̇ = 0`.
+
+    The constrained equations of motion, with Lagrange multipliers `λ` (`m₁` for the
+    holonomic rows) and `μ` (`m₂` for the velocity rows),
+
+    $$
+    M(q) q̈ + C(q, q̇) q̇ + G(q) = τ + F − ∂D/∂q̇ + J(q)ᵀ λ + A(q)ᵀ μ,
+    \qquad φ(q) = 0, \quad A(q) q̇ = 0,
+    $$
+
+    with `J = ∂φ/∂q` (shape `(m₁, n)`) and `A` (shape `(m₂, n)`, any matrix: its
+    rows need not be the gradient of anything, as for a knife edge or a rolling wheel),
+    are solved as the index-1 KKT system
+
+    $$
+    \begin{bmatrix} M & Jᵀ & Aᵀ \\ J & 0 & 0 \\ A & 0 & 0 \end{bmatrix}
+    \begin{bmatrix} q̈ \\ −λ \\ −μ \end{bmatrix}
+    = \begin{bmatrix} τ + F − C q̇ − G − ∂D/∂q̇ \\
+    −\dot J q̇ − 2α J q̇ − β² φ \\
+    −\dot A q̇ − β A q̇ \end{bmatrix}.
+    $$
+
+    The second row is the holonomic constraint differentiated twice, `φ̈ = J q̈ + J̇ q̇`,
+    with Baumgarte's stabilization: it enforces `φ̈ + 2α φ̇ + β² φ = 0`, so a drift of
+    the integrator away from `φ = 0` decays instead of growing (critically damped for
+    `α = β`; `α = β = 0` is the bare index-1 formulation). The third row is the
+    velocity constraint `ψ = A q̇` differentiated once, `ψ̇ = A q̈ + Ȧ q̇`, stabilized
+    on the velocity level, `ψ̇ + β ψ = 0` (drift decays like `exp(−β t)`). `J̇ q̇`
+    is the second directional derivative of `φ` along `q̇` and `Ȧ q̇` the
+    directional derivative of `A(q) q̇` along `q̇` (one JVP each; no Hessian, no
+    derivative of `A` beyond the one needed); `J` comes from `n` JVPs of `φ`.
+    Both kinds of row share one solve, by the Schur complement `K M⁻¹ Kᵀ` of the
+    stacked constraint matrix `K = [J; A]` (Cholesky factorizations only); it is
+    singular exactly when `K` loses rank (redundant constraints, or a singular
+    configuration such as a linkage at a change point), which is refused with a
+    `ConstraintError` instead of returning NaN.
+
+    `Kᵀ (λ, μ) = Jᵀλ + Aᵀμ` is the generalized constraint force
+    ([`constraint_forces`][lagrax.ConstrainedSystem.constraint_forces]); the multipliers
+    ([`multipliers`][lagrax.ConstrainedSystem.multipliers]) are ordered holonomic rows first, then
+    velocity rows: `(λ₁ … λ_{m₁}, μ₁ … μ_{m₂})`. For the Cartesian pendulum `φ = x² + y² − l²`, `Jᵀλ
+    = 2λ (x, y)`, so the rod tension is `−2 l λ`; for a knife edge `A = (−sin θ, cos θ, 0)`, `μ` is
+    the lateral force on the blade.
+
+    `lagrax.simulate` accepts a `ConstrainedSystem`. It first projects the initial
+    state onto the constraints (`project_initial=True`, see
+    [`project`][lagrax.ConstrainedSystem.project]), then integrates; the `Solution` carries
+    `constraint_violation` (`φ(q)` at the saved times, without holonomic constraints `None`),
+    `velocity_constraint_violation` (`A(q) q̇`, with velocity constraints) and `multipliers` (`(λ,
+    μ)`). The energy (the Jacobi integral, `T + V` for `T` quadratic in `q̇`) is conserved by the
+    exact constrained motion: constraints without explicit time do no work
+    (`q̇ · (Jᵀλ + Aᵀμ) = λ·J q̇ + μ·A q̇ = 0`).
+
+    **Arguments:**
+
+    - `system`: the unconstrained `LagrangianSystem` (in redundant coordinates).
+    - `constraints`: `φ(q, params) -> (m₁,)`, zero on admissible configurations. A
+      scalar is taken as `m₁ = 1`. `None` for none (then `velocity_constraints`
+      is required).
+    - `velocity_constraints`: `A(q, params) -> (m₂, n)`, the matrix of the velocity
+      constraints `A(q) q̇ = 0` (default none). A 1-D `(n,)` result is taken as one
+      row. Integrable rows (`A = ∂ψ/∂q`) are allowed but only their velocity level is
+      enforced; state a holonomic constraint through `constraints` instead.
+    - `alpha`, `beta`: Baumgarte gains in 1/time units (default 10 each: drift decays
+      like `exp(−10 t)`). Larger values hold the constraint tighter but make the
+      equations stiffer; keep `α, β` well below `1/dt` for a fixed-step method.
+    - `project_initial`: project the initial state of `simulate` onto `φ = 0`,
+      `J q̇ = 0`, `A q̇ = 0` (default `True`).
+    - `name`: a label for messages (default: the system's name with "constrained").
+
+    **Example:**
+
+    ```python
+    import jax.numpy as jnp
+    import lagrax as lx
+
+    free = lx.LagrangianSystem(lambda q, qd, p: 0.5 * p["m"] * qd @ qd,
+                               lambda q, p: p["m"] * p["g"] * q[1], n_dof=2)
+    rod = lambda q, p: jnp.stack([q @ q - p["l"] ** 2])   # |r| = l
+    pendulum = lx.ConstrainedSystem(free, rod)
+    params = {"m": 1.0, "g": 9.81, "l": 1.0}
+    sol = lx.simulate(pendulum, [0.6, -0.8], [0.0, 0.0], params, t1=10.0)
+    abs(sol.constraint_violation).max(), sol.multipliers[0]   # ~5e-9, λ = −T/(2l)
+
+    # a knife edge (skate) on a plane, q = (x, y, θ): no velocity across the blade
+    skate = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * (qd[0] ** 2 + qd[1] ** 2) + 0.5 * p["I"] * qd[2] ** 2,
+        lambda q, p: 0.0 * q[0], n_dof=3)
+    blade = lambda q, p: jnp.stack([-jnp.sin(q[2]), jnp.cos(q[2]), 0.0 * q[2]])[None]
+    knife = lx.ConstrainedSystem(skate, None, velocity_constraints=blade)
+    sol = lx.simulate(knife, [0.0, 0.0, 0.0], [1.0, 0.0, 0.5], {"m": 1.0, "I": 0.1}, t1=10.0)
+    # a circle of radius 2: speed 1 along the blade, turning at 0.5 rad/s
+    ```
+
+    **Raises** (from its methods and `simulate`): `ConstraintError` when `[J; A]`
+    is rank-deficient or a state cannot be projected onto `φ = 0`; `ShapeError` when
+    `φ` or `A` returns the wrong shape; the errors of `LagrangianSystem`
+    (`ShapeError`, `NonFiniteError`, `ParameterError`, `MassMatrixError`).
+    """
+
+    system: LagrangianSystem
+    constraints: ConstraintFn | None
+    velocity_constraints: VelocityConstraintFn | None
+    alpha: float = eqx.field(static=True)
+    beta: float = eqx.field(static=True)
+    project_initial: bool = eqx.field(static=True)
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        system: LagrangianSystem,
+        constraints: ConstraintFn | None = None,
+        *,
+        velocity_constraints: VelocityConstraintFn | None = None,
+        alpha: float = 10.0,
+        beta: float = 10.0,
+        project_initial: bool = True,
+        name: str | None = None,
+    ):
+        if not isinstance(system, LagrangianSystem):
+            raise ArgumentTypeError(
+                f"ConstrainedSystem wraps a LagrangianSystem, got {type(system).__name__}"
+            )
+        if constraints is None and velocity_constraints is None:
+            raise ConfigurationError(
+                "ConstrainedSystem needs constraints phi(q, params) -> (m,), "
+                "velocity_constraints A(q, params) -> (m, n), or both; got neither"
+            )
+        if constraints is not None and not callable(constraints):
+            raise ArgumentTypeError(
+                f"constraints must be a function phi(q, params) -> (m,) or None, got "
+                f"{constraints!r}"
+            )
+        if velocity_constraints is not None and not callable(velocity_constraints):
+            raise ArgumentTypeError(
+                "velocity_constraints must be a function A(q, params) -> (m, n) (the "
+                f"constraint A(q) qd = 0) or None, got {velocity_constraints!r}"
+            )
+        alpha, beta = float(alpha), float(beta)
+        if not (alpha >= 0.0 and beta >= 0.0 and np.isfinite(alpha) and np.isfinite(beta)):
+            raise ConfigurationError(
+                f"Baumgarte gains must be finite and non-negative, got alpha={alpha}, "
+                f"beta={beta} (negative gains make the constraint drift grow)"
+            )
+        self.system = system
+        self.constraints = constraints
+        self.velocity_constraints = velocity_constraints
+        # Python floats: static (hashable, so jax.jit(system.method) works) and weakly
+        # typed (a float32 state stays float32); changing a gain recompiles simulate
+        self.alpha = alpha
+        self.beta = beta
+        self.project_initial = bool(project_initial)
+        self.name = f"{system.name} (constrained)" if name is None else name
+
+    # ------------------------------------------------------------ shared with the system
+    @property
+    def n_dof(self) -> int | None:
+        """Number of (redundant) generalized coordinates `n`, if the system states it."""
+        return self.system.n_dof
+
+    def energy(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Scalar:
+        """Total mechanical energy `E = T + V` (constraint forces do no work)."""
+        return self.system.energy(q, qd, params, t=t)
+
+    def jacobi_integral(self, t, q, qd, params):
+        """The system's Jacobi integral `h` (the constraints, `φ(q) = 0` without
+        explicit time, do no work, so `h` balances as for the free system)."""
+        return self.system.jacobi_integral(t, q, qd, params)
+
+    def explicit_power(self, t, q, qd, params):
+        """The system's `−∂L/∂t` (`None` when autonomous)."""
+        return self.system.explicit_power(t, q, qd, params)
+
+    def input_power(self, t, q, qd, params, tau):
+        """The system's `q̇·(τ + F − ∂D/∂q̇)` (the constraint forces add none:
+        `q̇·(Jᵀλ + Aᵀμ) = λ·J q̇ + μ·A q̇ = 0` on admissible velocities)."""
+        return self.system.input_power(t, q, qd, params, tau)
+
+    def energy_and_magnitude(self, t, q, qd, params):
+        """The system's `(h, |T| + |V|)`."""
+        return self.system.energy_and_magnitude(t, q, qd, params)
+
+    def kinetic_energy(
+        self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0
+    ) -> Scalar:
+        """`T(q, q̇)` of the underlying system."""
+        return self.system.kinetic_energy(q, qd, params, t=t)
+
+    def potential_energy(self, q: Coordinates, params: Params, *, t: Time = 0.0) -> Scalar:
+        """`V(q)` of the underlying system."""
+        return self.system.potential_energy(q, params, t=t)
+
+    def mass_matrix(
+        self,
+        q: Coordinates,
+        params: Params,
+        qd: Velocities | None = None,
+        *,
+        t: Time = 0.0,
+    ) -> Matrix:
+        """Mass matrix `M(q)` of the unconstrained system, shape `(n, n)`."""
+        return self.system.mass_matrix(q, params, qd, t=t)
+
+    # ------------------------------------------------------------ constraint functions
+    def _phi(self, q, params):
+        if self.constraints is None:
+            return jnp.zeros((0,), q.dtype)
+        out = jnp.asarray(call_user(self.constraints, "constraint", params, q))
+        if out.ndim == 0:
+            out = out[None]
+        if out.ndim != 1:
+            raise ShapeError(
+                f"the constraint function of {self.name} returned shape {out.shape}; "
+                "it must return a 1-D array phi(q) of shape (m,)"
+            )
+        return out
+
+    def _amat(self, q, params):
+        """`A(q)`, shape `(m₂, n)` (`(0, n)` without velocity constraints)."""
+        n = q.shape[0]
+        if self.velocity_constraints is None:
+            return jnp.zeros((0, n), q.dtype)
+        out = jnp.asarray(call_user(self.velocity_constraints, "velocity constraint", params, q))
+        if out.ndim == 1 and out.shape[0] == n:
+            out = out[None]
+        if out.ndim != 2 or out.shape[1] != n:
+            raise ShapeError(
+                f"the velocity constraint function of {self.name} returned shape "
+                f"{out.shape} for q of shape ({n},); it must return the matrix A(q) of "
+                f"shape (m, {n}) (one row per constraint A(q) qd = 0)"
+            )
+        if not jnp.issubdtype(out.dtype, jnp.floating):
+            out = out.astype(q.dtype)
+        return out
+
+    def _jacobian(self, q, params):
+        if self.constraints is None:
+            return jnp.zeros((0, q.shape[0]), q.dtype)
+        return jax.jacfwd(lambda a: self._phi(a, params))(q)
+
+    def _kmat(self, q, params):
+        """The stacked constraint matrix `K = [J; A]`, shape `(m₁ + m₂, n)`."""
+        rows = []
+        if self.constraints is not None:
+            rows.append(self._jacobian(q, params))
+        if self.velocity_constraints is not None:
+            rows.append(self._amat(q, params))
+        dtype = jnp.result_type(*rows)
+        return jnp.concatenate([r.astype(dtype) for r in rows], axis=0)
+
+    def violation(self, q: Coordinates, params: Params) -> ConstraintValues:
+        """Constraint values `φ(q)`, shape `(m₁,)`: zero on the constraint manifold
+        (shape `(0,)` without holonomic constraints)."""
+        (q,) = self._state(q)
+        return self._phi(q, params)
+
+    def velocity_violation(
+        self, q: Coordinates, qd: Velocities, params: Params
+    ) -> ConstraintValues:
+        """`K(q) q̇ = (J q̇, A q̇)`, shape `(m₁ + m₂,)`: `φ̇` of the holonomic rows (one
+        JVP of `φ`), then `A(q) q̇` of the velocity rows; zero for admissible
+        velocities. Rows in the order of [`multipliers`][lagrax.ConstrainedSystem.multipliers]."""
+        q, qd = self._state(q, qd)
+        return self._kmat(q, params) @ qd
+
+    def constraint_jacobian(self, q: Coordinates, params: Params) -> ConstraintJacobian:
+        """`J = ∂φ/∂q` of the holonomic constraints, shape `(m₁, n)` (`n` JVPs of
+        `φ`)."""
+        (q,) = self._state(q)
+        return self._jacobian(q, params)
+
+    def constraint_matrix(self, q: Coordinates, params: Params) -> ConstraintJacobian:
+        """The stacked constraint matrix `K = [J; A]`, shape `(m₁ + m₂, n)`: the
+        holonomic Jacobian `J = ∂φ/∂q`, then the velocity-constraint matrix `A(q)`.
+        Admissible velocities satisfy `K q̇ = 0`; the constraint force is
+        `Kᵀ (λ, μ)`."""
+        (q,) = self._state(q)
+        return self._kmat(q, params)
+
+    # ------------------------------------------------------------ dynamics
+    def _kkt(self, t, q, qd, params, tau):
+        """`(q̈, (λ, μ))` without raising: NaN where `M` is not PD or `K` loses
+        rank."""
+        sys = self.system
+        mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+        rows, gammas = [], []
+        if self.constraints is not None:
+
+            def phi_and_rate(a):
+                return jax.jvp(lambda b: self._phi(b, params), (a,), (qd,))
+
+            (phi, jqd), (_, jdot_qd) = jax.jvp(phi_and_rate, (q,), (qd,))
+            rows.append(self._jacobian(q, params))
+            gammas.append(-jdot_qd - 2.0 * self.alpha * jqd - self.beta**2 * phi)
+        if self.velocity_constraints is not None:
+
+            def a_and_rate(a):
+                amat = self._amat(a, params)
+                return amat, amat @ qd
+
+            # Ȧ q̇ = (∂(A q̇)/∂q) q̇: one JVP (the unused tangent of A itself is dropped)
+            (amat, aqd), (_, adot_qd) = jax.jvp(a_and_rate, (q,), (qd,))
+            rows.append(amat)
+            gammas.append(-adot_qd - self.beta * aqd)
+        dtype = jnp.result_type(mass, *rows)
+        kmat = jnp.concatenate([r.astype(dtype) for r in rows], axis=0)
+        gamma = jnp.concatenate([g.astype(dtype) for g in gammas])
+        return solve_kkt(mass, kmat, force, gamma)
+
+    def accelerations(self, t, q, qd, params, tau):
+        """Constrained accelerations without raising (what `simulate` integrates)."""
+        return self._kkt(t, q, qd, params, tau)[0]
+
+    def initial_state(self, q, qd, params):
+        """The state projected onto `φ = 0`, `J q̇ = 0`, `A q̇ = 0` (when
+        `project_initial`), and whether that succeeded; see
+        [`project`][lagrax.ConstrainedSystem.project]."""
+        if not self.project_initial:
+            return q, qd, jnp.asarray(True)
+        return self._project(q, qd, params)
+
+    def observables(self, t, q, qd, params, tau):
+        """At one state: `constraint_violation` `φ(q)` (with holonomic constraints),
+        `velocity_constraint_violation` `A(q) q̇` (with velocity constraints) and
+        `multipliers` `(λ, μ)`."""
+        out = {}
+        if self.constraints is not None:
+            out["constraint_violation"] = self._phi(q, params)
+        if self.velocity_constraints is not None:
+            out["velocity_constraint_violation"] = self._amat(q, params) @ qd
+        out["multipliers"] = self._kkt(t, q, qd, params, tau)[1]
+        return out
+
+    def components(self, t, q, qd, params):
+        """The system's components plus `φ(q)`, `J(q)` and `A(q)`."""
+        out = self.system.components(t, q, qd, params)
+        if self.constraints is not None:
+            out["the constraint values phi(q)"] = self._phi(q, params)
+            out["the constraint Jacobian J = dphi/dq"] = self._jacobian(q, params)
+        if self.velocity_constraints is not None:
+            out["the velocity constraint matrix A(q)"] = self._amat(q, params)
+        return out
+
+    def failure_hint(self, q, params):
+        """The rank deficiency of `[J; A](q)`, if any (see
+        [`check_state`][lagrax.ConstrainedSystem.check_state])."""
+        return self._rank_message(q, params)
+
+    def _checked_kkt(self, q, qd, params, tau, t, what: str):
+        q, qd, tau = self._state(q, qd, tau=tau)
+        if not is_traced(q, qd, tau, params, t):
+            finite(q, "q")
+            finite(qd, "qd")
+            if tau is not None:
+                finite(tau, "tau")
+            qdd, lam = self._kkt(t, q, qd, params, tau)
+            if not bool(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam))):
+                self.check_state(q, qd, params, project=False, t=t)  # raises: the cause
+                raise NonFiniteError(
+                    f"{what} of {self.name} is not finite at q={np.asarray(q)}, "
+                    f"qd={np.asarray(qd)} although M(q) is positive-definite and {self._kname} has "
+                    "full rank: check the force, dissipation, tau and the constraint "
+                    "function's derivatives there"
+                )
+            return qdd, lam
+        qdd, lam = self._kkt(t, q, qd, params, tau)
+        bad = ~(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam)))
+        return eqx.error_if(
+            (qdd, lam),
+            bad,
+            f"{what} of {self.name} is non-finite: q, qd, tau or params contain NaN/inf, "
+            f"M(q) is not positive-definite, or {self._kname} is "
+            "rank-deficient (redundant constraints or a singular configuration, so the "
+            f"KKT matrix [[M, K^T], [K, 0]] with K = {self._ksym} is singular). Outside "
+            "jit the message names which.",
+        )
+
+    def forward_dynamics(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Constrained accelerations `q̈` from the KKT system (see the class docstring).
+
+        **Arguments:** the state `q`, `qd` (shape `(n,)`), `params`, input forces
+        `tau` (default none) and the time `t` (for the system's `force`).
+
+        **Returns:** `q̈`, shape `(n,)`.
+
+        **Raises:** `ConstraintError` when `[J; A](q)` is rank-deficient;
+        `MassMatrixError` when `M(q)` is not positive-definite; `ShapeError`,
+        `NonFiniteError`. Under `jit`, a run-time error by `equinox.error_if`.
+        """
+        return self._checked_kkt(q, qd, params, tau, t, "forward_dynamics")[0]
+
+    def multipliers(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> ConstraintValues:
+        """Lagrange multipliers `(λ, μ)`, shape `(m₁ + m₂,)`: the holonomic rows' `λ`
+        first, then the velocity rows' `μ`. `J(q)ᵀ λ + A(q)ᵀ μ` is the generalized force
+        the constraints exert (sign: `M q̈ + C q̇ + G = τ + F − ∂D/∂q̇ + Jᵀλ + Aᵀμ`).
+
+        Computed with the Baumgarte terms, which vanish on the constraint manifold.
+        Arguments and errors as [`forward_dynamics`][lagrax.ConstrainedSystem.forward_dynamics].
+        """
+        return self._checked_kkt(q, qd, params, tau, t, "multipliers")[1]
+
+    def constraint_forces(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+    ) -> Vector:
+        """Generalized constraint force `J(q)ᵀ λ + A(q)ᵀ μ`, shape `(n,)`: what the
+        constraints add to the right-hand side of `M q̈ + C q̇ + G = τ + F − ∂D/∂q̇`.
+
+        Arguments and errors as [`forward_dynamics`][lagrax.ConstrainedSystem.forward_dynamics].
+        """
+        q, qd, tau = self._state(q, qd, tau=tau)
+        lam = self._checked_kkt(q, qd, params, tau, t, "constraint_forces")[1]
+        return self._kmat(q, params).T @ lam
+
+    # ------------------------------------------------------------ projection
+    def _project(self, q, qd, params):
+        """Project `(q, q̇)` onto `φ = 0`, `J q̇ = 0`, `A q̇ = 0` without raising.
+
+        Returns `(q, q̇, ok)`; when `ok` is false, the returned state is the
+        input state unchanged (finite, so a solve from it still runs and is flagged).
+        """
+        q0, qd0 = q, qd
+        dtype = q.dtype
+        eps = float(jnp.finfo(dtype).eps)
+        zero = jnp.zeros_like(q)
+        # M(q0): a fixed SPD metric (the projection has no time: a time-dependent system's
+        # M(t, q) is taken at t = 0, which changes the metric, not the manifold)
+        t0 = jnp.zeros((), dtype)
+        metric = d.mass_matrix(self.system, q0, zero, params, t0)
+
+        def newton_step(a):
+            phi = self._phi(a, params)
+            jac = self._jacobian(a, params)
+            # minimal-norm step in the metric M(q0): Δq = −M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹ φ
+            return solve_kkt(metric, jac, zero, -phi)[0]
+
+        def body(_, carry):
+            a, _ = carry
+            step = newton_step(a)
+            return a + step, step
+
+        if self.constraints is None:  # velocity constraints only: q is admissible as is
+            q1, q_ok = q0, jnp.asarray(True)
+        else:
+            # a fixed number of iterations (a scan, so reverse-mode differentiable); after
+            # convergence the steps are round-off sized and change nothing
+            init = (q0, jnp.zeros_like(q0))
+            q1, step = jax.lax.fori_loop(0, _PROJECTION_ITERS, body, init)
+            scale = 1.0 + jnp.max(jnp.abs(q1))
+            q_ok = jnp.all(jnp.isfinite(q1)) & (jnp.max(jnp.abs(step)) <= eps**0.5 * scale)
+        # velocities: the M(q)-orthogonal projection onto K q̇ = 0, K = [J; A] (what an
+        # impulsive constraint would do: the admissible velocity of least kinetic-energy
+        # change)
+        q1_safe = jnp.where(q_ok, q1, q0)
+        mass = d.mass_matrix(self.system, q1_safe, zero, params, t0)
+        kmat = self._kmat(q1_safe, params)
+        qd1 = qd0 + solve_kkt(mass, kmat, zero, -(kmat @ qd0))[0]
+        ok = q_ok & jnp.all(jnp.isfinite(qd1))
+        return jnp.where(ok, q1, q0), jnp.where(ok, qd1, qd0), ok
+
+    def project(self, q: Coordinates, qd: Velocities, params: Params) -> tuple[Vector, Vector]:
+        r"""The nearest consistent state: `φ(q*) = 0`, `J(q*) q̇* = 0` and
+        `A(q*) q̇* = 0`.
+
+        Positions by Newton's method on `φ(q) = 0` with minimal-norm steps in the
+        kinetic metric `M(q0)`: `Δq = −M⁻¹Jᵀ(J M⁻¹ Jᵀ)⁻¹ φ(q)` (converges
+        quadratically from a start near the manifold). Velocities by the `M`-orthogonal
+        projection `q̇* = q̇ − M⁻¹Kᵀ(K M⁻¹ Kᵀ)⁻¹ K q̇` at `q*` with `K = [J; A]` (the
+        holonomic and the velocity rows together), the admissible velocity closest in
+        kinetic energy (what an impulsive constraint does). Without holonomic
+        constraints `q* = q`.
+
+        **Arguments:** `q`, `qd` (shape `(n,)`) and `params`.
+
+        **Returns:** `(q*, q̇*)`.
+
+        **Raises:** `ConstraintError` when Newton's method does not converge within 30
+        iterations (no admissible configuration near `q`: inconsistent constraints or a
+        start too far away) or `J` or `[J; A]` is rank-deficient on the way. Under
+        `jit`, a
+        run-time error by `equinox.error_if`.
+        """
+        q, qd = self._state(q, qd)
+        if is_traced(q, qd, params):
+            q1, qd1, ok = self._project(q, qd, params)
+            return eqx.error_if(
+                (q1, qd1),
+                ~ok,
+                f"could not project the state of {self.name} onto its constraints "
+                "phi(q) = 0 (no convergence, or a rank-deficient constraint Jacobian); "
+                "call project outside jit for a diagnosis",
+            )
+        finite(q, "q")
+        finite(qd, "qd")
+        q1, qd1, ok = _project_jit(self, q, qd, params)
+        if not bool(ok):
+            raise ConstraintError(self._projection_message(q, params))
+        return q1, qd1
+
+    def _projection_message(self, q, params) -> str:
+        head = f"could not project the state of {self.name} onto its constraints"
+        rank = self._rank_message(q, params)
+        if rank is not None:
+            return f"{head}: at the initial q, {rank}"
+        phi = np.asarray(self._phi(q, params))
+        return (
+            f"{head}: Newton's method did not converge in {_PROJECTION_ITERS} iterations from "
+            f"q={np.asarray(q)} (|phi(q)| = {np.max(np.abs(phi)):.3g} there; phi = {phi}), "
+            "or met a configuration where J = dphi/dq is rank-deficient. The constraints "
+            "may have no solution near this q (check the lengths/parameters and the "
+            "constraint function) or the start is too far from one: start from an "
+            "(approximately) consistent configuration."
+        )
+
+    # ------------------------------------------------------------ checks
+    def _rank_message(self, q, params) -> str | None:
+        """A description of a rank-deficient `K = [J; A]` at `q` (`None` if it has
+        full rank)."""
+        jac = np.asarray(self._kmat(jnp.asarray(q), params))
+        mass = np.asarray(self.system.mass_matrix(q, params))
+        m, n = jac.shape
+        sv = np.linalg.svd(jac, compute_uv=False) if jac.size else np.zeros(0)
+        schur = jac @ np.linalg.solve(mass, jac.T)
+        eigs = np.linalg.eigvalsh(0.5 * (schur + schur.T)) if m else np.zeros(0)
+        tol = PIVOT_RTOL * np.finfo(jac.dtype).eps
+        if m <= n and (m == 0 or eigs[0] > tol * max(np.max(np.abs(np.diag(schur))), 1e-300)):
+            return None
+        why = (
+            f"there are more constraints (m={m}) than coordinates (n={n})"
+            if m > n
+            else "the constraints are redundant (remove the dependent ones) or q is a "
+            "singular configuration of the mechanism (e.g. a linkage at a change point, "
+            "links aligned)"
+        )
+        if self.velocity_constraints is None:
+            return (
+                f"the constraint Jacobian J = dphi/dq of {self.name} is rank-deficient at "
+                f"q={np.asarray(q)} (shape {jac.shape}, singular values {sv}), so the KKT "
+                f"matrix [[M, J^T], [J, 0]] is singular: {why}"
+            )
+        m1 = int(self._phi(jnp.asarray(q), params).shape[0])
+        return (
+            f"{self._kname} of {self.name} is rank-deficient at q={np.asarray(q)} (shape "
+            f"{jac.shape}: {m1} holonomic and {m - m1} velocity rows; singular values "
+            f"{sv}), so the KKT matrix [[M, K^T], [K, 0]] is singular: {why}"
+        )
+
+    @property
+    def _ksym(self) -> str:
+        if self.velocity_constraints is None:
+            return "J"
+        return "A" if self.constraints is None else "[J; A]"
+
+    @property
+    def _kname(self) -> str:
+        """How messages name the constraint matrix `K`."""
+        if self.velocity_constraints is None:
+            return "the constraint Jacobian J = dphi/dq"
+        if self.constraints is None:
+            return "the velocity constraint matrix A(q)"
+        return "the constraint matrix K = [J; A] (J = dphi/dq, A the velocity constraints)"
+
+    def check_state(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        *,
+        project: bool | None = None,
+        t: Time = 0.0,
+    ) -> None:
+        """Validate a state eagerly (outside `jit`), with the values in the messages.
+
+        The checks of [`LagrangianSystem.check_state`][lagrax.LagrangianSystem.check_state] (shapes,
+        finiteness, parameters, `M(q)` positive-definite), that `φ` returns a 1-D array and `A` an
+        `(m₂, n)` matrix, both finite, that the state can be projected onto the
+        constraints (if `project`, default `project_initial`), and that `[J; A]` has
+        full row rank at the (projected) configuration.
+
+        **Raises:** `ConstraintError`, `ShapeError`, `NonFiniteError`,
+        `ParameterError`, `MassMatrixError`.
+        """
+        self.system.check_state(q, qd, params, t=t)
+        q, qd = self._state(q, qd)
+        phi = self._phi(q, params)
+        finite(phi, "the constraint values phi(q)")
+        if self.velocity_constraints is not None:
+            finite(self._amat(q, params), f"the velocity constraint matrix A(q) at q={q}")
+        if self.project_initial if project is None else project:
+            q, qd = self.project(q, qd, params)
+        message = self._rank_message(q, params)
+        if message is not None:
+            raise ConstraintError(message)
+
+
+@eqx.filter_jit
+def _project_jit(system: ConstrainedSystem, q, qd, params):
+    return system._project(q, qd, params)

@@ -1,0 +1,63 @@
+"""The first-order vector field `(q, q̇) ↦ (q̇, q̈)` that simulate hands to diffrax.
+
+It also carries the system and the inputs, so that solvers which work with the
+Lagrangian itself (the variational integrators) can reach them through the term.
+"""
+
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+from jaxtyping import Array
+
+from .._core.checks import force_value
+from .._core.errors import ArgumentTypeError
+from .abstract import AbstractSystem
+
+TauFn = Callable[[Any, Array, Array], Array]
+
+
+class LagrangianVectorField(eqx.Module):
+    """`f(t, (q, q̇), (params, tau_const)) = (q̇, q̈)` for any
+    [`AbstractSystem`][lagrax.AbstractSystem]."""
+
+    system: AbstractSystem
+    tau_fn: TauFn | None = None
+
+    def tau(self, t, q, qd, tau_const):
+        """The input generalized force at `(t, q, q̇)` (`None` when there is none)."""
+        tau = tau_const
+        if self.tau_fn is not None:
+            tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", q).astype(q.dtype)
+            if tau_const is not None:
+                tau = tau + tau_const
+        return tau
+
+    def __call__(self, t, y, args):
+        # A solver evaluates the field in several places (its first stage, the stages of
+        # a step, lagrax's input check): through a nested jit it is traced once, and the
+        # others reuse the cached trace (XLA inlines the call, so it costs nothing to run).
+        return _evaluate(self, t, y, args)
+
+
+@eqx.filter_jit
+def _evaluate(field: LagrangianVectorField, t, y, args):
+    q, qd = y
+    params, tau_const = args
+    qdd = field.system.accelerations(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    return qd, qdd
+
+
+def lagrangian_field_of(terms) -> LagrangianVectorField:
+    """Find the `LagrangianVectorField` inside (possibly wrapped) diffrax terms."""
+    term = terms
+    while hasattr(term, "term"):  # diffrax.WrapTerm and friends
+        term = term.term
+    field = getattr(term, "vector_field", None)
+    if not isinstance(field, LagrangianVectorField):
+        raise ArgumentTypeError(
+            "this solver integrates a LagrangianSystem and needs the term built by "
+            "lagrax.simulate (diffrax.ODETerm(LagrangianVectorField(system))); got "
+            f"{type(term).__name__} with vector field {type(field).__name__}"
+        )
+    return field
