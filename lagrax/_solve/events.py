@@ -21,8 +21,9 @@ earliest root of a terminal or resetting event cuts the step there:
   `RESULTS.event_cascade`: it is reported, never looped.
 """
 
+import dataclasses
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import equinox as eqx
 import equinox.internal as eqxi
@@ -34,7 +35,7 @@ from jaxtyping import Array, Float, Int
 
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._core.results import RESULTS
-from . import integrate as _integrate
+from . import integrate
 
 _ROOT_ITERATIONS = 48  # worst case all bisections: 2**-48 of the step, ~1e-14 relative
 
@@ -259,7 +260,7 @@ def _locate(ev: Event, solver, dense, ta, tb, g_a, g_b, params):
     makes the root's derivatives those of the implicit function `g(t*) = 0`."""
 
     def g(t):
-        q, qd = _integrate.interpolate(solver, dense, ta, tb, t)
+        q, qd = integrate.interpolate(solver, dense, ta, tb, t)
         return jnp.asarray(ev.condition(t, q, qd, params), q.dtype)
 
     def g_and_rate(t):
@@ -299,7 +300,7 @@ def _locate(ev: Event, solver, dense, ta, tb, g_a, g_b, params):
 
 
 class _Carry(eqx.Module):
-    state: _integrate.StepState
+    state: integrate.StepState
     ys: Any  # the saves
     g: jax.Array  # (E,) each condition (signed, see _signed) at state.t
     times: tuple  # per event (K,)
@@ -307,6 +308,193 @@ class _Carry(eqx.Module):
     qds: tuple
     counts: jax.Array  # (E,) int32
     t_reset: jax.Array  # the time of the last reset (-inf before any)
+
+
+class _Step(NamedTuple):
+    """One attempted step of the loop: what `integrate.advance` returned, from `state`."""
+
+    state: integrate.StepState  # before the attempt
+    new: integrate.StepState  # after it
+    keep: jax.Array  # whether it was accepted
+    dense: Any  # its dense-output information over [state.t, state.tnext]
+
+
+class _Cut(NamedTuple):
+    """Where the earliest terminal or resetting event (or a cascade) cuts a step."""
+
+    t: jax.Array  # the time of the cut (inf: none)
+    winner: jax.Array  # the event that cuts it
+    cascade: jax.Array  # whether it is a cascade
+    recorded: jax.Array  # (E,) which crossings are recorded
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _EventLoop:
+    """The fixed parts of one `integrate_events` solve, and the named steps of its loop
+    body: `crossings`, `cut_at`, `record`, the saves, then `cut` or `through`."""
+
+    term: Any
+    solver: Any
+    controller: Any
+    args: Any
+    t1: jax.Array
+    ts: jax.Array
+    max_steps: int
+    events: tuple[Event, ...]
+    field: Any
+    q0: jax.Array  # the initial coordinates (their shape and dtype)
+    inf: jax.Array
+    stops: np.ndarray  # (E,) terminal or resetting
+    resets: np.ndarray  # (E,) resetting
+    capacity: jax.Array  # (E,) max_events
+    no_progress: Any  # a reset within this (relative) time of the last one: a cascade
+
+    @property
+    def params(self):
+        return self.args[0]
+
+    def conditions_at(self, t, y, winner=None):
+        """Every condition at `(t, y)`, signed by its rate where zero (and zero for the
+        event `winner` that has just reset the state)."""
+        out = []
+        for i, ev in enumerate(self.events):
+            g, rate = _along(ev, t, y, self.field, self.args)
+            if winner is not None:
+                g = jnp.where(winner == i, jnp.zeros_like(g), g)
+            out.append(_signed(g, rate))
+        return jnp.stack(out)
+
+    def cond(self, c: _Carry):
+        s = c.state
+        return (s.t < self.t1) & (s.result == RESULTS.successful)
+
+    def body(self, c: _Carry) -> _Carry:
+        s = c.state
+        new, keep, dense = integrate.advance(
+            self.term, self.solver, self.controller, s, self.args, self.t1, self.max_steps
+        )
+        step = _Step(s, new, keep, dense)
+        g_b, crossed, roots = self.crossings(c, step)
+        cut = self.cut_at(c, crossed, roots)
+        times, qs, qds, counts = self.record(c, step, roots, cut.recorded)
+        # saves inside the step, up to the cut
+        save_end = jnp.minimum(s.tnext, cut.t)
+        save_i, ys = integrate.save_dense(
+            self.solver, dense, s.t, s.tnext, save_end, keep, self.ts, s.save_index, c.ys
+        )
+        step = step._replace(new=eqx.tree_at(lambda x: x.save_index, new, save_i))
+        new, g, t_reset = jax.lax.cond(
+            jnp.isfinite(cut.t),
+            lambda _: self.cut(c, step, cut),
+            lambda _: (step.new, jnp.where(keep, g_b, c.g), c.t_reset),
+            None,
+        )
+        return _Carry(new, ys, g, tuple(times), tuple(qs), tuple(qds), counts, t_reset)
+
+    def crossings(self, c: _Carry, step: _Step):
+        """`(g_b, crossed, roots)`: every condition at the step's end, whether it
+        crossed zero (in its direction) over an accepted step, and the crossing time
+        located on the dense output (`inf` where it did not cross)."""
+        ta, tb, new, dtype = step.state.t, step.state.tnext, step.new, self.q0.dtype
+        live = step.keep & (new.result == RESULTS.successful)
+        g_b = jnp.stack(
+            [
+                jnp.asarray(ev.condition(tb, new.y[0], new.y[1], self.params), dtype)
+                for ev in self.events
+            ]
+        )
+        crossed = jnp.stack(
+            [_crossed(ev.direction, c.g[i], g_b[i]) for i, ev in enumerate(self.events)]
+        )
+        crossed = crossed & live
+        roots = jnp.stack(
+            [
+                jax.lax.cond(
+                    crossed[i],
+                    lambda i=i, ev=ev: _locate(
+                        ev, self.solver, step.dense, ta, tb, c.g[i], g_b[i], self.params
+                    ).astype(dtype),
+                    lambda: self.inf,
+                )
+                for i, ev in enumerate(self.events)
+            ]
+        )
+        return g_b, crossed, roots
+
+    def cut_at(self, c: _Carry, crossed, roots) -> _Cut:
+        """The earliest crossing of a terminal or resetting event cuts the step there; an
+        event past its `max_events`, or a reset at the time of the previous one, is a
+        cascade and cuts it at its own time. Crossings up to the cut are recorded."""
+        inf = self.inf
+        stop_roots = jnp.where(crossed & self.stops, roots, inf)
+        winner = jnp.argmin(stop_roots)
+        t_stop = stop_roots[winner]
+        recorded = crossed & (roots <= t_stop)
+        overflow = recorded & (c.counts >= self.capacity)
+        zeno = jnp.isfinite(t_stop) & jnp.asarray(self.resets)[winner]
+        since = t_stop - c.t_reset
+        zeno = zeno & (since <= self.no_progress * jnp.maximum(jnp.abs(t_stop), 1.0))
+        t_cascade = jnp.minimum(
+            jnp.min(jnp.where(overflow, roots, inf)), jnp.where(zeno, t_stop, inf)
+        )
+        cascade = jnp.isfinite(t_cascade)
+        t_cut = jnp.minimum(t_stop, t_cascade)
+        recorded = recorded & (roots <= t_cut) & ~overflow
+        return _Cut(t_cut, winner, cascade, recorded)
+
+    def record(self, c: _Carry, step: _Step, roots, recorded):
+        """`(times, qs, qds, counts)`: the recorded crossings written into the next free
+        slot of each event's record (the state there from the dense output)."""
+        ta, tb = step.state.t, step.state.tnext
+        times, qs, qds = [], [], []
+        for i in range(len(self.events)):
+            k = jnp.minimum(c.counts[i], self.capacity[i] - 1)
+            yq, yqd = integrate.interpolate(self.solver, step.dense, ta, tb, roots[i])
+            times.append(c.times[i].at[k].set(jnp.where(recorded[i], roots[i], c.times[i][k])))
+            qs.append(c.qs[i].at[k].set(jnp.where(recorded[i], yq, c.qs[i][k])))
+            qds.append(c.qds[i].at[k].set(jnp.where(recorded[i], yqd, c.qds[i][k])))
+        counts = c.counts + recorded.astype(jnp.int32)
+        return times, qs, qds, counts
+
+    def cut(self, c: _Carry, step: _Step, cut: _Cut):
+        """`(state, g, t_reset)` after a cut at `cut.t`: the state there (reset by the
+        winning event, or kept by a terminal event or a cascade, which also end the solve
+        with their result), the solver restarted from it, and the conditions there."""
+        ta, tb, dtype = step.state.t, step.state.tnext, self.q0.dtype
+        t_cut, winner, params = cut.t, cut.winner, self.params
+        y_cut = integrate.interpolate(self.solver, step.dense, ta, tb, t_cut)
+        is_reset = ~cut.cascade & jnp.asarray(self.resets)[winner]
+        if self.resets.any():
+            branches = [
+                (lambda y, ev=ev: y)
+                if ev.reset is None
+                else (
+                    lambda y, ev=ev: tuple(
+                        jnp.asarray(v, dtype).reshape(self.q0.shape)
+                        for v in ev.reset(t_cut, y[0], y[1], params)
+                    )
+                )
+                for ev in self.events
+            ]
+            y_after = jax.lax.switch(winner, branches, y_cut)
+            y_next = integrate.tree_where(is_reset, y_after, y_cut)
+        else:
+            y_next = y_cut
+        result = RESULTS.where(
+            cut.cascade,
+            RESULTS.event_cascade,
+            RESULTS.where(is_reset, RESULTS.successful, RESULTS.event_occurred),
+        )
+        tnext = jnp.minimum(t_cut + (tb - ta), self.t1)
+        sstate = self.solver.init(self.term, t_cut, tnext, y_next, self.args)
+        g = self.conditions_at(t_cut, y_next, jnp.where(is_reset, winner, -1))
+        t_reset = jnp.where(is_reset, t_cut, c.t_reset)
+        new = eqx.tree_at(
+            lambda x: (x.t, x.tnext, x.y, x.solver_state, x.result),
+            step.new,
+            (t_cut, tnext, y_next, sstate, result),
+        )
+        return new, g, t_reset
 
 
 def integrate_events(
@@ -317,163 +505,42 @@ def integrate_events(
     **Returns:** `(ys, state, records)`: as `integrate`, plus one
     [`EventRecord`][lagrax.EventRecord] per event.
     """
-    n_save = ts.shape[0]
-    n_events = len(events)
-    params = args[0]
-    state = _integrate.init_state(term, solver, controller, t0, t1, y0, dt0, args)
-    ys = jtu.tree_map(lambda a: jnp.full((n_save,) + jnp.shape(a), jnp.inf, a.dtype), y0)
+    state = integrate.init_state(term, solver, controller, t0, t1, y0, dt0, args)
+    ys = integrate.unreached_saves(y0, ts.shape[0])
     q0 = y0[0]
     dtype = q0.dtype
-    inf = jnp.asarray(jnp.inf, dtype)
-
-    def conditions_at(t, y, winner=None):
-        out = []
-        for i, ev in enumerate(events):
-            g, rate = _along(ev, t, y, field, args)
-            if winner is not None:
-                g = jnp.where(winner == i, jnp.zeros_like(g), g)
-            out.append(_signed(g, rate))
-        return jnp.stack(out)
-
+    loop = _EventLoop(
+        term,
+        solver,
+        controller,
+        args,
+        t1,
+        ts,
+        max_steps,
+        events,
+        field,
+        q0,
+        inf=jnp.asarray(jnp.inf, dtype),
+        stops=np.asarray([ev.terminal or ev.reset is not None for ev in events]),
+        resets=np.asarray([ev.reset is not None for ev in events]),
+        capacity=jnp.asarray([ev.max_events for ev in events], jnp.int32),
+        no_progress=64 * jnp.finfo(dtype).eps,
+    )
     init = _Carry(
         state,
         ys,
-        conditions_at(t0, y0),
-        tuple(jnp.full((ev.max_events,), inf) for ev in events),
-        tuple(jnp.full((ev.max_events,) + q0.shape, inf) for ev in events),
-        tuple(jnp.full((ev.max_events,) + q0.shape, inf) for ev in events),
-        jnp.zeros((n_events,), jnp.int32),
+        loop.conditions_at(t0, y0),
+        tuple(jnp.full((ev.max_events,), loop.inf) for ev in events),
+        tuple(jnp.full((ev.max_events,) + q0.shape, loop.inf) for ev in events),
+        tuple(jnp.full((ev.max_events,) + q0.shape, loop.inf) for ev in events),
+        jnp.zeros((len(events),), jnp.int32),
         jnp.asarray(-jnp.inf, dtype),
     )
-    stops = np.asarray([ev.terminal or ev.reset is not None for ev in events])
-    resets = np.asarray([ev.reset is not None for ev in events])
-    capacity = jnp.asarray([ev.max_events for ev in events], jnp.int32)
-    no_progress = 64 * jnp.finfo(dtype).eps
-
-    def cond(c):
-        s = c.state
-        return (s.t < t1) & (s.result == RESULTS.successful)
-
-    def body(c):
-        s = c.state
-        new, keep, dense = _integrate.advance(term, solver, controller, s, args, t1, max_steps)
-        ta, tb = s.t, s.tnext
-        live = keep & (new.result == RESULTS.successful)
-        g_b = jnp.stack(
-            [jnp.asarray(ev.condition(tb, new.y[0], new.y[1], params), dtype) for ev in events]
-        )
-        crossed = jnp.stack([_crossed(ev.direction, c.g[i], g_b[i]) for i, ev in enumerate(events)])
-        crossed = crossed & live
-        roots = jnp.stack(
-            [
-                jax.lax.cond(
-                    crossed[i],
-                    lambda i=i, ev=ev: _locate(
-                        ev, solver, dense, ta, tb, c.g[i], g_b[i], params
-                    ).astype(dtype),
-                    lambda: inf,
-                )
-                for i, ev in enumerate(events)
-            ]
-        )
-        # the earliest crossing of a terminal or resetting event cuts the step there
-        stop_roots = jnp.where(crossed & stops, roots, inf)
-        winner = jnp.argmin(stop_roots)
-        t_stop = stop_roots[winner]
-        recorded = crossed & (roots <= t_stop)
-        overflow = recorded & (c.counts >= capacity)
-        zeno = jnp.isfinite(t_stop) & jnp.asarray(resets)[winner]
-        zeno = zeno & (t_stop - c.t_reset <= no_progress * jnp.maximum(jnp.abs(t_stop), 1.0))
-        t_cascade = jnp.minimum(
-            jnp.min(jnp.where(overflow, roots, inf)), jnp.where(zeno, t_stop, inf)
-        )
-        cascade = jnp.isfinite(t_cascade)
-        t_cut = jnp.minimum(t_stop, t_cascade)
-        recorded = recorded & (roots <= t_cut) & ~overflow
-
-        times, qs, qds = [], [], []
-        for i in range(n_events):
-            k = jnp.minimum(c.counts[i], capacity[i] - 1)
-            yq, yqd = _integrate.interpolate(solver, dense, ta, tb, roots[i])
-            times.append(c.times[i].at[k].set(jnp.where(recorded[i], roots[i], c.times[i][k])))
-            qs.append(c.qs[i].at[k].set(jnp.where(recorded[i], yq, c.qs[i][k])))
-            qds.append(c.qds[i].at[k].set(jnp.where(recorded[i], yqd, c.qds[i][k])))
-        counts = c.counts + recorded.astype(jnp.int32)
-
-        # saves inside the step, up to the cut
-        save_end = jnp.minimum(tb, t_cut)
-
-        def save_cond(sc):
-            return _integrate.save_due(keep, sc[0], save_end, ts)
-
-        def save_body(sc):
-            i, out = sc
-            y_t = _integrate.interpolate(solver, dense, ta, tb, ts[i])
-            return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
-
-        if n_save:
-            save_i, ys = eqxi.while_loop(
-                save_cond,
-                save_body,
-                (s.save_index, c.ys),
-                max_steps=n_save,
-                buffers=lambda sc: sc[1],
-                kind="checkpointed",
-                checkpoints=n_save,
-            )
-        else:
-            save_i, ys = s.save_index, c.ys
-        new = eqx.tree_at(lambda x: x.save_index, new, save_i)
-
-        def cut(_):
-            y_cut = _integrate.interpolate(solver, dense, ta, tb, t_cut)
-            is_reset = ~cascade & jnp.asarray(resets)[winner]
-            if resets.any():
-                branches = [
-                    (lambda y, ev=ev: y)
-                    if ev.reset is None
-                    else (
-                        lambda y, ev=ev: tuple(
-                            jnp.asarray(v, dtype).reshape(q0.shape)
-                            for v in ev.reset(t_cut, y[0], y[1], params)
-                        )
-                    )
-                    for ev in events
-                ]
-                y_after = jax.lax.switch(winner, branches, y_cut)
-                y_next = _integrate.tree_where(is_reset, y_after, y_cut)
-            else:
-                y_next = y_cut
-            result = RESULTS.where(
-                cascade,
-                RESULTS.event_cascade,
-                RESULTS.where(is_reset, RESULTS.successful, RESULTS.event_occurred),
-            )
-            tnext = jnp.minimum(t_cut + (tb - ta), t1)
-            sstate = solver.init(term, t_cut, tnext, y_next, args)
-            g = conditions_at(t_cut, y_next, jnp.where(is_reset, winner, -1))
-            t_reset = jnp.where(is_reset, t_cut, c.t_reset)
-            return (
-                eqx.tree_at(
-                    lambda x: (x.t, x.tnext, x.y, x.solver_state, x.result),
-                    new,
-                    (t_cut, tnext, y_next, sstate, result),
-                ),
-                g,
-                t_reset,
-            )
-
-        def through(_):
-            return new, jnp.where(keep, g_b, c.g), c.t_reset
-
-        new, g, t_reset = jax.lax.cond(jnp.isfinite(t_cut), cut, through, None)
-        return _Carry(new, ys, g, tuple(times), tuple(qs), tuple(qds), counts, t_reset)
-
     out = eqxi.while_loop(
-        cond, body, init, max_steps=max_steps, buffers=lambda c: c.ys, kind="checkpointed"
+        loop.cond, loop.body, init, max_steps=max_steps, buffers=lambda c: c.ys, kind="checkpointed"
     )
     records = tuple(
-        EventRecord(out.times[i], out.qs[i], out.qds[i], out.counts[i]) for i in range(n_events)
+        EventRecord(out.times[i], out.qs[i], out.qds[i], out.counts[i]) for i in range(len(events))
     )
     return out.ys, out.state, records
 

@@ -19,6 +19,7 @@ single-trajectory scheduler over it; the sweep's lane queue (`lanes.run_lanes`) 
 other, running `advance` under `vmap`.
 """
 
+import functools
 from typing import Any
 
 import diffrax as dfx
@@ -192,6 +193,71 @@ def save_due(keep, i, tnext, ts):
     return keep & (i < n_save) & (ts[jnp.minimum(i, n_save - 1)] <= tnext)
 
 
+def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None):
+    """Write the dense output of the attempted step `[ta, tb]` at the save times it
+    reached: the one save loop of the three schedulers.
+
+    The save times `ts[index], ts[index + 1], …` not after `t_end` (the step's end
+    `tb`, or an earlier time where an event cut the step) are interpolated on the step
+    (`interpolate`) and written into `ys`, when the step was accepted (`keep`).
+
+    **Arguments:**
+
+    - `solver`, `dense`: the solver and the dense-output information of the attempt.
+    - `ta`, `tb`, `t_end`: the attempt's interval, and the last time to save up to.
+    - `keep`: whether the attempt was accepted.
+    - `ts`: the sorted save times, shape `(S,)` (may be empty).
+    - `index`: how many of `ts` have been written (`StepState.save_index`).
+    - `ys`: the saves written so far, a pytree of leaves `(S, ...)`.
+    - `rows`: `None` for one trajectory. For the lane queue (`lanes.run_lanes`), the
+      member each lane integrates, shape `(L,)` (out of range: an idle lane); then
+      `ta`, `tb`, `t_end`, `keep`, `index` and `dense` have the lane axis `L` in
+      front, and `ys` holds every member's saves, leaves `(M, S, ...)`, written at
+      `ys[rows[l], index[l]]`.
+
+    **Returns:** `(index, ys)`, with `index` past the times written.
+
+    One trajectory loops with `equinox.internal.while_loop(kind="checkpointed")`, so
+    that reverse mode differentiates through it, and writes `ys` in place (a buffer);
+    the lanes loop until no lane has a save due, each lane advancing its own index.
+    """
+    n_save = ts.shape[0]
+    if not n_save:
+        return index, ys
+    if rows is None:
+
+        def body(carry):
+            i, out = carry
+            y_t = interpolate(solver, dense, ta, tb, ts[i])
+            return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
+
+        return eqxi.while_loop(
+            lambda carry: save_due(keep, carry[0], t_end, ts),
+            body,
+            (index, ys),
+            max_steps=n_save,
+            buffers=lambda carry: carry[1],
+            kind="checkpointed",
+            checkpoints=n_save,
+        )
+    n_rows = jtu.tree_leaves(ys)[0].shape[0]
+
+    def pending(carry):
+        return save_due(keep, carry[1], t_end, ts)
+
+    def lane_body(carry):
+        out, i = carry
+        go = pending(carry)
+        ic = jnp.minimum(i, n_save - 1)
+        y_t = jax.vmap(functools.partial(interpolate, solver))(dense, ta, tb, ts[ic])
+        r = jnp.where(go, rows, n_rows)  # n_rows: dropped by the scatter
+        out = jtu.tree_map(lambda o, v: o.at[r, ic].set(v, mode="drop"), out, y_t)
+        return out, jnp.where(go, i + 1, i)
+
+    ys, index = jax.lax.while_loop(lambda c: jnp.any(pending(c)), lane_body, (ys, index))
+    return index, ys
+
+
 def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int):
     """Solve `y' = f(t, y, args)` on `[t0, t1]` and save at `ts`: the
     single-trajectory scheduler over `advance`.
@@ -203,9 +269,8 @@ def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: in
     final `StepState` (the last time and state reached, `t1` on success; the
     `RESULTS` code; the step counts; how many of `ts` were reached).
     """
-    n_save = ts.shape[0]
     state = init_state(term, solver, controller, t0, t1, y0, dt0, args)
-    ys = jtu.tree_map(lambda a: jnp.full((n_save,) + jnp.shape(a), jnp.inf, a.dtype), y0)
+    ys = unreached_saves(y0, ts.shape[0])
 
     def cond(carry):
         s, _ = carry
@@ -214,32 +279,18 @@ def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: in
     def body(carry):
         s, ys = carry
         new, keep, dense = advance(term, solver, controller, s, args, t1, max_steps)
-        if not n_save:
-            return new, ys
-
-        def save_cond(c):
-            return save_due(keep, c[0], s.tnext, ts)
-
-        def save_body(c):
-            i, out = c
-            y_t = interpolate(solver, dense, s.t, s.tnext, ts[i])
-            return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
-
-        save_i, ys = eqxi.while_loop(
-            save_cond,
-            save_body,
-            (s.save_index, ys),
-            max_steps=n_save,
-            buffers=lambda c: c[1],
-            kind="checkpointed",
-            checkpoints=n_save,
-        )
+        save_i, ys = save_dense(solver, dense, s.t, s.tnext, s.tnext, keep, ts, s.save_index, ys)
         return eqx.tree_at(lambda x: x.save_index, new, save_i), ys
 
     state, ys = eqxi.while_loop(
         cond, body, (state, ys), max_steps=max_steps, buffers=lambda c: c[1], kind="checkpointed"
     )
     return ys, state
+
+
+def unreached_saves(y, n_save: int, lead: tuple = ()):
+    """Saves not yet written: `inf` of `y`'s structure, leaves `lead + (n_save, ...)`."""
+    return jtu.tree_map(lambda a: jnp.full(lead + (n_save,) + jnp.shape(a), jnp.inf, a.dtype), y)
 
 
 def is_lean(controller: dfx.AbstractStepSizeController | None) -> bool:

@@ -34,7 +34,7 @@ same clipping to `t1` and the same dense output at the save times, so each membe
 the steps `diffeqsolve` would take for it (up to round-off in the controller).
 """
 
-from functools import partial
+import dataclasses
 from typing import Any
 
 import diffrax as dfx
@@ -44,7 +44,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from .._core.results import RESULTS, code_of
-from . import integrate as _integrate
+from . import integrate
 
 _OK = int(code_of(RESULTS.successful))
 
@@ -68,7 +68,7 @@ class LaneOutput(eqx.Module):
 class _Queue(eqx.Module):
     """The lanes and the queue position (the loop state of `run_lanes`)."""
 
-    lane: _integrate.StepState  # (L,): one trajectory per lane
+    lane: integrate.StepState  # (L,): one trajectory per lane
     member: Any  # (L, ...): each lane's member arguments
     idx: jax.Array  # (L,) which member each lane integrates (M: none)
     active: jax.Array  # (L,) whether the lane holds an unfinished member
@@ -86,9 +86,6 @@ class _Outputs(eqx.Module):
     result: jax.Array
     num_steps: jax.Array
     num_accepted_steps: jax.Array
-
-
-_where = _integrate.tree_where
 
 
 def _take(tree, idx):
@@ -118,6 +115,191 @@ def _scatter_rows(tree, rows, vals):
 
 def _gather_rows(tree, rows):
     return jtu.tree_map(lambda a: a[rows] if eqx.is_array(a) else a, tree)
+
+
+def _n_active(q: _Queue):
+    return jnp.sum(q.active, dtype=jnp.int32)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Schedule:
+    """The fixed parts of one `run_lanes` call (the problem, the queue of members, the
+    block and tail sizes) and the named steps of its schedule: `start` (all lanes
+    free), `start_block` (a refill), `step` (every lane one attempt), `wide` (phase 2)
+    and `narrow` (the move to the tail loop of phase 3)."""
+
+    term: dfx.AbstractTerm
+    solver: dfx.AbstractSolver
+    controller: dfx.AbstractStepSizeController
+    members: Any  # (M, ...)
+    y0s: Any  # (M, ...)
+    extra_args: Any
+    t0: jax.Array
+    t1: jax.Array
+    dt0: jax.Array | None
+    ts: jax.Array
+    max_steps: int
+    n_members: int
+    block: int  # members started per refill
+    tail: int  # lanes of the tail loop (0: none)
+
+    def init_lane(self, member, y0) -> integrate.StepState:
+        return integrate.init_state(
+            self.term,
+            self.solver,
+            self.controller,
+            self.t0,
+            self.t1,
+            y0,
+            self.dt0,
+            (member, self.extra_args),
+        )
+
+    def advance_lane(self, state, member):
+        return integrate.advance(
+            self.term,
+            self.solver,
+            self.controller,
+            state,
+            (member, self.extra_args),
+            self.t1,
+            self.max_steps,
+        )
+
+    def start(self, n_lanes: int) -> tuple[_Queue, _Outputs]:
+        """The queue with every lane free, and the outputs before any member finished."""
+        n_members = self.n_members
+        # A template lane (member 0) fixes the shapes of the per-lane state; all lanes
+        # start free, and the first refills (before any step) fill them block by block.
+        member0 = _take(self.members, 0)
+        lane0 = self.init_lane(member0, _take(self.y0s, 0))
+
+        def lanes(x):
+            return jtu.tree_map(lambda a: jnp.broadcast_to(a, (n_lanes,) + jnp.shape(a)), x)
+
+        def outputs(x):
+            return jtu.tree_map(lambda a: jnp.full((n_members,) + a.shape, jnp.inf, a.dtype), x)
+
+        count = jnp.int64 if jax.config.jax_enable_x64 else jnp.int32
+        queue = _Queue(
+            lane=lanes(lane0),
+            member=lanes(member0),
+            idx=jnp.full(n_lanes, n_members, jnp.int32),  # n_members: no member
+            active=jnp.zeros(n_lanes, bool),
+            next=jnp.asarray(0, jnp.int32),
+            busy=jnp.asarray(0, count),
+            lane_steps=jnp.asarray(0, count),
+        )
+        out = _Outputs(
+            ys=integrate.unreached_saves(lane0.y, self.ts.shape[0], (n_members,)),
+            y_end=outputs(lane0.y),
+            t_end=jnp.full(n_members, jnp.inf, self.t0.dtype),
+            result=jnp.full(n_members, _OK, jnp.int32),
+            num_steps=jnp.zeros(n_members, jnp.int32),
+            num_accepted_steps=jnp.zeros(n_members, jnp.int32),
+        )
+        return queue, out
+
+    def want_refill(self, q: _Queue):
+        # a block of free lanes, or as many as there are members left to start
+        left = self.n_members - q.next
+        return (left > 0) & (q.active.shape[0] - _n_active(q) >= jnp.minimum(self.block, left))
+
+    def start_block(self, q: _Queue) -> _Queue:
+        # the first `block` free lanes take the next members; only those are initialized
+        width = q.active.shape[0]
+        free = jnp.nonzero(~q.active, size=self.block, fill_value=width)[0]
+        j = jnp.arange(self.block, dtype=jnp.int32)
+        new_idx = q.next + j
+        take = (free < width) & (new_idx < self.n_members)
+        src = jnp.where(take, new_idx, 0)
+        member = _take(self.members, src)
+        fresh = jax.vmap(self.init_lane)(member, _take(self.y0s, src))
+        dst = jnp.where(take, free, width)  # width: dropped by the scatter
+        return _Queue(
+            lane=_scatter_rows(q.lane, dst, fresh),
+            member=_scatter_rows(q.member, dst, member),
+            idx=q.idx.at[dst].set(new_idx, mode="drop"),
+            active=q.active.at[dst].set(True, mode="drop"),
+            next=q.next + jnp.sum(take, dtype=jnp.int32),
+            busy=q.busy,
+            lane_steps=q.lane_steps,
+        )
+
+    def step(self, carry: tuple[_Queue, _Outputs]) -> tuple[_Queue, _Outputs]:
+        """Every busy lane one attempted step, its saves written; a member that
+        finished (reached `t1` or failed) has its results written and frees its lane."""
+        q, out = carry
+        n_members = self.n_members
+        active, old = q.active, q.lane
+        new, keep, dense = jax.vmap(self.advance_lane)(old, q.member)
+        keep = keep & active
+        rows = jnp.where(active, q.idx, n_members)  # n_members: dropped by the scatter
+        save_i, ys = integrate.save_dense(
+            self.solver,
+            dense,
+            old.t,
+            old.tnext,
+            old.tnext,
+            keep,
+            self.ts,
+            new.save_index,
+            out.ys,
+            rows,
+        )
+        new = eqx.tree_at(lambda x: x.save_index, new, save_i)
+        lane = integrate.tree_where(active, new, old)  # idle lanes stay as they are
+        code = code_of(lane.result)
+        end = active & ((lane.t >= self.t1) | (code != _OK))
+        end_rows = jnp.where(end, rows, n_members)
+        out = _Outputs(
+            ys=ys,
+            y_end=_scatter(out.y_end, end_rows, lane.y),
+            t_end=out.t_end.at[end_rows].set(lane.t, mode="drop"),
+            result=out.result.at[end_rows].set(code, mode="drop"),
+            num_steps=out.num_steps.at[end_rows].set(lane.num_steps, mode="drop"),
+            num_accepted_steps=out.num_accepted_steps.at[end_rows].set(
+                lane.num_accepted_steps, mode="drop"
+            ),
+        )
+        q = _Queue(
+            lane=lane,
+            member=q.member,
+            idx=q.idx,
+            active=active & ~end,
+            next=q.next,
+            busy=q.busy + jnp.sum(active),
+            lane_steps=q.lane_steps + active.shape[0],
+        )
+        return q, out
+
+    def keep_wide(self, q: _Queue):
+        # the wide loop runs while members are left to start, then (with a tail loop)
+        # until no more than `tail` members are unfinished
+        return (q.next < self.n_members) | (_n_active(q) > self.tail)
+
+    def wide(self, carry: tuple[_Queue, _Outputs]) -> tuple[_Queue, _Outputs]:
+        """Phase 2: step until a refill is due (or the wide phase is over), refill."""
+
+        def stepping(c):
+            return self.keep_wide(c[0]) & ~self.want_refill(c[0])
+
+        q, out = jax.lax.while_loop(stepping, self.step, carry)
+        q = jax.lax.cond(self.want_refill(q), self.start_block, lambda x: x, q)
+        return q, out
+
+    def narrow(self, q: _Queue) -> _Queue:
+        """Phase 3: the (at most `tail`) unfinished members gathered onto `tail` lanes."""
+        rows = jnp.nonzero(q.active, size=self.tail, fill_value=0)[0]
+        return _Queue(
+            lane=_gather_rows(q.lane, rows),
+            member=_gather_rows(q.member, rows),
+            idx=q.idx[rows],
+            active=q.active[rows] & (jnp.arange(self.tail) < _n_active(q)),
+            next=q.next,
+            busy=q.busy,
+            lane_steps=q.lane_steps,
+        )
 
 
 def run_lanes(
@@ -161,159 +343,28 @@ def run_lanes(
     block = default_refill(n_lanes) if refill is None else max(1, min(refill, n_lanes))
     # (a one-lane loop may round differently from a vectorized one: never narrower than 2)
     tail = tail_lanes if 2 <= tail_lanes < n_lanes else 0
-    n_save = ts.shape[0]
-    tdt = t0.dtype
-
-    def init_lane(member, y0):
-        return _integrate.init_state(
-            term, solver, controller, t0, t1, y0, dt0, (member, extra_args)
-        )
-
-    def advance_lane(state, member):
-        return _integrate.advance(
-            term, solver, controller, state, (member, extra_args), t1, max_steps
-        )
-
-    def outputs(x, extra=()):
-        return jtu.tree_map(lambda a: jnp.full((n_members,) + extra + a.shape, jnp.inf, a.dtype), x)
-
-    # A template lane (member 0) fixes the shapes of the per-lane state; all lanes start
-    # free, and the first refills (before any step) fill them block by block.
-    member0 = _take(members, 0)
-    lane0 = init_lane(member0, _take(y0s, 0))
-
-    def lanes(x):
-        return jtu.tree_map(lambda a: jnp.broadcast_to(a, (n_lanes,) + jnp.shape(a)), x)
-
-    count = jnp.int64 if jax.config.jax_enable_x64 else jnp.int32
-    queue = _Queue(
-        lane=lanes(lane0),
-        member=lanes(member0),
-        idx=jnp.full(n_lanes, n_members, jnp.int32),  # n_members: no member
-        active=jnp.zeros(n_lanes, bool),
-        next=jnp.asarray(0, jnp.int32),
-        busy=jnp.asarray(0, count),
-        lane_steps=jnp.asarray(0, count),
+    schedule = _Schedule(
+        term,
+        solver,
+        controller,
+        members,
+        y0s,
+        extra_args,
+        t0,
+        t1,
+        dt0,
+        ts,
+        max_steps,
+        n_members,
+        block,
+        tail,
     )
-    out = _Outputs(
-        ys=outputs(lane0.y, (n_save,)),
-        y_end=outputs(lane0.y),
-        t_end=jnp.full(n_members, jnp.inf, tdt),
-        result=jnp.full(n_members, _OK, jnp.int32),
-        num_steps=jnp.zeros(n_members, jnp.int32),
-        num_accepted_steps=jnp.zeros(n_members, jnp.int32),
-    )
-
-    def n_active(q: _Queue):
-        return jnp.sum(q.active, dtype=jnp.int32)
-
-    def want_refill(q: _Queue):
-        # a block of free lanes, or as many as there are members left to start
-        left = n_members - q.next
-        return (left > 0) & (q.active.shape[0] - n_active(q) >= jnp.minimum(block, left))
-
-    def start_block(q: _Queue) -> _Queue:
-        # the first `block` free lanes take the next members; only those are initialized
-        width = q.active.shape[0]
-        free = jnp.nonzero(~q.active, size=block, fill_value=width)[0]
-        j = jnp.arange(block, dtype=jnp.int32)
-        new_idx = q.next + j
-        take = (free < width) & (new_idx < n_members)
-        src = jnp.where(take, new_idx, 0)
-        member = _take(members, src)
-        fresh = jax.vmap(init_lane)(member, _take(y0s, src))
-        dst = jnp.where(take, free, width)  # width: dropped by the scatter
-        return _Queue(
-            lane=_scatter_rows(q.lane, dst, fresh),
-            member=_scatter_rows(q.member, dst, member),
-            idx=q.idx.at[dst].set(new_idx, mode="drop"),
-            active=q.active.at[dst].set(True, mode="drop"),
-            next=q.next + jnp.sum(take, dtype=jnp.int32),
-            busy=q.busy,
-            lane_steps=q.lane_steps,
-        )
-
-    def step(carry):
-        q, out = carry
-        active, old = q.active, q.lane
-        new, keep, dense = jax.vmap(advance_lane)(old, q.member)
-        keep = keep & active
-        rows = jnp.where(active, q.idx, n_members)  # n_members: dropped by the scatter
-
-        ys, save_i = out.ys, new.save_index
-        if n_save:
-            # dense output at the save times inside the accepted step [t, tnext]
-            def pending(carry):
-                return _integrate.save_due(keep, carry[1], old.tnext, ts)
-
-            def save_body(carry):
-                ys, i = carry
-                go = pending(carry)
-                ic = jnp.minimum(i, n_save - 1)
-                y_t = jax.vmap(partial(_integrate.interpolate, solver))(
-                    dense, old.t, old.tnext, ts[ic]
-                )
-                r = jnp.where(go, rows, n_members)
-                ys = jtu.tree_map(lambda o, v: o.at[r, ic].set(v, mode="drop"), ys, y_t)
-                return ys, jnp.where(go, i + 1, i)
-
-            ys, save_i = jax.lax.while_loop(lambda c: jnp.any(pending(c)), save_body, (ys, save_i))
-        new = eqx.tree_at(lambda x: x.save_index, new, save_i)
-        lane = _where(active, new, old)  # idle lanes stay as they are
-        code = code_of(lane.result)
-        end = active & ((lane.t >= t1) | (code != _OK))
-        end_rows = jnp.where(end, rows, n_members)
-        out = _Outputs(
-            ys=ys,
-            y_end=_scatter(out.y_end, end_rows, lane.y),
-            t_end=out.t_end.at[end_rows].set(lane.t, mode="drop"),
-            result=out.result.at[end_rows].set(code, mode="drop"),
-            num_steps=out.num_steps.at[end_rows].set(lane.num_steps, mode="drop"),
-            num_accepted_steps=out.num_accepted_steps.at[end_rows].set(
-                lane.num_accepted_steps, mode="drop"
-            ),
-        )
-        q = _Queue(
-            lane=lane,
-            member=q.member,
-            idx=q.idx,
-            active=active & ~end,
-            next=q.next,
-            busy=q.busy + jnp.sum(active),
-            lane_steps=q.lane_steps + active.shape[0],
-        )
-        return q, out
-
-    def keep_wide(q: _Queue):
-        # the wide loop runs while members are left to start, then (with a tail loop)
-        # until no more than `tail` members are unfinished
-        return (q.next < n_members) | (n_active(q) > tail)
-
-    # phase 2: step until a refill is due (or the wide phase is over), refill, repeat
-    def stepping(carry):
-        q, _ = carry
-        return keep_wide(q) & ~want_refill(q)
-
-    def wide(carry):
-        q, out = jax.lax.while_loop(stepping, step, carry)
-        q = jax.lax.cond(want_refill(q), start_block, lambda x: x, q)
-        return q, out
-
-    q, out = jax.lax.while_loop(lambda c: keep_wide(c[0]), wide, (queue, out))
-
-    # phase 3: the last (at most `tail`) members finish on `tail` lanes
-    if tail:
-        rows = jnp.nonzero(q.active, size=tail, fill_value=0)[0]
-        q = _Queue(
-            lane=_gather_rows(q.lane, rows),
-            member=_gather_rows(q.member, rows),
-            idx=q.idx[rows],
-            active=q.active[rows] & (jnp.arange(tail) < n_active(q)),
-            next=q.next,
-            busy=q.busy,
-            lane_steps=q.lane_steps,
-        )
-        q, out = jax.lax.while_loop(lambda c: jnp.any(c[0].active), step, (q, out))
+    queue, out = schedule.start(n_lanes)
+    # phases 1 and 2 (the first refills fill the free lanes before any step)
+    q, out = jax.lax.while_loop(lambda c: schedule.keep_wide(c[0]), schedule.wide, (queue, out))
+    if tail:  # phase 3: the last (at most `tail`) members finish on `tail` lanes
+        q = schedule.narrow(q)
+        q, out = jax.lax.while_loop(lambda c: jnp.any(c[0].active), schedule.step, (q, out))
     return LaneOutput(
         ys=out.ys,
         y_end=out.y_end,
