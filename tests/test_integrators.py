@@ -104,6 +104,11 @@ def test_variational_refuses_an_adaptive_step():
         lx.simulate(ARM, Q0, QD0, P, t1=1.0, solver=lx.integrators.RK4())
 
 
+def test_variational_refuses_an_unknown_order():
+    with pytest.raises(lx.ConfigurationError, match="order_=3"):
+        lx.integrators.Variational(order_=3)
+
+
 def test_unknown_method_is_named():
     with pytest.raises(ValueError, match="unknown method 'rk45'"):
         lx.simulate(ARM, Q0, QD0, P, t1=1.0, solver="rk45")

@@ -21,6 +21,7 @@ from .._core.checks import pivot_threshold
 from .._core.results import RESULTS
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField
+from .events import Event, cascade_message
 from .solution import Solution
 
 TAU = "the input tau"
@@ -70,6 +71,40 @@ def _component_message(name: str, t: float, q, qd) -> str:
     )
 
 
+def failure_message(
+    system: AbstractSystem,
+    sol: Solution,
+    events: tuple[Event, ...] | None,
+    params: Any,
+    max_steps: Any,
+    rtol: Any,
+    atol: Any,
+    tau_fn: Any,
+    tau_const: Any,
+    y0: Any,
+    t1: Any,
+) -> str:
+    """The message of the `SimulationError` that `simulate` raises for a failed solve:
+    an event cascade (`events.cascade_message`: which event, when, how often), or the
+    account of `diagnose` (see there for the arguments)."""
+    if events is not None and sol.result == RESULTS.event_cascade:
+        return f"simulate failed for {system.name}: " + cascade_message(
+            events, sol.events, sol.t_end
+        )
+    return diagnose(
+        system,
+        sol,
+        params,
+        max_steps,
+        rtol,
+        atol,
+        tau_fn=tau_fn,
+        tau_const=tau_const,
+        y0=y0,
+        t1=t1,
+    )
+
+
 def diagnose(
     system: AbstractSystem,
     sol: Solution,
@@ -94,64 +129,12 @@ def diagnose(
     reason = RESULTS[sol.result] if not bool(sol.ok) else "non-finite values"
     lines = [f"  the solver stopped at t={t_end:.6g} with q={q_end}, qd={qd_end}"]
     field = LagrangianVectorField(system, tau_fn)
-    ts = np.asarray(sol.ts)
-    t_last = float(t1) if t1 is not None and np.isfinite(float(t1)) else None
-    input_cause = False
     finite_state = np.isfinite(t_end) and np.all(np.isfinite(q_end)) & np.all(np.isfinite(qd_end))
     if not finite_state:
-        saved = np.all(np.isfinite(np.asarray(sol.q)), axis=1) & np.all(
-            np.isfinite(np.asarray(sol.qd)), axis=1
-        )
-        bad = np.nonzero(~saved & ~np.isinf(ts))[0]
-        if bad.size and bad[0] > 0:
-            k = int(bad[0])
-            ta, tb = float(ts[k - 1]), float(ts[k])
-            found = _non_finite_component(
-                system,
-                field,
-                np.linspace(ta, tb, 9),
-                jnp.asarray(np.asarray(sol.q)[k - 1]),
-                jnp.asarray(np.asarray(sol.qd)[k - 1]),
-                params,
-                tau_const,
-            )
-            # after a blow-up only an input (tau, the force) can be blamed: the energies'
-            # derivatives overflow at any state that has grown far enough
-            if found is not None and found[0] in (TAU, FORCE):
-                input_cause = True
-                lines.append(
-                    f"  the state became non-finite between the saves at t={ta:.6g} and "
-                    f"t={tb:.6g}; from the last finite one,"
-                )
-                lines.append(_component_message(found[0], found[1], sol.q[k - 1], sol.qd[k - 1]))
-            else:
-                lines.append(
-                    f"  the state blew up (became non-finite) between the saves at "
-                    f"t={ta:.6g} and t={tb:.6g}; if the step is fixed, it is likely past "
-                    "the method's stability limit: use a smaller dt, an adaptive step, or "
-                    "an implicit method for stiff scenes"
-                )
-        else:
-            lines.append("  the state itself is non-finite there (it blew up)")
+        more, input_cause = _blew_up(system, field, sol, params, tau_const)
     else:
-        span = abs((t_last if t_last is not None else t_end) - t_end) or max(abs(t_end), 1.0)
-        probe_ts = [t_end] + [t_end + h * span for h in (1e-12, 1e-9, 1e-6, 1e-3, 1e-1)]
-        if t_last is not None:
-            probe_ts = [t for t in probe_ts if t <= t_last] or [t_end]
-        found = _non_finite_component(
-            system,
-            field,
-            np.asarray(probe_ts),
-            jnp.asarray(q_end),
-            jnp.asarray(qd_end),
-            params,
-            tau_const,
-        )
-        if found is not None:
-            input_cause = True
-            lines.append(_component_message(found[0], found[1], q_end, qd_end))
-        else:
-            lines += _mass_or_accelerations(system, sol, params, y0)
+        more, input_cause = _stopped(system, field, sol, params, tau_const, y0, t1)
+    lines += more
     if input_cause:  # not the step budget or the step size, whatever diffrax says
         reason = (
             f"the accelerations became non-finite ({steps} steps were spent trying to "
@@ -169,6 +152,68 @@ def diagnose(
         )
     lines.append("  Pass throw=False to get the partial Solution (entries never reached are inf).")
     return "\n".join(lines)
+
+
+def _blew_up(system, field, sol: Solution, params, tau_const) -> tuple[list[str], bool]:
+    """`(lines, input_cause)` for a solve whose final state is not finite: between
+    which saves it blew up, and whether an input (`tau`, the force) is to blame there."""
+    ts = np.asarray(sol.ts)
+    saved = np.all(np.isfinite(np.asarray(sol.q)), axis=1) & np.all(
+        np.isfinite(np.asarray(sol.qd)), axis=1
+    )
+    bad = np.nonzero(~saved & ~np.isinf(ts))[0]
+    if not (bad.size and bad[0] > 0):
+        return ["  the state itself is non-finite there (it blew up)"], False
+    k = int(bad[0])
+    ta, tb = float(ts[k - 1]), float(ts[k])
+    found = _non_finite_component(
+        system,
+        field,
+        np.linspace(ta, tb, 9),
+        jnp.asarray(np.asarray(sol.q)[k - 1]),
+        jnp.asarray(np.asarray(sol.qd)[k - 1]),
+        params,
+        tau_const,
+    )
+    # after a blow-up only an input (tau, the force) can be blamed: the energies'
+    # derivatives overflow at any state that has grown far enough
+    if found is not None and found[0] in (TAU, FORCE):
+        return [
+            f"  the state became non-finite between the saves at t={ta:.6g} and "
+            f"t={tb:.6g}; from the last finite one,",
+            _component_message(found[0], found[1], sol.q[k - 1], sol.qd[k - 1]),
+        ], True
+    return [
+        f"  the state blew up (became non-finite) between the saves at "
+        f"t={ta:.6g} and t={tb:.6g}; if the step is fixed, it is likely past "
+        "the method's stability limit: use a smaller dt, an adaptive step, or "
+        "an implicit method for stiff scenes"
+    ], False
+
+
+def _stopped(system, field, sol: Solution, params, tau_const, y0, t1) -> tuple[list[str], bool]:
+    """`(lines, input_cause)` for a solve that stopped at a finite state: a component
+    that is non-finite there or a little after it (where the failed step was trying to
+    go), else a singular mass matrix or non-finite accelerations."""
+    t_end = float(sol.t_end)
+    q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
+    t_last = float(t1) if t1 is not None and np.isfinite(float(t1)) else None
+    span = abs((t_last if t_last is not None else t_end) - t_end) or max(abs(t_end), 1.0)
+    probe_ts = [t_end] + [t_end + h * span for h in (1e-12, 1e-9, 1e-6, 1e-3, 1e-1)]
+    if t_last is not None:
+        probe_ts = [t for t in probe_ts if t <= t_last] or [t_end]
+    found = _non_finite_component(
+        system,
+        field,
+        np.asarray(probe_ts),
+        jnp.asarray(q_end),
+        jnp.asarray(qd_end),
+        params,
+        tau_const,
+    )
+    if found is not None:
+        return [_component_message(found[0], found[1], q_end, qd_end)], True
+    return _mass_or_accelerations(system, sol, params, y0), False
 
 
 def _mass_or_accelerations(system: AbstractSystem, sol: Solution, params, y0) -> list[str]:

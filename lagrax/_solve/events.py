@@ -29,7 +29,6 @@ import equinox as eqx
 import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
-import jax.tree_util as jtu
 import numpy as np
 from jaxtyping import Array, Float, Int
 
@@ -331,7 +330,8 @@ class _Cut(NamedTuple):
 @dataclasses.dataclass(frozen=True, eq=False)
 class _EventLoop:
     """The fixed parts of one `integrate_events` solve, and the named steps of its loop
-    body: `crossings`, `cut_at`, `record`, the saves, then `cut` or `through`."""
+    body: `crossings`, `cut_at`, `record`, the saves (`integrate.save_dense`), then
+    `cut` where an event (or a cascade) cuts the step."""
 
     term: Any
     solver: Any

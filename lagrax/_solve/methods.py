@@ -10,7 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import optimistix as optx
 
-from .._core import checks as _checks
+from .._core import checks
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from ..integrators import RK4, Variational
 
@@ -98,23 +98,33 @@ def fixed_step_budget(t0: float, t1: float, dt: float) -> int:
 
 
 def configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):
-    """`(solver, stepsize_controller, dt0, max_steps)` for a solve, with lagrax's defaults.
+    """`(solver, stepsize_controller, dt0, max_steps)` for a solve, with lagrax's defaults:
+    `t0`, `t1`, `rtol` and `atol` checked (`checks.time_interval`,
+    `checks.tolerances`), then `stepping`. Used by `sweep`; `simulate` checks those
+    four itself (it passes their checked values on) and calls `stepping`.
+    """
+    checks.time_interval(t0, t1)
+    rtol, atol = checks.tolerances(rtol, atol)
+    return stepping(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager)
 
-    Shared by `simulate` and `sweep`. `stepsize_controller` stays `None` for the
-    default `PIDController(rtol, atol)`; the step budget is sized for a fixed `dt`
-    when `t0`, `t1` and `dt` are concrete. Every option is validated here (see the
-    options section of `checks`): a bad concrete value raises a `ConfigurationError`,
-    a traced one fails at run time through `equinox.error_if`.
+
+def stepping(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager):
+    """`(solver, stepsize_controller, dt0, max_steps)` for a solve whose interval and
+    tolerances are checked (see `configure`), with lagrax's defaults.
+
+    `stepsize_controller` stays `None` for the default `PIDController(rtol, atol)`;
+    the step budget is sized for a fixed `dt` when `t0`, `t1` and `dt` are concrete.
+    Every other option is validated here (see the options section of `checks`): a bad
+    concrete value raises a `ConfigurationError`, a traced one fails at run time
+    through `equinox.error_if`.
     """
     named_implicit = isinstance(solver, str)  # configure only the solvers we built
     solver, may_adapt = resolve_solver(solver)
     # every option checked where it enters: concrete values here (raising), traced ones
-    # wrapped in error_if (the returned dt0 and tolerances are the ones the solve uses)
-    _checks.time_interval(t0, t1)
-    rtol, atol = _checks.tolerances(rtol, atol)
-    dt0 = _checks.first_step(dt0)
+    # wrapped in error_if (the returned dt0 is the one the solve uses)
+    dt0 = checks.first_step(dt0)
     if max_steps is not None:
-        max_steps = _checks.positive_int(
+        max_steps = checks.positive_int(
             "max_steps", max_steps, "It is the step budget (accepted + rejected steps)"
         )
     if dt is not None:
@@ -127,10 +137,10 @@ def configure(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t
                 f"pass either dt= (a fixed step, here dt={dt}) or dt0= (the first step of "
                 f"an adaptive solve, here dt0={dt0}), not both"
             )
-        dt = _checks.fixed_step(dt, t0, t1)
+        dt = checks.fixed_step(dt, t0, t1)
         stepsize_controller = _instance(dfx.ConstantStepSize)  # one instance (see _instance)
         dt0 = dt
-        if max_steps is None and (eager or not _checks.is_traced(t0, t1, dt)):
+        if max_steps is None and (eager or not checks.is_traced(t0, t1, dt)):
             max_steps = fixed_step_budget(t0, t1, dt)
     elif not may_adapt and not isinstance(stepsize_controller, dfx.ConstantStepSize):
         raise ConfigurationError(

@@ -1,8 +1,5 @@
 """One trajectory: `simulate`, on diffrax's steps."""
 
-import collections
-import functools
-import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -13,18 +10,19 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import checks as _checks
+from .._core import checks
 from .._core.custom_types import Coordinates, Params, Velocities
-from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError, SimulationError
+from .._core.errors import ConfigurationError, SimulationError
 from .._core.results import RESULTS, code_of, messages
-from .._systems.abstract import AbstractSystem, host_state
+from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
 from ..integrators import Variational
+from . import arguments, integrate
 from . import events as _events
-from . import integrate as _integrate
-from .diagnose import diagnose
+from .compiled import call, compiled_or_none, configured
+from .diagnose import failure_message
 from .events import Event
-from .methods import configure
+from .methods import stepping
 from .solution import Solution
 
 
@@ -69,18 +67,14 @@ def solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
 
 def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solution:
     """Integrate from `y0` (already the system's initial state; `started` says whether
-    it could be formed) and collect the [`Solution`][lagrax.Solution]."""
-    system, solver, params = config.system, config.solver, inputs.params
-    t0, t1, ts, max_steps = inputs.t0, inputs.t1, inputs.ts, config.max_steps
-    saveat = config.saveat
-    own_saveat = saveat is None
-    if own_saveat:
-        if ts is None:
-            ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, config.n_save, dtype=t0.dtype)
-        else:  # traced ts (eager calls are checked in simulate)
-            ts = _checks.traced_save_times(ts, t0, t1)
-        saveat = dfx.SaveAt(ts=ts, t1=True)  # the extra last entry: where the solve ended
-    requested_ts = ts
+    it could be formed) and collect the [`Solution`][lagrax.Solution].
+
+    The lean loop (`integrate.integrate`, or `events.integrate_events` with events)
+    runs unless an adjoint, a custom `saveat` or a step-size controller it does not
+    reproduce asks for `diffrax.diffeqsolve`."""
+    system, params = config.system, inputs.params
+    ts, saveat = _save_times(config, inputs)
+    own_saveat = config.saveat is None
     controller = config.stepsize_controller
     if controller is None:
         controller = dfx.PIDController(rtol=inputs.rtol, atol=inputs.atol)
@@ -88,65 +82,27 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     term = dfx.ODETerm(field)
     args = (params, inputs.tau_const)
     records = None
-    if config.adjoint is None and own_saveat and _integrate.is_lean(controller):
+    if config.adjoint is None and own_saveat and integrate.is_lean(controller):
         # the lean loop: the same steps as diffeqsolve, without its per-step machinery
-        if config.events is None:
-            (q, qd), end = _integrate.integrate(
-                term, solver, controller, y0, args, t0, t1, inputs.dt0, ts, max_steps
-            )
-        else:
-            (q, qd), end, records = _events.integrate_events(
-                term,
-                solver,
-                controller,
-                y0,
-                args,
-                t0,
-                t1,
-                inputs.dt0,
-                ts,
-                max_steps,
-                config.events,
-                field,
-            )
-        t_end, (q_end, qd_end), result = end.t, end.y, end.result
-        ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
-        steps, accepted = end.num_steps, end.num_accepted_steps
-        stats = dict(
-            num_steps=steps,
-            num_accepted_steps=accepted,
-            num_rejected_steps=steps - accepted,
-            max_steps=max_steps,
+        ts, q, qd, t_end, q_end, qd_end, result, stats, records = _lean(
+            config, inputs, term, controller, y0, args, ts, field
         )
     else:
         sol = dfx.diffeqsolve(
             term,
-            solver,
-            t0,
-            t1,
+            config.solver,
+            inputs.t0,
+            inputs.t1,
             inputs.dt0,
             y0,
             args=args,
             saveat=saveat,
             stepsize_controller=controller,
-            max_steps=max_steps,
+            max_steps=config.max_steps,
             throw=False,
             **({} if config.adjoint is None else {"adjoint": config.adjoint}),
         )
-        q, qd = sol.ys
-        ts = sol.ts
-        # The final state is the last finite save. With our own SaveAt(ts, t1=True), on a
-        # failure diffrax writes it into the first unreached slot, so unreached slots
-        # (whose time differs from the requested one) are reset to inf.
-        last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
-        t_end, q_end, qd_end = ts[last], q[last], qd[last]
-        if own_saveat:
-            ts, q, qd = ts[:-1], q[:-1], qd[:-1]
-            reached = ts == requested_ts
-            inf = jnp.asarray(jnp.inf, q.dtype)
-            ts = jnp.where(reached, ts, inf)
-            q = jnp.where(reached[:, None], q, inf)
-            qd = jnp.where(reached[:, None], qd, inf)
+        ts, q, qd, t_end, q_end, qd_end = _diffrax_saves(sol, ts if own_saveat else None)
         result = RESULTS.promote(sol.result)
         stats = dict(sol.stats)
     energy, magnitude = jax.vmap(lambda s, a, b: system.energy_and_magnitude(s, a, b, params))(
@@ -177,6 +133,67 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
         energy_scale=scale,
         events=records,
     )
+
+
+def _save_times(config: SolveConfig, inputs: SolveInputs):
+    """`(ts, saveat)`: the save times (`n_save` evenly spaced ones when `ts` is
+    `None`; traced `ts` checked at run time, eager ones were checked by `simulate`)
+    and lagrax's own `SaveAt(ts, t1=True)` (the extra last entry: where the solve
+    ended), or `(inputs.ts, config.saveat)` for a custom `saveat`."""
+    t0, t1, ts = inputs.t0, inputs.t1, inputs.ts
+    if config.saveat is not None:
+        return ts, config.saveat
+    if ts is None:
+        ts = t0 + (t1 - t0) * jnp.linspace(0.0, 1.0, config.n_save, dtype=t0.dtype)
+    else:
+        ts = checks.traced_save_times(ts, t0, t1)
+    return ts, dfx.SaveAt(ts=ts, t1=True)
+
+
+def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, ts, field):
+    """The solve on lagrax's own loop: `(ts, q, qd, t_end, q_end, qd_end, result,
+    stats, records)`, the saves past the end `inf` (`records`: `None` without
+    events)."""
+    solver, max_steps, records = config.solver, config.max_steps, None
+    t0, t1, dt0 = inputs.t0, inputs.t1, inputs.dt0
+    if config.events is None:
+        (q, qd), end = integrate.integrate(
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps
+        )
+    else:
+        (q, qd), end, records = _events.integrate_events(
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, config.events, field
+        )
+    t_end, (q_end, qd_end), result = end.t, end.y, end.result
+    ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
+    steps, accepted = end.num_steps, end.num_accepted_steps
+    stats = dict(
+        num_steps=steps,
+        num_accepted_steps=accepted,
+        num_rejected_steps=steps - accepted,
+        max_steps=max_steps,
+    )
+    return ts, q, qd, t_end, q_end, qd_end, result, stats, records
+
+
+def _diffrax_saves(sol: dfx.Solution, requested_ts):
+    """`(ts, q, qd, t_end, q_end, qd_end)` of a `diffeqsolve` solution: the final
+    state is the last finite save. With lagrax's own `SaveAt(ts, t1=True)` (the
+    `requested_ts` given; `None` for a custom `saveat`), its extra last entry is dropped
+    and unreached saves are `inf`: on a failure diffrax writes the final state into the
+    first unreached slot, whose time then differs from the requested one."""
+    q, qd = sol.ys
+    ts = sol.ts
+    last = jnp.max(jnp.where(jnp.isfinite(ts), jnp.arange(ts.shape[0]), 0))
+    t_end, q_end, qd_end = ts[last], q[last], qd[last]
+    if requested_ts is not None:
+        ts, q, qd = ts[:-1], q[:-1], qd[:-1]
+        reached = ts == requested_ts
+        inf = jnp.asarray(jnp.inf, q.dtype)
+        ts = jnp.where(reached, ts, inf)
+        q = jnp.where(reached[:, None], q, inf)
+        qd = jnp.where(reached[:, None], qd, inf)
+    return ts, q, qd, t_end, q_end, qd_end
 
 
 def energy_scale(ts, energy, magnitude):
@@ -289,7 +306,7 @@ def observables(system, field, params, tau_const, ts, q, qd) -> dict[str, Any]:
     }
 
 
-_solve = eqx.filter_jit(solve)
+_solve = eqx.filter_jit(solve)  # under a user's jit (traced inputs)
 
 
 def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
@@ -307,7 +324,7 @@ def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
     q0, qd0 = y0
     _, qdd = field(inputs.t0, (q0, qd0), (params, inputs.tau_const))
     energy = system.jacobi_integral(inputs.t0, q0, qd0, params)
-    checks = [
+    valid = [
         *leaves,
         jnp.asarray(started),
         jnp.all(jnp.isfinite(q0)),
@@ -315,7 +332,7 @@ def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
         jnp.isfinite(energy),
         jnp.all(jnp.isfinite(qdd)),
     ]
-    return jnp.all(jnp.stack(checks))
+    return jnp.all(jnp.stack(valid))
 
 
 @eqx.filter_jit
@@ -332,109 +349,13 @@ def _checked_once(config: SolveConfig, inputs: SolveInputs):
     return sol, jnp.stack([inputs_ok, solved_ok])
 
 
-@eqx.filter_jit
-def _simulate_checked(config: SolveConfig, inputs: SolveInputs):
-    """`solve` plus the two flags `simulate` needs on the host, fetched at once:
-    whether the inputs were valid, and whether the solve succeeded with finite saves.
-
-    Only called on concrete inputs (never differentiated), so the whole program can sit
-    in a `lax.while_loop` that runs once: XLA:CPU then compiles it into one kernel (see
-    `xla_flags`) instead of running dozens of small ones around the solver loop, which
-    cost ~0.1 ms a call.
-    """
-    shapes = eqx.filter_eval_shape(_checked_once, config, inputs)  # traced once; reused
-    init = (
-        jnp.asarray(False),
-        jax.tree_util.tree_map(
-            lambda x: jnp.zeros(x.shape, x.dtype) if isinstance(x, jax.ShapeDtypeStruct) else x,
-            shapes,
-        ),
-    )
-
-    def once(_):
-        return _checked_once(config, inputs)
-
-    _, out = jax.lax.while_loop(lambda c: ~c[0], lambda c: (jnp.asarray(True), once(None)), init)
-    return out
-
-
-@functools.lru_cache(maxsize=64)
-def _compiled_checked(config: SolveConfig):
-    """A `jax.jit` of `_simulate_checked` for one configuration, taking the fields of
-    `SolveInputs` as a tuple.
-
-    `equinox.filter_jit` sorts arrays from static values on every call, which for
-    `simulate`'s arguments costs about as much as a short solve; with the configuration
-    fixed here and every input an array, a call is `jax.jit`'s C++ fast path. (Building
-    the `SolveInputs` Module inside the trace also skips equinox's per-instance checks.)
-    """
-    # The output's static part (its treedef and non-array leaves) depends on the inputs'
-    # structure too (a constant `tau` adds the work, `ts` sets the saves): it is kept per
-    # input signature, the key under which `jax.jit` itself caches a trace.
-    out_static: dict = {}
-    tracing = threading.local()  # .signature: that of the call being traced (this thread's)
-
-    def run(fields):
-        inputs = SolveInputs(*fields)
-        leaves, treedef = jax.tree_util.tree_flatten(_simulate_checked.__wrapped__(config, inputs))
-        arrays = [i for i, x in enumerate(leaves) if eqx.is_array(x)]
-        out_static[tracing.signature] = (treedef, leaves, arrays)
-        return [leaves[i] for i in arrays]
-
-    return jax.jit(run), (out_static, tracing)
-
-
-# `simulate`'s front cache: the configuration's parts by identity -> (parts, config,
-# compiled or None). Hashing and comparing a `SolveConfig` walks the whole system
-# (~60 µs each for a 7-link chain, and building one as much again); a repeated call
-# with the same objects skips all three. The entry holds the parts themselves, so an
-# `id` cannot be reused while it lives; a miss falls through to `_compiled_checked`,
-# whose cache compares by value (equal systems share one compiled program).
-_FRONT: "collections.OrderedDict[tuple, tuple]" = collections.OrderedDict()
-_FRONT_SIZE = 64
-
-
-def _configured(parts: tuple, n_save: int, max_steps: int):
-    """`(config, compiled)` for `SolveConfig(*parts, n_save, max_steps, None)`, where
-    `compiled` is `_compiled_checked(config)`, or `None` when the configuration is not
-    hashable (a controller or saveat holding arrays)."""
-    key = (*map(id, parts), n_save, max_steps)
-    hit = _FRONT.get(key)
-    if hit is not None and all(a is b for a, b in zip(hit[0], parts, strict=True)):
-        return hit[1], hit[2]
-    config = SolveConfig(*parts, n_save, max_steps, None)
-    compiled = _compiled_or_none(config)
-    _FRONT[key] = (parts, config, compiled)
-    if len(_FRONT) > _FRONT_SIZE:
-        _FRONT.popitem(last=False)
-    return config, compiled
-
-
-def _compiled_or_none(config: SolveConfig):
-    """`_compiled_checked(config)`, or `None` for an unhashable configuration."""
-    try:
-        return _compiled_checked(config)
-    except TypeError:
-        return None
-
-
-def _call_checked(config: SolveConfig, fields: tuple, compiled=None):
-    """`_simulate_checked(config, SolveInputs(*fields))`, through the cached `jax.jit`
-    `compiled` (from `_compiled_checked`) when given and every input is an array."""
-    flat, structure = jax.tree_util.tree_flatten(fields)
-    if compiled is None or not all(eqx.is_array(x) for x in flat):
-        # no jit of its own (unhashable settings), or non-array leaves (e.g. strings in
-        # params): equinox sorts them out
-        return _simulate_checked(config, SolveInputs(*fields))
-    fn, (out_static, tracing) = compiled
-    signature = (structure, *((x.shape, x.dtype, getattr(x, "weak_type", False)) for x in flat))
-    tracing.signature = signature
-    values = fn(fields)
-    treedef, leaves, arrays = out_static[signature]
-    leaves = list(leaves)  # the static leaves, with the arrays put back in their places
-    for i, value in zip(arrays, values, strict=True):
-        leaves[i] = value
-    return jax.tree_util.tree_unflatten(treedef, leaves)
+def checked_solve(config: SolveConfig, fields: tuple):
+    """The program `simulate` runs on concrete inputs (through `compiled.call`): the
+    solve and the two flags `simulate` needs on the host, fetched at once: whether the
+    inputs were valid, and whether the solve succeeded with finite saves. `fields` are
+    those of `SolveInputs`, in order."""
+    # (building the SolveInputs Module inside the trace skips equinox's per-instance checks)
+    return _checked_once(config, SolveInputs(*fields))
 
 
 def simulate(
@@ -545,49 +466,14 @@ def simulate(
     sol.q[-1], sol.energy_error.max()
     ```
     """
-    if not isinstance(system, AbstractSystem):
-        raise ArgumentTypeError(
-            "simulate needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) "
-            f"as its first argument, got {type(system).__name__}: {system!r}"
-        )
-    eager = not _checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
-    if eager:
-        # NumPy conversions here: each jnp.asarray of a Python value is a device transfer
-        # of its own, and a simulate call should cost one dispatch, not a dozen.
-        q0, qd0 = host_state(system, q0, qd0)
-        dtype = np.result_type(q0, qd0)
-    else:
-        q0, qd0 = system._state(q0, qd0)
-        dtype = jnp.result_type(q0, qd0)
-    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
-    tdt = np.dtype(dtype)
-    # Python scalars in params would be static under filter_jit (a recompile per value);
-    # as arrays of the state's dtype they behave as JAX's weakly typed scalars would.
-    params = jax.tree_util.tree_map(
-        lambda x: (
-            np.asarray(x, tdt if isinstance(x, float) else None)
-            if isinstance(x, (bool, int, float, complex))
-            else x
-        ),
-        params,
+    eager = not checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
+    q0, qd0, params, tau_fn, tau_const = arguments.arrays(system, q0, qd0, params, tau, eager)
+    tdt = np.dtype(q0.dtype)
+    t0, t1, rtol, atol, n_save, ts = arguments.options(
+        t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager
     )
-    tau_fn = tau if callable(tau) else None
-    tau_const = None
-    if tau is not None and not callable(tau):
-        (tau_const,) = system._state(q0, tau=tau)[1:]
-        tau_const = _checks.finite(tau_const.astype(dtype), "tau")
-    t0, t1 = _checks.time_interval(t0, t1)
-    rtol, atol = _checks.tolerances(rtol, atol)
-    n_save = _checks.positive_int(
-        "n_save", n_save, "It is the number of evenly spaced save times (or pass ts=)"
-    )
-    if saveat is None and ts is not None:
-        ts = (np.asarray if eager else jnp.asarray)(ts, dtype)
-        if ts.ndim != 1:
-            raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
-        if eager:
-            _checks.save_times(ts, t0, t1)
-    solver, stepsize_controller, dt0, max_steps = configure(
+    # (t0, t1, rtol and atol are checked: under jit the checks travel with these values)
+    solver, stepsize_controller, dt0, max_steps = stepping(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
     events = _events.as_events(events)
@@ -607,39 +493,25 @@ def simulate(
         None if dt0 is None else asarray(dt0, tdt),
     )
     parts = (system, solver, tau_fn, stepsize_controller, saveat, adjoint)
-    if not eager or events is not None:  # (events: a fresh tuple each call, no front cache)
-        config = SolveConfig(*parts, n_save, int(max_steps), events)
-        compiled = None if not eager else _compiled_or_none(config)
-    else:
-        config, compiled = _configured(parts, n_save, int(max_steps))
     if not eager:
-        sol = _solve(config, SolveInputs(*fields))
+        sol = _solve(SolveConfig(*parts, n_save, max_steps, events), SolveInputs(*fields))
         if not throw:
             return sol
         # inside a user's jit: fail at run time, with the failure's own message
         return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
-    sol, flags = _call_checked(config, fields, compiled)
+    if events is None:
+        config, fn = configured(checked_solve, SolveConfig, parts, n_save, max_steps)
+    else:  # (events: a fresh tuple each call, no front cache)
+        config = SolveConfig(*parts, n_save, max_steps, events)
+        fn = compiled_or_none(checked_solve, config)
+    sol, flags = call(checked_solve, config, fields, fn)
     inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
     if not inputs_ok:
         system.check_state(q0, qd0, params, t=t0)  # raises with the values in the message
     if not throw or solved_ok:
         return sol
-    if events is not None and sol.result == RESULTS.event_cascade:
-        raise SimulationError(
-            f"simulate failed for {system.name}: "
-            + _events.cascade_message(events, sol.events, sol.t_end)
-        )
-    why = diagnose(
-        system,
-        sol,
-        params,
-        max_steps,
-        rtol,
-        atol,
-        tau_fn=tau_fn,
-        tau_const=tau_const,
-        y0=(q0, qd0),
-        t1=t1,
+    why = failure_message(
+        system, sol, events, params, max_steps, rtol, atol, tau_fn, tau_const, (q0, qd0), t1
     )
     raise SimulationError(why)
 
@@ -660,7 +532,7 @@ def events_supported(solver, controller, saveat, adjoint) -> None:
                 f"diffrax.diffeqsolve: drop {name}={value!r}, or use diffrax.Event with "
                 "diffeqsolve directly"
             )
-    if not _integrate.is_lean(controller):
+    if not integrate.is_lean(controller):
         raise ConfigurationError(
             "events run on lagrax's own stepping loop, which supports the step-size "
             "controllers diffrax.PIDController and diffrax.ConstantStepSize only, got "

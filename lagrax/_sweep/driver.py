@@ -20,7 +20,7 @@ from .._solve.methods import configure
 from .._solve.simulate import SolveConfig, events_supported, power_of
 from .._solve.solution import Solution
 from .._systems.abstract import AbstractSystem
-from .._systems.vector_field import LagrangianVectorField
+from .._systems.vector_field import LagrangianVectorField, split_tau
 from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from .chunk import Setup, solve_chunk
 from .dataset import dataset
@@ -240,11 +240,7 @@ def sweep(
     # one member through the eager checks of a single trajectory: shapes, params, tau
     q_probe, _ = system._state(q0s[0], qd0s[0])
     tdt = jnp.asarray(0.0, dtype).dtype
-    tau_fn = tau if callable(tau) else None
-    tau_const = None
-    if tau is not None and not callable(tau):
-        (tau_const,) = system._state(q_probe, tau=tau)[1:]
-        tau_const = _checks.finite(jnp.asarray(tau_const, dtype), "tau")
+    tau_fn, tau_const = split_tau(system, tau, q_probe)
     if not allow_unused:
         _refuse_unused(system, tau_fn, q0s[0], qd0s[0], tau_const, batch, params)
 

@@ -10,7 +10,7 @@ from typing import Any
 import equinox as eqx
 from jaxtyping import Array
 
-from .._core.checks import force_value
+from .._core.checks import coords, finite, force_value, same_shape
 from .._core.errors import ArgumentTypeError
 from .abstract import AbstractSystem
 
@@ -38,6 +38,27 @@ class LagrangianVectorField(eqx.Module):
         # a step, lagrax's input check): through a nested jit it is traced once, and the
         # others reuse the cached trace (XLA inlines the call, so it costs nothing to run).
         return _evaluate(self, t, y, args)
+
+
+def split_tau(system: AbstractSystem, tau: Any, q: Array, *, host: bool = False):
+    """The `tau=` argument of `simulate` and `sweep` as `(tau_fn, tau_const)`: a
+    function `tau(t, q, qd)` (or `None`), and a constant input `(n,)` of `q`'s dtype
+    (or `None`); `LagrangianVectorField.tau` adds them up at each state.
+
+    **Arguments:** `system`, `tau` (`None`, a function or an array of length `n`), the
+    coordinates `q` it goes with (its shape and dtype), and `host=True` to convert a
+    constant with NumPy (no device transfer; `simulate`'s eager set-up).
+
+    **Raises:** `ShapeError` or `ArgumentTypeError` for a constant of the wrong shape or
+    kind, `NonFiniteError` for one with NaN or inf.
+    """
+    if tau is None:
+        return None, None
+    if callable(tau):
+        return tau, None
+    tau_const = coords(tau, "tau", system.n_dof, system.name, host=host)
+    same_shape("tau", tau_const, q)
+    return None, finite(tau_const.astype(q.dtype), "tau")
 
 
 @eqx.filter_jit

@@ -11,7 +11,7 @@ from jax import lax
 
 from .._core.errors import ConfigurationError
 from .._core.linalg import cholesky_solve, lu_factor_small, lu_solve_small
-from .._systems import derivatives as _d
+from .._systems import derivatives
 from .._systems.lagrangian import LagrangianSystem
 from .._systems.vector_field import lagrangian_field_of
 
@@ -105,6 +105,8 @@ class Variational(dfx.AbstractSolver):
     - `max_newton_steps`: Newton iterations allowed per (sub)step; failure to converge
       is reported as a failed solve.
 
+    **Raises:** `ConfigurationError` for an `order` other than 2 or 4.
+
     References: J. E. Marsden and M. West, *Discrete mechanics and variational
     integrators*, Acta Numerica 10 (2001) 357–514; E. Hairer, C. Lubich, G. Wanner,
     *Geometric Numerical Integration*, 2nd ed., Springer (2006), ch. VI.6 and II.4.
@@ -122,7 +124,7 @@ class Variational(dfx.AbstractSolver):
 
     def __check_init__(self):
         if self.order_ not in _COMPOSITIONS:
-            raise ValueError(
+            raise ConfigurationError(
                 f"Variational(order_={self.order_}) is not available; use one of "
                 f"{sorted(_COMPOSITIONS)}"
             )
@@ -145,14 +147,16 @@ class Variational(dfx.AbstractSolver):
         tm = t0 + 0.5 * h  # the discrete Lagrangian h L(t_m, q_m, v), at the midpoint time
 
         def grads(qm, v):
-            return jax.grad(lambda a, b: _d.lagrangian(system, a, b, params, tm), argnums=(0, 1))(
-                qm, v
-            )
+            return jax.grad(
+                lambda a, b: derivatives.lagrangian(system, a, b, params, tm), argnums=(0, 1)
+            )(qm, v)
 
         def residual(q1):
             qm, v = 0.5 * (q0 + q1), (q1 - q0) / h
             l_q, l_v = grads(qm, v)
-            lq_f = l_q + _d.applied(system, tm, qm, v, params, field.tau(tm, qm, v, tau_const))
+            lq_f = l_q + derivatives.applied(
+                system, tm, qm, v, params, field.tau(tm, qm, v, tau_const)
+            )
             return p0 + 0.5 * h * lq_f - l_v, lq_f
 
         # Taylor predictor: within O(h³) of q_{k+1} (O(h²) on the first step)

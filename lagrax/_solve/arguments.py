@@ -1,0 +1,72 @@
+"""`simulate`'s arguments: the user's values checked, and converted to the arrays and
+options of a solve.
+
+Eagerly (concrete arguments) the conversions use NumPy: each `jnp.asarray` of a Python
+value is a device transfer of its own, and a `simulate` call should cost one dispatch,
+not a dozen. Under `jit` they use `jax.numpy`, and the checks of traced options travel
+with the values returned (`equinox.error_if`, see `checks`).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core import checks
+from .._core.errors import ArgumentTypeError, ShapeError
+from .._systems.abstract import AbstractSystem
+from .._systems.vector_field import split_tau
+
+
+def arrays(system: AbstractSystem, q0, qd0, params, tau, eager: bool):
+    """`(q0, qd0, params, tau_fn, tau_const)` of a `simulate` call: the state as 1-D
+    arrays of one floating dtype (NumPy arrays when `eager`), Python scalars in `params`
+    as arrays, and `tau` split (`split_tau`).
+
+    **Raises:** `ArgumentTypeError` (also for a `system` that is not one), `ShapeError`,
+    `NonFiniteError` (a constant `tau`).
+    """
+    if not isinstance(system, AbstractSystem):
+        raise ArgumentTypeError(
+            "simulate needs a system (lagrax.LagrangianSystem or lagrax.ConstrainedSystem) "
+            f"as its first argument, got {type(system).__name__}: {system!r}"
+        )
+    n, name = system.n_dof, system.name
+    q0 = checks.coords(q0, "q", n, name, host=eager)
+    qd0 = checks.coords(qd0, "qd", n, name, host=eager)
+    checks.same_shape("qd", qd0, q0)
+    dtype = np.result_type(q0, qd0) if eager else jnp.result_type(q0, qd0)
+    q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
+    tdt = np.dtype(dtype)
+    # Python scalars in params would be static under filter_jit (a recompile per value);
+    # as arrays of the state's dtype they behave as JAX's weakly typed scalars would.
+    params = jax.tree_util.tree_map(
+        lambda x: (
+            np.asarray(x, tdt if isinstance(x, float) else None)
+            if isinstance(x, (bool, int, float, complex))
+            else x
+        ),
+        params,
+    )
+    tau_fn, tau_const = split_tau(system, tau, q0, host=eager)
+    return q0, qd0, params, tau_fn, tau_const
+
+
+def options(t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager: bool):
+    """`(t0, t1, rtol, atol, n_save, ts)` checked (see `checks`): a finite interval,
+    tolerances, a positive `n_save`, and `ts` (unless `saveat` replaces it) a 1-D array
+    of `tdt`, sorted inside `[t0, t1]` (traced `ts` are checked in the solve).
+
+    **Raises:** `ConfigurationError`, `ArgumentTypeError`, `ShapeError`.
+    """
+    t0, t1 = checks.time_interval(t0, t1)
+    rtol, atol = checks.tolerances(rtol, atol)
+    n_save = checks.positive_int(
+        "n_save", n_save, "It is the number of evenly spaced save times (or pass ts=)"
+    )
+    if saveat is None and ts is not None:
+        ts = (np.asarray if eager else jnp.asarray)(ts, tdt)
+        if ts.ndim != 1:
+            raise ShapeError(f"ts must be 1-D, got shape {ts.shape}")
+        if eager:
+            checks.save_times(ts, t0, t1)
+    return t0, t1, rtol, atol, n_save, ts
