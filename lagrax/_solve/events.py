@@ -3,7 +3,7 @@ recorded, and either ending the solve (`terminal`) or continuing it from a new s
 (`reset`: an impact, a joint limit).
 
 `integrate_events` is a third scheduler over the stepping engine of `integrate`
-(`init_state` / `advance` / `interpolate` / `save_due`), beside `integrate`
+(`init_state` / `advance` / `interpolate` / `save_dense`), beside `integrate`
 (no events: its compiled code is untouched by this module) and the sweep's lane queue.
 After each accepted step `[t_a, t_b]` it compares the sign of every condition at
 `t_b` with its sign at `t_a`; where it changed in the event's `direction`, the

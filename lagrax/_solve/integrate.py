@@ -14,9 +14,10 @@ works through them with recursive checkpointing, and the saved outputs are writt
 place (`buffers`).
 
 The engine is `StepState` with `init_state` / `advance` (one attempted step, its
-counts and result) and `interpolate` / `save_due` (dense saving). `integrate` is the
-single-trajectory scheduler over it; the sweep's lane queue (`lanes.run_lanes`) is the
-other, running `advance` under `vmap`.
+counts and result) and `interpolate` / `save_due` / `save_dense` (dense saving: the
+one save loop). Three schedulers run it: `integrate` here (one trajectory),
+`events.integrate_events` (one trajectory with events) and the sweep's lane queue
+(`lanes.run_lanes`, `advance` under `vmap`).
 """
 
 import functools

@@ -1,4 +1,15 @@
-"""One trajectory: `simulate`, on diffrax's steps."""
+"""One trajectory: `simulate`, on diffrax's steps.
+
+`SolveConfig` (what fixes the compiled program: the model and the method) and
+`SolveInputs` (its arrays) describe a solve; `solve` / `solve_from` compute it, and
+`sweep` runs them too: lagrax's lean loop (`integrate`, or `events` with events) or
+`diffrax.diffeqsolve`, then the [`Solution`][lagrax.Solution].
+
+`simulate` is the entry point, in named steps: its arguments checked and converted
+(`arguments`), the stepping configured (`methods.stepping`), the compiled call
+(`compiled`: `checked_solve` through a cached `jax.jit`; under a user's `jit`,
+`solve` itself) and, for a failed solve, the report (`diagnose.failure_message`).
+"""
 
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -18,7 +29,7 @@ from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
 from ..integrators import Variational
 from . import arguments, integrate
-from . import events as _events
+from . import events as _events  # (`events` is simulate's argument)
 from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
 from .events import Event
