@@ -3,7 +3,8 @@
 `SolveConfig` (what fixes the compiled program: the model and the method) and
 `SolveInputs` (its arrays) describe a solve; `solve` / `solve_from` compute it, and
 `sweep` runs them too: lagrax's lean loop (`integrate`, or `events` with events) or
-`diffrax.diffeqsolve`, then the [`Solution`][lagrax.Solution].
+`diffrax.diffeqsolve`, then the [`Solution`][lagrax.Solution] (`postprocess.finish`: the
+post-processing that `sweep` shares).
 
 `simulate` is the entry point, in named steps: its arguments checked and converted
 (`arguments`), the stepping configured (`methods.stepping`), the compiled call
@@ -34,6 +35,7 @@ from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
 from .events import Event
 from .methods import stepping
+from .postprocess import finish
 from .solution import Solution
 
 
@@ -116,33 +118,16 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
         ts, q, qd, t_end, q_end, qd_end = _diffrax_saves(sol, ts if own_saveat else None)
         result = RESULTS.promote(sol.result)
         stats = dict(sol.stats)
-    energy, magnitude = jax.vmap(lambda s, a, b: system.energy_and_magnitude(s, a, b, params))(
-        ts, q, qd
-    )
-    energy = jnp.where(jnp.isfinite(ts), energy, jnp.inf)  # unreached: inf, like q and qd
-    # A fixed-step solve that blows up "succeeds" in diffrax's eyes: flag it.
-    finite = jnp.all(jnp.isfinite(q_end)) & jnp.all(jnp.isfinite(qd_end))
-    result = RESULTS.where(
-        finite | (result != RESULTS.successful), result, RESULTS.non_finite_state
-    )
-    result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
-    extras = observables(system, field, params, inputs.tau_const, ts, q, qd)
-    work = work_along(system, field, params, inputs.tau_const, ts, q, qd)
-    scale = energy_scale(ts, energy, magnitude)
-    return Solution(
-        ts,
-        q,
-        qd,
-        energy,
+    return finish(
+        system,
+        field,
+        args,
+        (ts, q, qd),
+        (t_end, q_end, qd_end),
         result,
         stats,
-        t_end,
-        q_end,
-        qd_end,
-        **extras,
-        work=work,
-        energy_scale=scale,
-        events=records,
+        started,
+        records,
     )
 
 
@@ -205,116 +190,6 @@ def _diffrax_saves(sol: dfx.Solution, requested_ts):
         q = jnp.where(reached[:, None], q, inf)
         qd = jnp.where(reached[:, None], qd, inf)
     return ts, q, qd, t_end, q_end, qd_end
-
-
-def energy_scale(ts, energy, magnitude):
-    """`max(|h(t_0)|, max_k (|T| + |V|)(t_k))` over the reached saves, from `h` and
-    `|T| + |V|` there
-    ([`AbstractSystem.energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude]): the
-    scale of `Solution.energy_error` (`0` without saves)."""
-    if ts.shape[0] == 0:
-        return jnp.zeros((), energy.dtype)
-    mag = magnitude
-    reached = jnp.isfinite(ts) & jnp.isfinite(mag)
-    e0 = jnp.where(jnp.isfinite(energy[0]), jnp.abs(energy[0]), 0.0)
-    return jnp.maximum(e0, jnp.max(jnp.where(reached, mag, 0.0)))
-
-
-def power_of(system, field, params, tau_const, t, q, qd):
-    """The rate of change of the Jacobi integral along the motion, ``−∂L/∂t +
-    q̇·(τ + F − ∂D/∂q̇)`, at one state, or `None` when nothing changes `h`` (an
-    autonomous system without inputs, applied forces or dissipation)."""
-    explicit = system.explicit_power(t, q, qd, params)
-    inputs = system.input_power(t, q, qd, params, field.tau(t, q, qd, tau_const))
-    if explicit is None:
-        return inputs
-    return explicit if inputs is None else explicit + inputs
-
-
-def work_along(system, field, params, tau_const, ts, q, qd):
-    r"""`W(t_k) = ∫_{t_0}^{t_k} P dt` at the saved times (from the first save; `inf`
-    where not reached), with the power `P = −∂L/∂t + q̇·(τ + F − ∂D/∂q̇)` of the explicit
-    time dependence, the inputs, the applied force and the dissipation; `None` when
-    there is no such power (see `power_of`).
-
-    The rate `P` ([`AbstractSystem.explicit_power`][lagrax.AbstractSystem.explicit_power] plus
-    [`AbstractSystem.input_power`][lagrax.AbstractSystem.input_power]) and its first two
-    derivatives along the motion at the saves give the two-point Hermite rule
-
-    $$
-    W_{k+1} = W_k + \tfrac{Δ}{2}(P_k + P_{k+1})
-
-    + \tfrac{Δ^2}{10}(Ṗ_k − Ṗ_{k+1}) + \tfrac{Δ^3}{120}(P̈_k + P̈_{k+1}),
-    $$
-
-    sixth order in the save spacing `Δ`: the saves must resolve the time dependence and
-    the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
-    smooth between saves (a switch inside a save interval costs accuracy).
-
-    `Ṗ` is a JVP of `P` along `(1, q̇, q̈)`, with `q̈` from the vector field. `P̈`, the
-    derivative of `Ṗ` along the motion, is a central difference of `Ṗ` along the flow
-    with the step `ε = ε_mach^{1/3}` times the local save spacing (relative error about
-    `ε_mach^{2/3}`, ~4e-11 in float64, where the term it enters is already `O(Δ³)`): two
-    more evaluations of the vector field per save, where differentiating the vector
-    field itself (a JVP through the equations of motion) cost about as much to run and
-    took twice as long to compile (a damped 7-joint URDF arm: 12.7 against 6 s).
-    """
-    if ts.shape[0] == 0:
-        return None
-    if power_of(system, field, params, tau_const, ts[0], q[0], qd[0]) is None:
-        return None
-    reached = jnp.isfinite(ts) & jnp.all(jnp.isfinite(q), axis=1)
-    reached = reached & jnp.all(jnp.isfinite(qd), axis=1)
-    first = jnp.argmax(reached)  # stand-in values where not reached (masked below)
-    ts_s = jnp.where(reached, ts, ts[first])
-    q_s = jnp.where(reached[:, None], q, q[first])
-    qd_s = jnp.where(reached[:, None], qd, qd[first])
-
-    def rate(t, a, b):  # P, its derivative along the motion Ṗ, and q̈, at one state
-        qdd = field(t, (a, b), (params, tau_const))[1]
-        p, dp = jax.jvp(
-            lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
-            (t, a, b),
-            (jnp.ones_like(t), b, qdd),
-        )
-        return p, dp, qdd
-
-    p, dp, qdd = jax.vmap(rate)(ts_s, q_s, qd_s)
-    h = jnp.diff(ts_s)
-    # P̈ = dṖ/dt along the motion: a central difference of Ṗ along the flow,
-    # (t, q, q̇) ± ε (1, q̇, q̈), with ε = ε_mach^(1/3) times the local save spacing (the
-    # time scale the saves resolve); one batch of 2N states
-    forward = jnp.concatenate([h, h[-1:]]) if h.shape[0] else jnp.ones_like(ts_s)
-    backward = jnp.concatenate([h[:1], h]) if h.shape[0] else jnp.ones_like(ts_s)
-    spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
-    eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
-    step_t = jnp.concatenate([eps, -eps])
-    _, dp_pm, _ = jax.vmap(rate)(
-        jnp.concatenate([ts_s, ts_s]) + step_t,
-        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qd_s, qd_s]),
-        jnp.concatenate([qd_s, qd_s]) + step_t[:, None] * jnp.concatenate([qdd, qdd]),
-    )
-    n = ts_s.shape[0]
-    ddp = (dp_pm[:n] - dp_pm[n:]) / (2 * eps)
-    step = (
-        0.5 * h * (p[:-1] + p[1:])
-        + h**2 / 10.0 * (dp[:-1] - dp[1:])
-        + h**3 / 120.0 * (ddp[:-1] + ddp[1:])
-    )
-    work = jnp.concatenate([jnp.zeros((1,), step.dtype), jnp.cumsum(step)])
-    return jnp.where(reached, work, jnp.inf)
-
-
-def observables(system, field, params, tau_const, ts, q, qd) -> dict[str, Any]:
-    """The system's extra observables at the saved states (`inf` where not reached)."""
-    out = jax.vmap(
-        lambda t, a, b: system.observables(t, a, b, params, field.tau(t, a, b, tau_const))
-    )(ts, q, qd)
-    reached = jnp.isfinite(ts)
-    return {
-        k: jnp.where(reached.reshape(reached.shape + (1,) * (v.ndim - 1)), v, jnp.inf)
-        for k, v in out.items()
-    }
 
 
 _solve = eqx.filter_jit(solve)  # under a user's jit (traced inputs)

@@ -12,15 +12,8 @@ import numpy as np
 from .._core.checks import pivot_threshold
 from .._core.results import RESULTS, code_of, from_code
 from .._solve.lanes import LaneOutput, run_lanes
-from .._solve.simulate import (
-    SolveConfig,
-    SolveInputs,
-    energy_scale,
-    observables,
-    power_of,
-    solve_from,
-    work_along,
-)
+from .._solve.postprocess import energy_scale, observables, power_of, work_along
+from .._solve.simulate import SolveConfig, SolveInputs, solve_from
 from .._solve.solution import Solution
 from .._systems.vector_field import LagrangianVectorField
 from .devices import to_device, to_host

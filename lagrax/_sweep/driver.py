@@ -17,7 +17,8 @@ from .._core import checks as _checks
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._solve.events import as_events, check_events
 from .._solve.methods import configure
-from .._solve.simulate import SolveConfig, events_supported, power_of
+from .._solve.postprocess import power_of
+from .._solve.simulate import SolveConfig, events_supported
 from .._solve.solution import Solution
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, split_tau
@@ -481,7 +482,7 @@ def _argument_order(system, q0, qd0, params):
 
 def _has_power(system, tau_fn, tau_const, batch, params, q0, qd0, t0) -> bool:
     """Whether anything changes the Jacobi integral of a member (explicit time, inputs,
-    applied force, dissipation; see `simulate.power_of`): traced, not evaluated."""
+    applied force, dissipation; see `postprocess.power_of`): traced, not evaluated."""
     member = batch.params(0, 1) if batch is not None else params
     member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
     field = LagrangianVectorField(system, tau_fn)
