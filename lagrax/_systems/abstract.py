@@ -29,6 +29,10 @@ class AbstractSystem(eqx.Module):
 
     - `n_dof`: the number of generalized coordinates, or `None` if not fixed.
     - `name`: a label for messages and plots.
+    - `final_maxima`: the names of the [`observables`][lagrax.AbstractSystem.observables]
+      that `sweep` reports per member as their largest magnitude at the final state,
+      `max_i |x_i(t_end)|` (a constrained system: its constraint violations; none for a
+      `LagrangianSystem`), in the order they are reported.
 
     **Abstract methods** (each documented below): [`energy`][lagrax.AbstractSystem.energy],
     [`mass_matrix`][lagrax.AbstractSystem.mass_matrix],
@@ -49,6 +53,7 @@ class AbstractSystem(eqx.Module):
 
     n_dof: eqx.AbstractVar[int | None]
     name: eqx.AbstractVar[str]
+    final_maxima: eqx.AbstractVar[tuple[str, ...]]
 
     # ------------------------------------------------------------------ the interface
     @abc.abstractmethod

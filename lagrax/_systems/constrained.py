@@ -382,6 +382,16 @@ class ConstrainedSystem(AbstractSystem):
             return q, qd, jnp.asarray(True)
         return self._project(q, qd, params)
 
+    @property
+    def final_maxima(self) -> tuple[str, ...]:
+        """`("constraint_violation",)` with holonomic constraints, then
+        `"velocity_constraint_violation"` with velocity constraints: `sweep` reports
+        `max |φ(q)|` and `max |A(q) q̇|` at the final state (see
+        [`observables`][lagrax.ConstrainedSystem.observables])."""
+        holonomic = ("constraint_violation",) if self.constraints is not None else ()
+        velocity = () if self.velocity_constraints is None else ("velocity_constraint_violation",)
+        return holonomic + velocity
+
     def observables(self, t, q, qd, params, tau):
         """At one state: `constraint_violation` `φ(q)` (with holonomic constraints),
         `velocity_constraint_violation` `A(q) q̇` (with velocity constraints) and

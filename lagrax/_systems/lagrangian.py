@@ -185,6 +185,12 @@ class LagrangianSystem(AbstractSystem):
                 f"{names!r}: give one name per coordinate"
             )
 
+    @property
+    def final_maxima(self) -> tuple[str, ...]:
+        """None: a Lagrangian system has no observables that `sweep` reports as a
+        maximum at the final state."""
+        return ()
+
     # ------------------------------------------------------------------ energies
     # Every method takes the time t= (default 0.0); only a time_dependent system reads it.
     def kinetic_energy(
