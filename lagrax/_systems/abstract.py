@@ -33,6 +33,7 @@ class AbstractSystem(eqx.Module):
       that `sweep` reports per member as their largest magnitude at the final state,
       `max_i |x_i(t_end)|` (a constrained system: its constraint violations; none for a
       `LagrangianSystem`), in the order they are reported.
+    - `coordinate_names`: a label for each coordinate (a tree's joint names), or `None`.
 
     **Abstract methods** (each documented below): [`energy`][lagrax.AbstractSystem.energy],
     [`mass_matrix`][lagrax.AbstractSystem.mass_matrix],
@@ -54,6 +55,7 @@ class AbstractSystem(eqx.Module):
     n_dof: eqx.AbstractVar[int | None]
     name: eqx.AbstractVar[str]
     final_maxima: eqx.AbstractVar[tuple[str, ...]]
+    coordinate_names: eqx.AbstractVar[tuple[str, ...] | None]
 
     # ------------------------------------------------------------------ the interface
     @abc.abstractmethod

@@ -221,6 +221,11 @@ class ConstrainedSystem(AbstractSystem):
         """Number of (redundant) generalized coordinates `n`, if the system states it."""
         return self.system.n_dof
 
+    @property
+    def coordinate_names(self) -> tuple[str, ...] | None:
+        """The system's coordinate names (a label for each redundant coordinate)."""
+        return self.system.coordinate_names
+
     def energy(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Scalar:
         """Total mechanical energy `E = T + V` (constraint forces do no work)."""
         return self.system.energy(q, qd, params, t=t)
