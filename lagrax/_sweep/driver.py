@@ -28,6 +28,7 @@ from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
 from .grid import Grid
+from .options import batch_size, lanes_option, sweep_options
 from .progress import progress_bar, progress_default
 from .unused import read_params
 
@@ -197,7 +198,7 @@ def sweep(
 
     system, q0, qd0, params = _argument_order(system, q0, qd0, params)
     # every scalar option, on the host, before anything is traced or written
-    t0, t1, chunk_size = _checks.sweep_options(
+    t0, t1, chunk_size = sweep_options(
         t0=t0,
         t1=t1,
         keep=keep,
@@ -219,7 +220,7 @@ def sweep(
         batch, n_members = params, params.size
         get_params = params.params
     else:
-        n_members = _checks.batch_size(params)
+        n_members = batch_size(params)
         batch = None
         params = jtu.tree_map(jnp.asarray, params)
 
@@ -281,7 +282,7 @@ def sweep(
     mesh = mesh_of(devices)
     info = device_info(device_list(devices))
     n_dev = info.count
-    lanes_given = _checks.lanes_option(n_lanes, chunk_size, n_dev)
+    lanes_given = lanes_option(n_lanes, chunk_size, n_dev)
     n_kept = max(len(ts), 1)
     member_bytes = 8 * (2 * n * n_kept + n_kept + 4 * n + 8)
     ckpt = Path(checkpoint) if checkpoint is not None else None
