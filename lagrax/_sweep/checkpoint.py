@@ -2,12 +2,14 @@
 that carry their sweep's fingerprint and a checksum of their arrays.
 
 A checkpoint directory holds `manifest.json` (the sweep's fingerprint, chunk size and
-format version) and one `chunk_NNNNNN.npz` per finished chunk. Each chunk file stores,
-beside its arrays, a JSON header `__lagrax__`: the format version, the sweep fingerprint,
-the chunk size, the chunk's index and member range, and a SHA-256 of the header's other
-fields and of every array (name, dtype, shape, bytes). On resume a chunk is loaded only if
-its header parses, its checksum matches and it belongs to this sweep at this index; any
-other chunk file is never loaded (see `prepare`).
+format version) and one `chunk_NNNNNN.npz` per finished chunk: its `ChunkResult` as
+named arrays (`ChunkResult.arrays`: each field by its name, the final maxima and the
+`keep=` reduction's outputs as `final_maxima/<name>` and `reduced/<pytree path>`).
+Beside its arrays, each chunk file stores a JSON header `__lagrax__`: the format
+version, the sweep fingerprint, the chunk size, the chunk's index and member range, and a
+SHA-256 of the header's other fields and of every array (name, dtype, shape, bytes). On
+resume a chunk is loaded only if its header parses, its checksum matches and it belongs
+to this sweep at this index; any other chunk file is never loaded (see `prepare`).
 """
 
 import hashlib
@@ -26,10 +28,13 @@ import jax.tree_util as jtu
 import numpy as np
 
 from .._core.errors import CheckpointError, CheckpointWarning
+from .result import ChunkResult
 
 # 2: chunk files carry the sweep fingerprint and a SHA-256 of their arrays;
-# 3: and the energy balance and scale (energy_balance, energy_scale)
-FORMAT_VERSION = 3
+# 3: and the energy balance and scale (energy_balance, energy_scale);
+# 4: the arrays of a ChunkResult: final maxima and reduce outputs under "final_maxima/"
+#    and "reduced/" (no "__reduce_paths__" entry)
+FORMAT_VERSION = 4
 
 CHUNK_KIND = "lagrax.sweep.chunk"
 HEADER_KEY = "__lagrax__"
@@ -124,19 +129,22 @@ def checksum(arrays: Mapping[str, Any], header: Mapping[str, Any]) -> str:
     return h.hexdigest()
 
 
-def write_chunk(path: Path, arrays: Mapping[str, Any], **identity: Any) -> None:
-    """Write a chunk file atomically: its arrays and a header with `identity` (the sweep
-    fingerprint, chunk size, index, member range) and the checksum of both."""
-    if HEADER_KEY in arrays:
-        raise ValueError(f"{HEADER_KEY} is reserved")  # pragma: no cover - internal
+def write_chunk(path: Path, result: ChunkResult, /, **identity: Any) -> None:
+    """Write a chunk file atomically: the chunk's arrays (`ChunkResult.arrays`) and a
+    header with `identity` (the sweep fingerprint, chunk size, index `chunk`, member
+    range `start`, `stop`) and the checksum of both."""
+    arrays = result.arrays()
+    if HEADER_KEY in arrays:  # pragma: no cover - internal
+        raise CheckpointError(f"{HEADER_KEY} is reserved for the chunk file's header")
     header = dict(kind=CHUNK_KIND, version=FORMAT_VERSION, **identity)
     header["sha256"] = checksum(arrays, header)
     payload = {**arrays, HEADER_KEY: np.asarray(json.dumps(header, sort_keys=True))}
     atomic_write(path, lambda f: np.savez(f, **payload))
 
 
-class UntrustedChunk(Exception):
-    """A chunk file that must not be loaded; `str(err)` says why."""
+class UntrustedChunk(CheckpointError):
+    """A chunk file that must not be loaded; `str(err)` says why (`prepare` turns it
+    into a `CheckpointWarning` and computes the chunk again)."""
 
 
 def _header(z: Any) -> dict[str, Any]:
@@ -242,10 +250,10 @@ def _probe_writable(directory: Path) -> None:
 
 def prepare(
     directory: Path, fp: str, chunk_size: int, n_members: int, n_chunks: int
-) -> dict[int, dict[str, np.ndarray]]:
+) -> dict[int, ChunkResult]:
     """Check a checkpoint directory before any work and read the chunks it can trust.
 
-    - A `manifest.json` of another sweep (or chunk size) or of an older format: refused
+    - A `manifest.json` of another sweep (or chunk size) or of another format: refused
       (`CheckpointError`). An unreadable manifest: a `CheckpointWarning`, then the
       chunk files decide.
     - Chunk files of another sweep (a valid checksum, another fingerprint or chunk size)
@@ -258,97 +266,19 @@ def prepare(
     - A directory that cannot be written while something is left to write:
       `CheckpointError` (before any chunk is computed).
 
-    **Returns:** chunk index → its arrays, for the chunks that can be loaded.
+    **Returns:** chunk index → its `ChunkResult`, for the chunks that can be loaded.
     """
     if directory.exists() and not directory.is_dir():
         raise CheckpointError(
             f"checkpoint={str(directory)!r} is a file, not a directory; pass a directory "
             "path (it is created if missing)"
         )
-    manifest = directory / MANIFEST
-    ours = False
-    if manifest.exists():
-        try:
-            old = json.loads(manifest.read_text())
-            if not isinstance(old, dict):
-                raise ValueError("not a JSON object")
-        except (OSError, ValueError) as err:
-            _warn(
-                f"{manifest} cannot be read ({err}); it is ignored and rewritten, and each "
-                "chunk file is checked on its own"
-            )
-        else:
-            if old.get("version") != FORMAT_VERSION:
-                raise CheckpointError(
-                    f"the checkpoint at {directory} was written in checkpoint format "
-                    f"{old.get('version', 1)!r}, whose chunk files carry no fingerprint or "
-                    f"checksum (this lagrax writes format {FORMAT_VERSION}); they cannot be "
-                    "verified, so they are not reused. Delete the directory to compute the "
-                    "sweep again, or pass another checkpoint directory."
-                )
-            if old.get("fingerprint") != fp or old.get("chunk_size") != chunk_size:
-                what = (
-                    f"chunk_size {old.get('chunk_size')} there, {chunk_size} here"
-                    if old.get("fingerprint") == fp
-                    else "model, parameters, initial states, solver settings or keep= differ"
-                )
-                raise CheckpointError(
-                    f"the checkpoint at {directory} belongs to a different sweep definition "
-                    f"({what}: its manifest has fingerprint {str(old.get('fingerprint'))[:12]}…, "
-                    f"this sweep {fp[:12]}…); refusing to mix results. Use another checkpoint "
-                    "directory, or delete this one to start over."
-                )
-            ours = True
-
-    loaded: dict[int, dict[str, np.ndarray]] = {}
-    foreign: list[tuple[Path, str]] = []
-    files = sorted(directory.glob("chunk_*.npz")) if directory.is_dir() else []
-    for path in files:
-        m = _CHUNK_NAME.fullmatch(path.name)
-        if m is None:
-            continue  # not a name this sweep writes: left alone
-        index = int(m.group(1))
-        try:
-            header, arrays = read_chunk(path)
-        except UntrustedChunk as err:
-            _warn(f"checkpoint chunk {path} is not loaded: {err}. Its members are computed again.")
-            continue
-        a, b = index * chunk_size, min((index + 1) * chunk_size, n_members)
-        if header.get("fingerprint") != fp or header.get("chunk_size") != chunk_size:
-            why = (
-                f"chunk_size {header.get('chunk_size')} (this sweep: {chunk_size})"
-                if header.get("fingerprint") == fp
-                else f"sweep fingerprint {str(header.get('fingerprint'))[:12]}… (this "
-                f"sweep: {fp[:12]}…)"
-            )
-            foreign.append((path, why))
-            continue
-        if (header.get("chunk"), header.get("start"), header.get("stop")) != (index, a, b) or (
-            index >= n_chunks
-        ):
-            _warn(
-                f"checkpoint chunk {path} is not loaded: it holds chunk {header.get('chunk')} "
-                f"(members {header.get('start')}:{header.get('stop')}), not chunk {index} "
-                f"(members {a}:{b}) of this sweep. Its members are computed again."
-            )
-            continue
-        loaded[index] = arrays
+    ours, notes = _manifest_is_ours(directory, fp, chunk_size)
+    loaded, foreign, untrusted = _read_chunks(directory, fp, chunk_size, n_members, n_chunks)
+    for message in notes + untrusted:
+        _warn(message)
     if foreign and not ours:
-        by_reason: dict[str, list[str]] = {}
-        for path, why in foreign:
-            by_reason.setdefault(why, []).append(path.name)
-        listing = "; ".join(
-            f"{', '.join(names[:3])}{f' and {len(names) - 3} more' if len(names) > 3 else ''}: "
-            f"{why}"
-            for why, names in by_reason.items()
-        )
-        raise CheckpointError(
-            f"the checkpoint directory {directory} holds chunk files of a different sweep "
-            f"({listing}). The fingerprint hashes what defines a sweep's results (model, "
-            "parameters, initial states, solver settings, keep=); a mismatch means those "
-            "files are another sweep's results, and reusing them would be wrong. Use "
-            "another checkpoint directory, or delete this one to start over."
-        )
+        raise _foreign_directory(directory, foreign)
     for path, why in foreign:
         _warn(
             f"checkpoint chunk {path} is not loaded: it belongs to another sweep ({why}), "
@@ -365,5 +295,116 @@ def prepare(
             n_chunks=n_chunks,
             version=FORMAT_VERSION,
         )
-        atomic_write(manifest, lambda f: f.write(json.dumps(info, indent=1).encode()))
+        atomic_write(directory / MANIFEST, lambda f: f.write(json.dumps(info, indent=1).encode()))
     return loaded
+
+
+def _manifest_is_ours(directory: Path, fp: str, chunk_size: int) -> tuple[bool, list[str]]:
+    """Whether the directory's `manifest.json` is this sweep's (`False`: there is none
+    or it cannot be read, with a warning to give), or a `CheckpointError` for another
+    sweep's or another format's."""
+    manifest = directory / MANIFEST
+    if not manifest.exists():
+        return False, []
+    try:
+        old = json.loads(manifest.read_text())
+        if not isinstance(old, dict):
+            raise CheckpointError("not a JSON object")
+    except (OSError, ValueError) as err:
+        return False, [
+            f"{manifest} cannot be read ({err}); it is ignored and rewritten, and each "
+            "chunk file is checked on its own"
+        ]
+    if old.get("version") != FORMAT_VERSION:
+        raise CheckpointError(
+            f"the checkpoint at {directory} was written in checkpoint format "
+            f"{old.get('version', 1)!r} (this lagrax reads and writes format "
+            f"{FORMAT_VERSION}); its chunk files cannot be verified as this format's, so "
+            "they are not reused. Delete the directory to compute the sweep again, or pass "
+            "another checkpoint directory."
+        )
+    if old.get("fingerprint") != fp or old.get("chunk_size") != chunk_size:
+        what = (
+            f"chunk_size {old.get('chunk_size')} there, {chunk_size} here"
+            if old.get("fingerprint") == fp
+            else "model, parameters, initial states, solver settings or keep= differ"
+        )
+        raise CheckpointError(
+            f"the checkpoint at {directory} belongs to a different sweep definition "
+            f"({what}: its manifest has fingerprint {str(old.get('fingerprint'))[:12]}…, "
+            f"this sweep {fp[:12]}…); refusing to mix results. Use another checkpoint "
+            "directory, or delete this one to start over."
+        )
+    return True, []
+
+
+def _read_chunks(directory: Path, fp: str, chunk_size: int, n_members: int, n_chunks: int):
+    """`(loaded, foreign, untrusted)`: the chunk files of this sweep that can be
+    trusted (index → `ChunkResult`), those of another sweep (`(path, why)`), and a
+    warning for each that cannot be trusted (unreadable, bad checksum, wrong index)."""
+    loaded: dict[int, ChunkResult] = {}
+    foreign: list[tuple[Path, str]] = []
+    untrusted: list[str] = []
+    files = sorted(directory.glob("chunk_*.npz")) if directory.is_dir() else []
+    for path in files:
+        m = _CHUNK_NAME.fullmatch(path.name)
+        if m is None:
+            continue  # not a name this sweep writes: left alone
+        index = int(m.group(1))
+        try:
+            header, arrays = read_chunk(path)
+            chunk = _chunk_of(arrays)
+        except UntrustedChunk as err:
+            untrusted.append(
+                f"checkpoint chunk {path} is not loaded: {err}. Its members are computed again."
+            )
+            continue
+        a, b = index * chunk_size, min((index + 1) * chunk_size, n_members)
+        if header.get("fingerprint") != fp or header.get("chunk_size") != chunk_size:
+            why = (
+                f"chunk_size {header.get('chunk_size')} (this sweep: {chunk_size})"
+                if header.get("fingerprint") == fp
+                else f"sweep fingerprint {str(header.get('fingerprint'))[:12]}… (this "
+                f"sweep: {fp[:12]}…)"
+            )
+            foreign.append((path, why))
+            continue
+        if (header.get("chunk"), header.get("start"), header.get("stop")) != (index, a, b) or (
+            index >= n_chunks
+        ):
+            untrusted.append(
+                f"checkpoint chunk {path} is not loaded: it holds chunk {header.get('chunk')} "
+                f"(members {header.get('start')}:{header.get('stop')}), not chunk {index} "
+                f"(members {a}:{b}) of this sweep. Its members are computed again."
+            )
+            continue
+        loaded[index] = chunk
+    return loaded, foreign, untrusted
+
+
+def _chunk_of(arrays: Mapping[str, np.ndarray]) -> ChunkResult:
+    """The `ChunkResult` of a verified chunk file's arrays, or `UntrustedChunk`."""
+    try:
+        return ChunkResult.from_arrays(arrays)
+    except (TypeError, KeyError) as err:
+        raise UntrustedChunk(
+            f"its arrays are not a sweep chunk's ({type(err).__name__}: {err})"
+        ) from err
+
+
+def _foreign_directory(directory: Path, foreign: list[tuple[Path, str]]) -> CheckpointError:
+    """The refusal of a directory that holds another sweep's chunk files."""
+    by_reason: dict[str, list[str]] = {}
+    for path, why in foreign:
+        by_reason.setdefault(why, []).append(path.name)
+    listing = "; ".join(
+        f"{', '.join(names[:3])}{f' and {len(names) - 3} more' if len(names) > 3 else ''}: {why}"
+        for why, names in by_reason.items()
+    )
+    return CheckpointError(
+        f"the checkpoint directory {directory} holds chunk files of a different sweep "
+        f"({listing}). The fingerprint hashes what defines a sweep's results (model, "
+        "parameters, initial states, solver settings, keep=); a mismatch means those "
+        "files are another sweep's results, and reusing them would be wrong. Use "
+        "another checkpoint directory, or delete this one to start over."
+    )

@@ -1,6 +1,16 @@
-"""The compiled chunk of a sweep: members solved on lanes (or in lock-step) on devices."""
+"""The compiled chunk of a sweep: members solved on lanes (or in lock-step) on devices,
+then post-processed (`postprocess.summary`, and `postprocess.solution` for a `keep=`
+reduction) into a `ChunkResult`.
 
+`solve_chunk` is a chunk's whole run, on the host: the members' initial states and
+their validity (`_start`), the compiled program (`_run_chunk`: the solves, `_lockstep`
+or `lanes.run_lanes` per device, and the post-processing) and the clean-up of its
+output (`_on_host`).
+"""
+
+import dataclasses
 from collections.abc import Callable
+from typing import Any
 
 import diffrax as dfx
 import equinox as eqx
@@ -12,11 +22,11 @@ import numpy as np
 from .._core.checks import pivot_threshold
 from .._core.results import RESULTS, code_of, from_code
 from .._solve.lanes import LaneOutput, run_lanes
-from .._solve.postprocess import energy_scale, observables, power_of, work_along
+from .._solve.postprocess import Summary, solution, summary
 from .._solve.simulate import SolveConfig, SolveInputs, solve_from
-from .._solve.solution import Solution
 from .._systems.vector_field import LagrangianVectorField
 from .devices import to_device, to_host
+from .result import ChunkResult, NamedArrays
 
 _OK = int(code_of(RESULTS.successful))
 _INVALID = int(code_of(RESULTS.invalid_input))
@@ -106,8 +116,10 @@ def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
 
 
 @eqx.filter_jit
-def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
-    """Solve one chunk of members (sharded over `mesh` when given) and post-process it."""
+def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts) -> ChunkResult:
+    """Solve one chunk of members (sharded over `mesh` when given) and post-process it
+    (`postprocess.summary`; `keep=reduce` through `_reduce`): the chunk's
+    `ChunkResult` as the devices hold it, padded, before `_on_host`."""
     if mesh is None:
         out = _per_device(setup, members, y0s, tau_const, t0, t1, dt0, ts)
     else:
@@ -122,121 +134,73 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts):
         out = fn(members, y0s)
     system = setup.config.system
     field = LagrangianVectorField(system, setup.config.tau_fn)
-    # the Jacobi integral h at the saves, the start and the end (see Solution.energy)
-    # (with |T| + |V| there, for the scale of energy_error)
-    energy = jax.vmap(
-        jax.vmap(system.energy_and_magnitude, in_axes=(0, 0, 0, None)), in_axes=(None, 0, 0, 0)
-    )
-    q, qd = out.ys
-    e, mag = energy(ts, q, qd, members) if q.shape[1] else (q[..., 0], q[..., 0])
-    e = jnp.where(jnp.isfinite(e), e, jnp.inf)
-    q0, qd0 = y0s
-    at_start = jax.vmap(system.energy_and_magnitude, in_axes=(None, 0, 0, 0))
-    e0, m0 = at_start(t0, q0, qd0, members)
-    q_end, qd_end = out.y_end
-    e_end, m_end = jax.vmap(system.energy_and_magnitude)(out.t_end, q_end, qd_end, members)
-    balance, scale = _energy_balance(
-        system,
-        field,
-        members,
-        tau_const,
-        t0,
-        ts,
-        q,
-        qd,
-        (e, mag),
-        (q0, qd0, e0, m0),
-        (e_end, m_end),
-    )
-    # the system's observables at the end state (a constrained system: max |φ(q)| there)
-    at_end = jax.vmap(
-        lambda t, a, b, p: system.observables(t, a, b, p, field.tau(t, a, b, tau_const))
-    )(jnp.minimum(out.t_end, t1), q_end, qd_end, members)
-    # max |φ(q)| and max |A(q) q̇| at the end state (each present when the system has them)
-    violation = {
-        k: jnp.max(jnp.abs(at_end[k]), axis=1)
-        for k in ("constraint_violation", "velocity_constraint_violation")
-        if k in at_end
-    }
+    end = (out.t_end, *out.y_end)
+    measured = summary(system, field, members, tau_const, (t0, t1, ts), y0s, out.ys, end)
     reduced = None
     if setup.reduce is not None:
-
-        def reduce_one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej):
-            stats = dict(
-                num_steps=st,
-                num_accepted_steps=acc,
-                num_rejected_steps=rej,
-                max_steps=jnp.asarray(setup.config.max_steps),
-            )
-            reached = jnp.all(jnp.isfinite(i_q), axis=1)
-            i_ts = jnp.where(reached, ts, jnp.inf)
-            extras = observables(system, field, p, tau_const, i_ts, i_q, i_qd)
-            work = work_along(system, field, p, tau_const, i_ts, i_q, i_qd)
-            sol = Solution(
-                i_ts,
-                i_q,
-                i_qd,
-                i_e,
-                from_code(res),
-                stats,
-                t_end,
-                qe,
-                qde,
-                **extras,
-                work=work,
-                energy_scale=energy_scale(i_ts, i_e, i_m),
-            )
-            return setup.reduce(sol)
-
-        reduced = jax.vmap(reduce_one)(
-            members,
-            q,
-            qd,
-            e,
-            mag,
-            out.result,
-            out.t_end,
-            q_end,
-            qd_end,
-            out.num_steps,
-            out.num_accepted_steps,
-            out.num_rejected_steps,
-        )
-    return out, e, e0, e_end, reduced, violation, balance, scale
-
-
-def _energy_balance(system, field, members, tau_const, t0, ts, q, qd, saved, start, end):
-    """Per member: the energy balance residual and its scale, as `Solution.energy_error`
-    computes them (its numerator and denominator).
-
-    Without inputs, dissipation or time dependence the residual is `h(t_end) − h(t0)`.
-    With them it is `h − h₀ − W` over the saves (the first to the last reached one),
-    `W` the work integrated along them (`sweep` saves internally for that when
-    `keep="final"`); NaN when there are no saves. The scale is
-    `max(|h(t0)|, |T| + |V|)` over the start, the saves and the end (`h` and
-    `|T| + |V|` given there: `saved`, `start`, `end`)."""
-    e, mag = saved
-    q0, qd0, e0, m0 = start
-    e_end, m_end = end
-    first = jtu.tree_map(lambda x: x[0], members)
-    has_power = power_of(system, field, first, tau_const, t0, q0[0], qd0[0]) is not None
-    scale = jnp.maximum(jnp.abs(e0), m0)
-    scale = jnp.maximum(scale, jnp.where(jnp.isfinite(m_end), m_end, 0.0))
-    if ts.shape[0]:
-        reached = jnp.all(jnp.isfinite(q), axis=2)  # (members, T)
-        member_ts = jnp.where(reached, ts, jnp.inf)
-        scale = jnp.maximum(scale, jax.vmap(energy_scale)(member_ts, e, mag))
-    if not has_power:
-        return e_end - e0, scale
-    if not ts.shape[0]:
-        return jnp.full_like(e0, jnp.nan), scale
-    work = jax.vmap(lambda p, s, a, b: work_along(system, field, p, tau_const, s, a, b))(
-        members, member_ts, q, qd
+        reduced = _reduce(setup, field, members, tau_const, ts, out, measured)
+    (q, qd), (q_end, qd_end), maxima = out.ys, out.y_end, measured.final_maxima
+    return ChunkResult(
+        q=q,
+        qd=qd,
+        energy=measured.energy,
+        energy0=measured.energy0,
+        energy_end=measured.energy_end,
+        energy_balance=measured.energy_balance,
+        energy_scale=measured.energy_scale,
+        q_end=q_end,
+        qd_end=qd_end,
+        t_end=out.t_end,
+        result=out.result,
+        num_steps=out.num_steps,
+        num_accepted_steps=out.num_accepted_steps,
+        num_rejected_steps=out.num_rejected_steps,
+        busy_lane_steps=out.busy_lane_steps,
+        lane_steps=out.lane_steps,
+        final_maxima=NamedArrays(tuple(maxima), tuple(maxima.values())),
+        event_count=out.event_count,
+        first_event_time=out.event_first,
+        reduced=reduced,
     )
-    ok = jnp.isfinite(work)
-    last = ts.shape[0] - 1 - jnp.argmax(ok[:, ::-1], axis=1)
-    pick = lambda x: jnp.take_along_axis(x, last[:, None], axis=1)[:, 0]  # noqa: E731
-    return pick(e) - e[:, 0] - pick(work), scale
+
+
+def _reduce(setup: Setup, field, members, tau_const, ts, out: LaneOutput, measured: Summary):
+    """`keep=reduce` inside the compiled chunk: each member's
+    [`Solution`][lagrax.Solution] at the saves (`postprocess.solution`, as `simulate`
+    makes it) through the user's `reduce`; its outputs as `NamedArrays`, one per leaf,
+    named by the leaf's path (`jax.tree_util.keystr`)."""
+    system = setup.config.system
+
+    def one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej):
+        stats = dict(
+            num_steps=st,
+            num_accepted_steps=acc,
+            num_rejected_steps=rej,
+            max_steps=jnp.asarray(setup.config.max_steps),
+        )
+        reached = jnp.all(jnp.isfinite(i_q), axis=1)
+        i_ts = jnp.where(reached, ts, jnp.inf)
+        saves, end = (i_ts, i_q, i_qd), (t_end, qe, qde)
+        sol = solution(system, field, (p, tau_const), saves, (i_e, i_m), end, from_code(res), stats)
+        return setup.reduce(sol)
+
+    (q, qd), (q_end, qd_end) = out.ys, out.y_end
+    reduced = jax.vmap(one)(
+        members,
+        q,
+        qd,
+        measured.energy,
+        measured.magnitude,
+        out.result,
+        out.t_end,
+        q_end,
+        qd_end,
+        out.num_steps,
+        out.num_accepted_steps,
+        out.num_rejected_steps,
+    )
+    leaves, _ = jtu.tree_flatten_with_path(reduced)
+    return NamedArrays(tuple(jtu.keystr(p) for p, _ in leaves), tuple(x for _, x in leaves))
 
 
 @eqx.filter_jit
@@ -249,22 +213,76 @@ def _initial_states(system, q0s, qd0s, members, t0):
     return q0s, qd0s, projected, mass
 
 
-def solve_chunk(
-    setup, mesh, system, members, q0s, qd0s, tau_const, t0, t1, dt0, ts, size, tdt, keep_path=True
-):
-    """Run one chunk (padded to `size` members so every chunk reuses one compilation).
+@dataclasses.dataclass(frozen=True)
+class ChunkSpec:
+    """What every chunk of a sweep shares: the compiled `setup`, the device `mesh`
+    (`None`: one device), the constant input `tau_const` (or `None`), the interval
+    `t0`, `t1`, the first step `dt0` (or `None`), the save times `ts` (a device array,
+    maybe empty), the padded chunk `size`, the time `dtype`, and `keep_path`: whether
+    the saves are kept (`False` when they only serve the energy balance, with
+    `keep="final"` and inputs, dissipation or time dependence)."""
 
-    `keep_path=False`: the saves at `ts` only serve the energy balance (`keep="final"`
-    with inputs, dissipation or time dependence) and are not returned."""
+    setup: Setup
+    mesh: Any
+    tau_const: Any
+    t0: float
+    t1: float
+    dt0: float | None
+    ts: Any
+    size: int
+    dtype: Any
+    keep_path: bool = True
+
+
+def solve_chunk(spec: ChunkSpec, members, q0s, qd0s) -> ChunkResult:
+    """Run one chunk of members (parameters `members`, initial states `q0s`, `qd0s`,
+    each with a leading member axis), padded to `spec.size` members so that every
+    chunk reuses one compilation.
+
+    Members whose input is invalid (non-finite, or a mass matrix that is not
+    positive-definite at the initial state) are solved as a stand-in (a valid member)
+    and blanked afterwards.
+
+    **Returns:** the chunk's `ChunkResult` on the host (see `_on_host`).
+    """
     m = q0s.shape[0]
     members = jtu.tree_map(lambda x: np.asarray(x), members)
-    # every process computes the whole chunk's initial states (not sharded: no gather)
+    system = spec.setup.config.system
+    q0s, qd0s, projected, valid = _start(system, members, q0s, qd0s, spec.t0, spec.dtype)
+    # invalid members are solved as a stand-in (a valid one) and overwritten afterwards
+    stand_in = int(np.argmax(valid)) if valid.any() else 0
+    src = np.where(valid, np.arange(m), stand_in)
+    src = np.concatenate([src, np.full(spec.size - m, src[0] if m else 0)])
+    pick = lambda x: np.asarray(x)[src]  # noqa: E731
+    members_d = jtu.tree_map(lambda x: to_device(pick(x), spec.mesh), members)
+    y0s = (to_device(pick(q0s), spec.mesh), to_device(pick(qd0s), spec.mesh))
+    raw = _run_chunk(
+        spec.setup,
+        spec.mesh,
+        members_d,
+        y0s,
+        spec.tau_const,
+        jnp.asarray(spec.t0, spec.dtype),
+        jnp.asarray(spec.t1, spec.dtype),
+        None if spec.dt0 is None else jnp.asarray(spec.dt0, spec.dtype),
+        spec.ts,
+    )
+    return _on_host(to_host(raw), m, valid, projected, spec.keep_path)
+
+
+def _start(system, members, q0s, qd0s, t0, dtype):
+    """Per member, on the host: `(q0, q̇0, projected, valid)`, the state its solve
+    starts from, whether it could be formed (`AbstractSystem.initial_state`), and whether
+    the member's input is valid: finite parameters and state, and a finite mass matrix
+    there, positive-definite beyond `pivot_threshold`. Every process computes the whole
+    chunk's (not sharded: no gather)."""
+    m = q0s.shape[0]
     start = _initial_states(
         system,
         jnp.asarray(q0s),
         jnp.asarray(qd0s),
         jtu.tree_map(jnp.asarray, members),
-        jnp.asarray(t0, tdt),
+        jnp.asarray(t0, dtype),
     )
     q0s, qd0s, projected, mm = (np.asarray(x) for x in start)
     # per member: finite inputs and a positive-definite mass matrix at the initial state
@@ -279,68 +297,50 @@ def solve_chunk(
             eig[ok_mm] = np.linalg.eigvalsh(mm[ok_mm])
             scale = np.maximum(np.abs(eig).max(axis=1), np.finfo(mm.dtype).tiny)
             valid &= ok_mm & (eig[:, 0] > pivot_threshold(mm.dtype) * scale)
-    # invalid members are solved as a stand-in (a valid one) and overwritten afterwards
-    stand_in = int(np.argmax(valid)) if valid.any() else 0
-    src = np.where(valid, np.arange(m), stand_in)
-    src = np.concatenate([src, np.full(size - m, src[0] if m else 0)])
-    pick = lambda x: np.asarray(x)[src]  # noqa: E731
-    members_d = jtu.tree_map(lambda x: to_device(pick(x), mesh), members)
-    y0s = (to_device(pick(q0s), mesh), to_device(pick(qd0s), mesh))
-    out, e, e0, e_end, reduced, violation, balance, scale = _run_chunk(
-        setup,
-        mesh,
-        members_d,
-        y0s,
-        tau_const,
-        jnp.asarray(t0, tdt),
-        jnp.asarray(t1, tdt),
-        None if dt0 is None else jnp.asarray(dt0, tdt),
-        ts,
-    )
-    out, e, e0, e_end, reduced, violation, balance, scale = to_host(
-        (out, e, e0, e_end, reduced, violation, balance, scale)
-    )
-    cut = lambda x: x[:m]  # noqa: E731
-    q, qd = out.ys
-    if not keep_path:
-        q, qd, e = q[:, :0], qd[:, :0], e[:, :0]
-    q_end, qd_end = out.y_end
-    res = cut(out.result).copy()
-    res[~projected & ((res == _OK) | (res == _EVENT))] = _NOT_PROJECTED
-    res[~valid] = _INVALID
+    return q0s, qd0s, projected, valid
+
+
+def _on_host(raw: ChunkResult, m: int, valid, projected, keep_path: bool) -> ChunkResult:
+    """The chunk's `m` members of `raw` (the padding cut): an invalid member's values
+    `inf`, its counters `0` and its result `RESULTS.invalid_input`; a member whose
+    initial state could not be formed `RESULTS.constraint_projection_failed`; the lane
+    counters summed over the devices; and without `keep_path`, no saves."""
     bad = ~valid
 
     def blank(x):
-        x = cut(x).astype(np.result_type(x.dtype, np.float32), copy=True)
+        x = np.asarray(x)[:m].astype(np.result_type(x.dtype, np.float32), copy=True)
         x[bad] = np.inf
         return x
 
-    chunk = dict(
+    def counted(x):
+        return np.where(bad, 0, x[:m])
+
+    res = raw.result[:m].copy()
+    res[~projected & ((res == _OK) | (res == _EVENT))] = _NOT_PROJECTED
+    res[bad] = _INVALID
+    q, qd, e = raw.q, raw.qd, raw.energy
+    if not keep_path:
+        q, qd, e = q[:, :0], qd[:, :0], e[:, :0]
+    events = raw.event_count is not None
+    return ChunkResult(
         q=blank(q),
         qd=blank(qd),
         energy=blank(e),
-        energy0=blank(e0),
-        energy_end=blank(e_end),
-        energy_balance=blank(balance),
-        energy_scale=blank(scale),
-        q_end=blank(q_end),
-        qd_end=blank(qd_end),
-        t_end=blank(out.t_end),
+        energy0=blank(raw.energy0),
+        energy_end=blank(raw.energy_end),
+        energy_balance=blank(raw.energy_balance),
+        energy_scale=blank(raw.energy_scale),
+        q_end=blank(raw.q_end),
+        qd_end=blank(raw.qd_end),
+        t_end=blank(raw.t_end),
         result=res,
-        num_steps=np.where(bad, 0, cut(out.num_steps)),
-        num_accepted_steps=np.where(bad, 0, cut(out.num_accepted_steps)),
-        num_rejected_steps=np.where(bad, 0, cut(out.num_rejected_steps)),
-        busy_lane_steps=np.asarray([out.busy_lane_steps.sum()]),
-        lane_steps=np.asarray([out.lane_steps.sum()]),
+        num_steps=counted(raw.num_steps),
+        num_accepted_steps=counted(raw.num_accepted_steps),
+        num_rejected_steps=counted(raw.num_rejected_steps),
+        busy_lane_steps=np.asarray([raw.busy_lane_steps.sum()]),
+        lane_steps=np.asarray([raw.lane_steps.sum()]),
+        final_maxima=jtu.tree_map(blank, raw.final_maxima),
+        event_count=np.where(bad[:, None], 0, raw.event_count[:m]) if events else None,
+        first_event_time=blank(raw.first_event_time) if events else None,
+        reduced=None if raw.reduced is None else jtu.tree_map(blank, raw.reduced),
     )
-    for k, v in violation.items():
-        chunk[k] = blank(v)
-    if out.event_count is not None:
-        chunk["event_count"] = np.where(np.asarray(bad)[:, None], 0, cut(out.event_count))
-        chunk["first_event_time"] = blank(out.event_first)
-    if reduced is not None:
-        leaves, _ = jtu.tree_flatten_with_path(reduced)
-        for path, leaf in leaves:
-            chunk["reduce" + jtu.keystr(path)] = blank(np.asarray(leaf))
-        chunk["__reduce_paths__"] = np.asarray([jtu.keystr(p) for p, _ in leaves])
-    return chunk

@@ -1,101 +1,109 @@
-"""The result of a sweep as an `xarray.Dataset`."""
+"""The result of a sweep as an `xarray.Dataset`, from its chunks' `ChunkResult`s."""
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from .._core.results import RESULTS, code_of, messages
+from .grid import Members
+from .options import Kept
+from .result import ChunkResult, concatenate
 
 _OK = int(code_of(RESULTS.successful))
 _EVENT = int(code_of(RESULTS.event_occurred))  # a stop at a terminal event: ok
 
 
 def dataset(
-    xr,
-    chunks,
-    batch,
-    raw_params,
-    ts,
-    keep,
-    n,
-    n_members,
-    settings,
-    solver,
-    rtol,
-    atol,
-    schedule,
-    n_dev,
-    cut,
-    names=None,
+    chunks: Sequence[ChunkResult],
+    members: Members,
+    kept: Kept,
+    *,
+    dof: np.ndarray,
+    attrs: Mapping[str, Any],
 ):
-    cat = {
-        k: np.concatenate([c[k] for c in chunks])
-        for k in chunks[0]
-        if k not in ("busy_lane_steps", "lane_steps", "__reduce_paths__")
-    }
-    busy = sum(int(c["busy_lane_steps"].sum()) for c in chunks)
-    total = sum(int(c["lane_steps"].sum()) for c in chunks)
-    if batch is not None:
-        dims, shape = batch.dims, batch.shape
-    else:
-        dims, shape = ("member",), (n_members,)
+    """The `xarray.Dataset` of a sweep (see `sweep`'s **Returns**).
 
-    def shaped(x):
-        return x.reshape(shape + x.shape[1:])
+    **Arguments:**
 
-    sweep_dims = list(dims)
-    data = {}
-    final = isinstance(keep, str) and keep == "final"
-    time_dims = [] if final else ["time"]
-    ok = (cat["result"] == _OK) | (cat["result"] == _EVENT)
-    if final:
+    - `chunks`: the chunks' results, in member order.
+    - `members`: the sweep's members (their grid or batched parameters label them).
+    - `kept`: what was kept per member (`keep=`).
+    - `dof`: the labels of the `dof` coordinate (the system's coordinate names, or
+      `0 … n−1`).
+    - `attrs`: how the sweep ran (solver, tolerances, interval, schedule, devices, the
+      cut), put into the Dataset's `attrs` after the failure counts.
+
+    **Returns:** the `xarray.Dataset`.
+    """
+    import xarray as xr
+
+    cat = concatenate(chunks)
+    ok = (cat.result == _OK) | (cat.result == _EVENT)
+    data = _kept_variables(cat, members, kept, ok)
+    data.update(_outcomes(cat, members, ok))
+    _name_for_plots(data, final=kept.mode == "final")
+    # the system's coordinate names (a tree's joint names) label the dof axis
+    coords: dict[str, Any] = {"dof": dof}
+    if kept.path:
+        coords["time"] = ("time", kept.ts, {"units": "s"})
+    coords.update(_member_labels(members))
+    return xr.Dataset(data, coords=coords, attrs=_attrs(cat, members.size, ok, attrs))
+
+
+def _kept_variables(cat: ChunkResult, members: Members, kept: Kept, ok) -> dict[str, Any]:
+    """`q`, `qd` and `energy` at the end (`keep="final"`, `inf` for a failed member) or
+    at the saves; or the outputs of `reduce`, each named by its pytree path."""
+    dims, shaped = list(members.dims), _shaper(members)
+    data: dict[str, Any] = {}
+    if kept.mode == "final":
         at_t1 = ok[:, None]
-        data["q"] = (sweep_dims + ["dof"], shaped(np.where(at_t1, cat["q_end"], np.inf)))
-        data["qd"] = (sweep_dims + ["dof"], shaped(np.where(at_t1, cat["qd_end"], np.inf)))
-        data["energy"] = (sweep_dims, shaped(np.where(ok, cat["energy_end"], np.inf)))
-    elif not callable(keep):
-        data["q"] = (sweep_dims + time_dims + ["dof"], shaped(cat["q"]))
-        data["qd"] = (sweep_dims + time_dims + ["dof"], shaped(cat["qd"]))
-        data["energy"] = (sweep_dims + time_dims, shaped(cat["energy"]))
+        data["q"] = (dims + ["dof"], shaped(np.where(at_t1, cat.q_end, np.inf)))
+        data["qd"] = (dims + ["dof"], shaped(np.where(at_t1, cat.qd_end, np.inf)))
+        data["energy"] = (dims, shaped(np.where(ok, cat.energy_end, np.inf)))
+    elif kept.mode == "path":
+        data["q"] = (dims + ["time", "dof"], shaped(cat.q))
+        data["qd"] = (dims + ["time", "dof"], shaped(cat.qd))
+        data["energy"] = (dims + ["time"], shaped(cat.energy))
     else:
-        paths = [str(p) for p in chunks[0]["__reduce_paths__"]]
-        for p in paths:
-            name = _reduce_name(p)
-            x = shaped(cat["reduce" + p])
-            extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(sweep_dims))]
-            data[name] = (sweep_dims + extra, x)
+        for path, value in cat.reduced.items() if cat.reduced is not None else ():
+            name = _reduce_name(path)
+            x = shaped(value)
+            extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(dims))]
+            data[name] = (dims + extra, x)
+    return data
+
+
+def _outcomes(cat: ChunkResult, members: Members, ok) -> dict[str, Any]:
+    """The energy error and change, the result and its message, the final maxima, the
+    events and the step counters, per member."""
+    dims, shaped = list(members.dims), _shaper(members)
+    data: dict[str, Any] = {}
     # as Solution.energy_error: the balance residual h − h0 − W over the scale
-    # max(|h0|, |T| + |V|) (see _chunk._energy_balance), and the change of h itself
+    # max(|h0|, |T| + |V|) (see postprocess.energy_balance), and the change of h itself
     with np.errstate(invalid="ignore", divide="ignore"):
-        rel = cat["energy_balance"] / np.maximum(cat["energy_scale"], np.finfo(float).tiny)
-        change = cat["energy_end"] - cat["energy0"]  # inf − inf where invalid: masked
-    data["energy_error"] = (sweep_dims, shaped(np.where(ok, rel, np.inf)))
-    data["energy_change"] = (sweep_dims, shaped(np.where(ok, change, np.inf)))
-    data["ok"] = (sweep_dims, shaped(ok))
-    data["result"] = (sweep_dims, shaped(cat["result"]))
-    text = messages()
-    status = np.asarray(
-        [
-            "ok"
-            if r == _OK
-            else "ok: stopped at a terminal event"
-            if r == _EVENT
-            else _short(text[r])
-            for r in cat["result"]
-        ]
-    )
-    data["status"] = (sweep_dims, shaped(status))
-    for k in ("constraint_violation", "velocity_constraint_violation"):
-        if k in cat:
-            data[k] = (sweep_dims, shaped(cat[k]))
-    if "event_count" in cat:  # per member and event (simulate's Solution.events)
-        data["event_count"] = (sweep_dims + ["event"], shaped(cat["event_count"]))
-        data["first_event_time"] = (sweep_dims + ["event"], shaped(cat["first_event_time"]))
-    for k in ("t_end", "num_steps", "num_accepted_steps", "num_rejected_steps"):
-        data[k] = (sweep_dims, shaped(cat[k]))
-    data["t_end"] = (sweep_dims, shaped(cat["t_end"]), {"units": "s"})
-    # names for plots' labels (units only where lagrax knows them)
+        rel = cat.energy_balance / np.maximum(cat.energy_scale, np.finfo(float).tiny)
+        change = cat.energy_end - cat.energy0  # inf − inf where invalid: masked
+    data["energy_error"] = (dims, shaped(np.where(ok, rel, np.inf)))
+    data["energy_change"] = (dims, shaped(np.where(ok, change, np.inf)))
+    data["ok"] = (dims, shaped(ok))
+    data["result"] = (dims, shaped(cat.result))
+    data["status"] = (dims, shaped(_statuses(cat.result)))
+    for k, value in cat.final_maxima.items():  # e.g. max |φ(q)| at the end
+        data[k] = (dims, shaped(value))
+    if cat.event_count is not None:  # per member and event (simulate's Solution.events)
+        data["event_count"] = (dims + ["event"], shaped(cat.event_count))
+        data["first_event_time"] = (dims + ["event"], shaped(cat.first_event_time))
+    data["t_end"] = (dims, shaped(cat.t_end), {"units": "s"})
+    data["num_steps"] = (dims, shaped(cat.num_steps))
+    data["num_accepted_steps"] = (dims, shaped(cat.num_accepted_steps))
+    data["num_rejected_steps"] = (dims, shaped(cat.num_rejected_steps))
+    return data
+
+
+def _name_for_plots(data: dict[str, Any], final: bool) -> None:
+    """Long names for plots' labels (units only where lagrax knows them)."""
     when = "final " if final else ""
     for k, long_name in (
         ("q", f"{when}q"),
@@ -108,43 +116,68 @@ def dataset(
             data[k] = data[k][:2] + (
                 {**(data[k][2] if len(data[k]) > 2 else {}), "long_name": long_name},
             )
-    # the system's coordinate names (a tree's joint names) label the dof axis
-    coords = {"dof": np.arange(n) if names is None else np.asarray(names, dtype=str)}
-    if not final and not callable(keep):
-        coords["time"] = ("time", ts, {"units": "s"})
-    if batch is not None:
-        for k, v in batch.axes.items():
-            attrs = {"units": batch.units[k]} if k in batch.units else {}
-            if k in batch.states:
-                which, i = batch.states[k]
-                attrs["long_name"] = f"initial {'q' if which == 'q0' else 'q̇'}[{i}]"
-            coords[k] = (k if batch.product else "member", v, attrs)
-    else:
-        coords["member"] = np.arange(n_members)
-        if isinstance(raw_params, Mapping):  # per-member scalar parameters label the members
-            for k, v in raw_params.items():
+
+
+def _member_labels(members: Members) -> dict[str, Any]:
+    """The coordinates along the sweep dimensions: a grid's swept values (with their
+    units; an initial-state component's long name), or the member index and the
+    batched scalar parameters that vary between members."""
+    coords: dict[str, Any] = {}
+    grid = members.grid
+    if grid is None:
+        coords["member"] = np.arange(members.size)
+        if isinstance(members.params, Mapping):  # per-member scalar parameters
+            for k, v in members.params.items():
                 v = np.asarray(v)
                 if v.ndim == 1 and not np.all(v == v[0]):
                     coords[k] = ("member", v)
+        return coords
+    for k, v in grid.axes.items():
+        attrs = {"units": grid.units[k]} if k in grid.units else {}
+        if k in grid.states:
+            which, i = grid.states[k]
+            attrs["long_name"] = f"initial {'q' if which == 'q0' else 'q̇'}[{i}]"
+        coords[k] = (k if grid.product else "member", v, attrs)
+    return coords
+
+
+def _attrs(cat: ChunkResult, n_members: int, ok, run: Mapping[str, Any]) -> dict[str, Any]:
+    """The Dataset's `attrs`: the member and failure counts, how the sweep ran (`run`)
+    and the share of lane-steps that were idle."""
+    text = messages()
     failed = ~ok
     counts = {}
-    for r in np.unique(cat["result"][failed]):
-        counts[_short(text[r])] = int(np.sum(cat["result"] == r))
-    attrs = dict(
+    for r in np.unique(cat.result[failed]):
+        counts[_short(text[r])] = int(np.sum(cat.result == r))
+    busy, total = int(cat.busy_lane_steps.sum()), int(cat.lane_steps.sum())
+    return dict(
         n_members=int(n_members),
         n_failed=int(failed.sum()),
         failures=json.dumps(counts),
-        solver=type(solver).__name__,
-        rtol=float(rtol),
-        atol=float(atol),
-        t0=settings["t0"],
-        t1=settings["t1"],
-        schedule=schedule,
-        devices=int(n_dev),
-        **cut,
+        **run,
         lane_idle_fraction=float(1 - busy / total) if total else 0.0,
     )
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _statuses(result: np.ndarray) -> np.ndarray:
+    """Each member's status: `"ok"`, or its result's message (first line)."""
+    text = messages()
+    return np.asarray(
+        [
+            "ok"
+            if r == _OK
+            else "ok: stopped at a terminal event"
+            if r == _EVENT
+            else _short(text[r])
+            for r in result
+        ]
+    )
+
+
+def _shaper(members: Members):
+    """Reshape a per-member array `(members, ...)` to the sweep's shape `(*shape, ...)`."""
+    shape = members.shape
+    return lambda x: x.reshape(shape + x.shape[1:])
 
 
 def _reduce_name(path: str) -> str:

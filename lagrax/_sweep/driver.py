@@ -1,4 +1,11 @@
-"""`sweep`: many trajectories, chunk by chunk, with checkpoints and progress."""
+"""`sweep`: many trajectories, chunk by chunk, with checkpoints and progress.
+
+`sweep` in named steps: its options checked (`options.sweep_options`), the members
+(`grid.Members`), what to keep (`options.what_to_keep`), the solve's configuration
+(`_solve_config`), the cut into chunks and lanes for the devices (`_cut`), the
+checkpoint (`checkpoint.prepare`), the chunks (`_run`: `chunk.solve_chunk`, each a
+`ChunkResult`, written to the checkpoint) and the Dataset (`dataset.dataset`).
+"""
 
 import math
 import os
@@ -13,36 +20,24 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 import numpy as np
 
-from .._core import checks as _checks
-from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import as_events, check_events
 from .._solve.methods import configure
 from .._solve.postprocess import power_of
 from .._solve.simulate import SolveConfig, events_supported
 from .._solve.solution import Solution
-from .._systems.abstract import AbstractSystem
+from .._systems.abstract import AbstractSystem, host_state
 from .._systems.vector_field import LagrangianVectorField, split_tau
 from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
-from .chunk import Setup, solve_chunk
+from .chunk import ChunkSpec, Setup, solve_chunk
 from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
-from .grid import Grid
-from .options import batch_size, lanes_option, sweep_options
+from .grid import Grid, Members
+from .options import Kept, lanes_option, sweep_options, what_to_keep
 from .progress import progress_bar, progress_default
+from .result import ChunkResult
 from .unused import read_params
-
-
-def _states(x: Any, name: str, n_members: int) -> np.ndarray:
-    a = np.asarray(x, dtype=float if np.asarray(x).dtype.kind in "biu" else None)
-    if a.ndim == 1:
-        return np.broadcast_to(a, (n_members,) + a.shape)
-    if a.ndim >= 2 and math.prod(a.shape[:-1]) == n_members:
-        return a.reshape(n_members, a.shape[-1])
-    raise ShapeError(
-        f"{name} must have shape (n,) (shared by all members) or (members, n) / grid shape + "
-        f"(n,) with {n_members} members; got {a.shape}"
-    )
 
 
 def sweep(
@@ -194,8 +189,6 @@ def sweep(
     ds.q.sel(dof=0).plot()   # final θ1 against the initial θ1
     ```
     """
-    import xarray as xr
-
     system, q0, qd0, params = _argument_order(system, q0, qd0, params)
     # every scalar option, on the host, before anything is traced or written
     t0, t1, chunk_size = sweep_options(
@@ -215,56 +208,82 @@ def sweep(
         checkpoint=checkpoint,
         progress=progress,
     )
-    # --- the batch
-    if isinstance(params, Grid):
-        batch, n_members = params, params.size
-        get_params = params.params
-    else:
-        n_members = batch_size(params)
-        batch = None
-        params = jtu.tree_map(jnp.asarray, params)
-
-        def get_params(a, b):
-            return jtu.tree_map(lambda x: x[a:b], params)
-
-    q0s = _states(q0, "q0", n_members)
-    qd0s = _states(qd0, "qd0", n_members)
-    if q0s.shape != qd0s.shape:
-        raise ShapeError(
-            f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
-            f"and {qd0s.shape[1:]}"
-        )
-    if batch is not None:  # swept initial-state components (q0_i / qd0_i axes)
-        q0s, qd0s = batch.initial_states(q0s, qd0s)
-    dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
-    q0s, qd0s = q0s.astype(dtype), qd0s.astype(dtype)
-    n = q0s.shape[1]
+    members = Members.of(params, q0, qd0)
+    q0s, qd0s, dtype = members.q0s, members.qd0s, members.q0s.dtype
     # one member through the eager checks of a single trajectory: shapes, params, tau
-    q_probe, _ = system._state(q0s[0], qd0s[0])
+    q_probe, _ = host_state(system, q0s[0], qd0s[0])
     tdt = jnp.asarray(0.0, dtype).dtype
     tau_fn, tau_const = split_tau(system, tau, q_probe)
     if not allow_unused:
-        _refuse_unused(system, tau_fn, q0s[0], qd0s[0], tau_const, batch, params)
+        _refuse_unused(system, tau_fn, tau_const, members)
+    final = isinstance(keep, str) and keep == "final"
+    balance = final and _has_power(system, tau_fn, tau_const, members, t0)
+    kept = what_to_keep(keep, n_save, t0, t1, balance)
+    method = (solver, rtol, atol, dt, dt0, max_steps, stepsize_controller)
+    config, dt0_ = _solve_config(system, tau_fn, method, (t0, t1, tdt), events)
+    if config.events is not None:
+        check_events(config.events, jnp.asarray(t0, tdt), q0s[0], qd0s[0], members.first())
+        schedule = "lockstep"  # the lane queue has no event handling
+    # --- chunks and devices: defaults from the device (see defaults)
+    info = device_info(device_list(devices))
+    lanes = lanes_option(n_lanes, chunk_size, info.count)
+    ckpt = Path(checkpoint) if checkpoint is not None else None
+    if chunk_size is None and ckpt is not None:
+        chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
+    cut = _cut(info, members, kept, chunk_size, lanes)
+    setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
+    times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
+    spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
+    # --- checkpoint: what defines the results (the fingerprint), and what is on disk
+    settings = _settings(t0, t1, kept, dt0_, members, keep, tau_const)
+    fp = None if ckpt is None else fingerprint(setup, [members.params_of(), q0s, qd0s], settings)
+    n_chunks = -(-members.size // cut.chunk_size)
+    loaded = {} if ckpt is None else prepare(ckpt, fp, cut.chunk_size, members.size, n_chunks)
+    chunks = _run(spec, members, loaded, (ckpt, fp), progress)
+    run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
+    return dataset(chunks, members, kept, dof=_dof_labels(system, q0s.shape[1]), attrs=run)
 
-    # --- what to keep (keep= and n_save were checked above)
-    reduce = None
-    if callable(keep):
-        reduce, ts = keep, np.linspace(t0, t1, int(n_save))
-    elif isinstance(keep, str):
-        ts = np.zeros(0) if keep == "final" else np.linspace(t0, t1, int(n_save))
-    else:
-        ts = np.asarray(keep, dtype=float)
-    keep_path = True
-    if (
-        isinstance(keep, str)
-        and keep == "final"
-        and _has_power(system, tau_fn, tau_const, batch, params, q0s[0], qd0s[0], t0)
-    ):
-        # the energy balance needs the work along the path: saved at n_save times for
-        # it, then dropped
-        ts, keep_path = np.linspace(t0, t1, int(n_save)), False
-    ts_dev = jnp.asarray(ts, tdt)
 
+def _settings(t0, t1, kept: Kept, dt0, members: Members, keep, tau_const) -> dict[str, Any]:
+    """The scalar settings that define a sweep's results beside its setup and arrays
+    (part of its checkpoint fingerprint)."""
+    return dict(
+        t0=float(t0),
+        t1=float(t1),
+        ts=kept.ts.tolist(),
+        dt0=dt0,
+        n=members.q0s.shape[1],
+        n_members=members.size,
+        keep=keep if isinstance(keep, str) else None,
+        dtype=str(members.q0s.dtype),
+        tau=None if tau_const is None else np.asarray(tau_const).tolist(),
+    )
+
+
+def _how_it_ran(config: SolveConfig, rtol, atol, settings, schedule, info, cut) -> dict[str, Any]:
+    """How the sweep ran, for the result's `attrs`: the solver, its tolerances, the
+    interval, the schedule, the devices and the cut (`_reported`)."""
+    return dict(
+        solver=type(config.solver).__name__,
+        rtol=float(rtol),
+        atol=float(atol),
+        t0=settings["t0"],
+        t1=settings["t1"],
+        schedule=schedule,
+        devices=int(info.count),
+        **_reported(cut, schedule, info),
+    )
+
+
+def _solve_config(system, tau_fn, method: tuple, times: tuple, events) -> tuple[SolveConfig, Any]:
+    """The solve every member runs, and its first step `dt0`.
+
+    `method` is `(solver, rtol, atol, dt, dt0, max_steps, stepsize_controller)` as
+    given to `sweep`, `times` is `(t0, t1, dtype)`; the controller is always given
+    (`diffrax.PIDController(rtol, atol)` by default). With `events`, they are checked to
+    be supported by the method (`simulate.events_supported`)."""
+    solver, rtol, atol, dt, dt0, max_steps, stepsize_controller = method
+    t0, t1, tdt = times
     solver_, controller, dt0_, max_steps_ = configure(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, True
     )
@@ -273,115 +292,57 @@ def sweep(
     events = as_events(events)
     if events is not None:
         events_supported(solver_, controller, None, None)
-        member = batch.params(0, 1) if batch is not None else get_params(0, 1)
-        member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
-        check_events(events, jnp.asarray(t0, tdt), q0s[0], qd0s[0], member)
-        schedule = "lockstep"  # the lane queue has no event handling
-
-    # --- chunks and devices: defaults from the device (see _defaults)
-    mesh = mesh_of(devices)
-    info = device_info(device_list(devices))
-    n_dev = info.count
-    lanes_given = lanes_option(n_lanes, chunk_size, n_dev)
-    n_kept = max(len(ts), 1)
-    member_bytes = 8 * (2 * n * n_kept + n_kept + 4 * n + 8)
-    ckpt = Path(checkpoint) if checkpoint is not None else None
-    if chunk_size is None and ckpt is not None:
-        chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
-    member0 = batch.params(0, 1) if batch is not None else params
-    n_params = sum(math.prod(np.shape(x)[1:]) for x in jtu.tree_leaves(member0))
-    cut = plan(
-        info,
-        n_members=n_members,
-        member_bytes=member_bytes,
-        lane_bytes=lane_bytes(n, n_params, jnp.dtype(dtype).itemsize),
-        chunk_size=chunk_size,
-        n_lanes=lanes_given,
-    )
-    chunk_size = cut.chunk_size
-    lanes = cut.n_lanes
     config = SolveConfig(system, solver_, tau_fn, controller, max_steps=max_steps_, events=events)
-    setup = Setup(config, reduce, lanes, schedule, cut.refill, cut.tail_lanes)
-    n_chunks = -(-n_members // chunk_size)
+    return config, dt0_
 
-    # --- checkpoint
-    settings = dict(
-        t0=float(t0),
-        t1=float(t1),
-        ts=ts.tolist(),
-        dt0=dt0_,
-        n=n,
-        n_members=n_members,
-        keep=keep if isinstance(keep, str) else None,
-        dtype=str(dtype),
-        tau=None if tau_const is None else np.asarray(tau_const).tolist(),
+
+def _cut(
+    info: DeviceInfo, members: Members, kept: Kept, chunk_size: int | None, lanes: int | None
+) -> Plan:
+    """Members per chunk and lanes per device (`defaults.plan`), from the device, the
+    memory a member's kept output and a lane take, and the user's `chunk_size` and
+    `n_lanes` (already checked)."""
+    n = members.q0s.shape[1]
+    n_kept = max(len(kept.ts), 1)
+    member_bytes = 8 * (2 * n * n_kept + n_kept + 4 * n + 8)
+    member0 = members.params_of(0, 1)
+    n_params = sum(math.prod(np.shape(x)[1:]) for x in jtu.tree_leaves(member0))
+    return plan(
+        info,
+        n_members=members.size,
+        member_bytes=member_bytes,
+        lane_bytes=lane_bytes(n, n_params, members.q0s.dtype.itemsize),
+        chunk_size=chunk_size,
+        n_lanes=lanes,
     )
-    loaded: dict[int, dict[str, np.ndarray]] = {}
-    fp = None
-    if ckpt is not None:
-        swept = batch.params() if batch is not None else params
-        fp = fingerprint(setup, [swept, q0s, qd0s], settings)
-        loaded = prepare(ckpt, fp, chunk_size, n_members, n_chunks)
 
+
+def _run(spec: ChunkSpec, members: Members, loaded: dict, checkpoint: tuple, progress):
+    """Every chunk's `ChunkResult`, in order: loaded from the checkpoint, or solved
+    (`solve_chunk`) and written there (`checkpoint` is `(directory, fingerprint)`; the
+    directory `None` for no checkpoint), with a progress bar of members."""
+    directory, fp = checkpoint
+    size, n_members = spec.size, members.size
     if progress is None:
         progress = progress_default()
     bar = progress_bar(progress)(total=n_members, unit="member", disable=not progress, desc="sweep")
-    results = []
+    results: list[ChunkResult] = []
     try:
-        for c in range(n_chunks):
-            a, b = c * chunk_size, min((c + 1) * chunk_size, n_members)
-            if c in loaded:
-                results.append(loaded.pop(c))
-                bar.update(b - a)
-                continue
-            chunk = solve_chunk(
-                setup,
-                mesh,
-                system,
-                get_params(a, b),
-                q0s[a:b],
-                qd0s[a:b],
-                tau_const,
-                t0,
-                t1,
-                dt0_,
-                ts_dev,
-                chunk_size,
-                tdt,
-                keep_path=keep_path,
-            )
-            if ckpt is not None:
-                write_chunk(
-                    chunk_path(ckpt, c),
-                    chunk,
-                    fingerprint=fp,
-                    chunk_size=chunk_size,
-                    chunk=c,
-                    start=a,
-                    stop=b,
+        for c in range(-(-n_members // size)):
+            a, b = c * size, min((c + 1) * size, n_members)
+            chunk = loaded.pop(c, None)
+            if chunk is None:
+                chunk = solve_chunk(
+                    spec, members.params_of(a, b), members.q0s[a:b], members.qd0s[a:b]
                 )
+                if directory is not None:
+                    identity = dict(fingerprint=fp, chunk_size=size, chunk=c, start=a, stop=b)
+                    write_chunk(chunk_path(directory, c), chunk, **identity)
             results.append(chunk)
             bar.update(b - a)
     finally:
         bar.close()
-    return dataset(
-        xr,
-        results,
-        batch,
-        params if batch is None else None,
-        ts,
-        keep,
-        n,
-        n_members,
-        settings,
-        solver_,
-        rtol,
-        atol,
-        schedule,
-        n_dev,
-        _reported(cut, schedule, info),
-        names=_coordinate_names(system, n),
-    )
+    return results
 
 
 def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
@@ -397,44 +358,40 @@ def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
     )
 
 
-def _coordinate_names(system, n: int) -> tuple[str, ...] | None:
-    """The system's coordinate names (a tree's joint names; a constrained system's
-    unconstrained system's), if it has one per coordinate."""
-    names = getattr(system, "coordinate_names", None)
-    if names is None:
-        names = getattr(getattr(system, "system", None), "coordinate_names", None)
-    return tuple(names) if names is not None and len(names) == n else None
+def _dof_labels(system: AbstractSystem, n: int) -> np.ndarray:
+    """The labels of the result's `dof` coordinate: the system's coordinate names (a
+    tree's joint names) when it has one per coordinate, else `0 … n−1`."""
+    names = system.coordinate_names
+    if names is None or len(names) != n:
+        return np.arange(n)
+    return np.asarray(names, dtype=str)
 
 
 def _top_name(path: tuple) -> str:
     """The top-level entry of `params` a leaf lies under (a dict key or a field)."""
-    key = path[0] if path else None
-    for attr in ("key", "name", "idx"):
-        if hasattr(key, attr):
-            return str(getattr(key, attr))
-    return jtu.keystr(path)
+    return jtu.keystr(path[:1], simple=True) if path else jtu.keystr(path)
 
 
-def _refuse_unused(system, tau_fn, q, qd, tau_const, batch, params) -> None:
+def _refuse_unused(system, tau_fn, tau_const, members: Members) -> None:
     """A `ConfigurationError` when a swept parameter is read by nothing the solve
-    evaluates (see `_unused`): for a `Grid`, its swept names; for batched
-    `params`, the leaves whose values differ between members."""
-    if batch is not None:
-        member = jtu.tree_map(lambda x: x[0], batch.params(0, 1))
-    else:
-        member = jtu.tree_map(lambda x: x[0], params)
-    read = read_params(system, tau_fn, jnp.asarray(q), jnp.asarray(qd), member, tau_const)
+    evaluates (see `unused`): for a `Grid`, its swept names; for batched `params`, the
+    leaves whose values differ between members."""
+    member = members.first()
+    q, qd = jnp.asarray(members.q0s[0]), jnp.asarray(members.qd0s[0])
+    read = read_params(system, tau_fn, q, qd, member, tau_const)
     if read is None:
         return
     paths = [path for path, _ in jtu.tree_flatten_with_path(member)[0]]
-    if batch is not None:
+    grid = members.grid
+    if grid is not None:
         # a swept name is read when any leaf under it is
         names = [_top_name(p) for p in paths]
         names_read = {k for k, r in zip(names, read, strict=True) if r}
-        unused = [k for k in batch.axes if k not in names_read and k not in batch.states]
+        unused = [k for k in grid.axes if k not in names_read and k not in grid.states]
         all_names = list(dict.fromkeys(names))
     else:
-        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in jtu.tree_leaves(params)]
+        leaves = jtu.tree_leaves(members.params)
+        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in leaves]
         names = ["params" + jtu.keystr(p) for p in paths]
         unused = [k for k, r, v in zip(names, read, varies, strict=True) if v and not r]
         names_read = {k for k, r in zip(names, read, strict=True) if r}
@@ -481,16 +438,14 @@ def _argument_order(system, q0, qd0, params):
     return system, q0, qd0, params
 
 
-def _has_power(system, tau_fn, tau_const, batch, params, q0, qd0, t0) -> bool:
+def _has_power(system, tau_fn, tau_const, members: Members, t0) -> bool:
     """Whether anything changes the Jacobi integral of a member (explicit time, inputs,
     applied force, dissipation; see `postprocess.power_of`): traced, not evaluated."""
-    member = batch.params(0, 1) if batch is not None else params
-    member = jtu.tree_map(lambda x: jnp.asarray(x)[0], member)
     field = LagrangianVectorField(system, tau_fn)
-    q0, qd0 = jnp.asarray(q0), jnp.asarray(qd0)
+    q0, qd0 = jnp.asarray(members.q0s[0]), jnp.asarray(members.qd0s[0])
     power = jax.eval_shape(
         lambda p, a, b: power_of(system, field, p, tau_const, jnp.asarray(t0, a.dtype), a, b),
-        member,
+        members.first(),
         q0,
         qd0,
     )

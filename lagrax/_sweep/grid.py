@@ -1,14 +1,18 @@
-"""The batch of a sweep: `Grid`, `grid` and `samples`."""
+"""The batch of a sweep: `Grid`, `grid` and `samples`, and `Members` (the parameters
+and initial states of a sweep's members, from a `Grid` or batched parameters)."""
 
+import dataclasses
 import math
 import re
 from collections.abc import Mapping
 from typing import Any
 
 import jax.numpy as jnp
+import jax.tree_util as jtu
 import numpy as np
 
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .options import batch_size
 
 _STATE = re.compile(r"^(q0|qd0)_(\d+)$")
 
@@ -186,3 +190,88 @@ def samples(base: Any = None, /, *, units: Mapping[str, str] | None = None, **va
     and `units` gives units, as for `grid`.
     """
     return Grid(base, values, product=False, units=units)
+
+
+@dataclasses.dataclass(frozen=True)
+class Members:
+    """A sweep's members: their parameters and initial states.
+
+    **Attributes:**
+
+    - `grid`: the `Grid` they come from, or `None` for batched parameters.
+    - `params`: without a grid, the batched parameters (every leaf a JAX array with a
+      leading member axis); `None` with one.
+    - `q0s`, `qd0s`: every member's initial state, `(members, n)`, of one dtype (the
+      grid's swept state components set).
+    """
+
+    grid: Grid | None
+    params: Any
+    q0s: np.ndarray
+    qd0s: np.ndarray
+
+    @classmethod
+    def of(cls, params: Any, q0: Any, qd0: Any) -> "Members":
+        """The members of `sweep(system, q0, qd0, params)`: `params` a `Grid` or a
+        pytree whose every leaf has a leading member axis, `q0`, `qd0` shared `(n,)` or
+        one per member.
+
+        **Raises:** `ShapeError` (or `ArgumentTypeError`) for batched parameters without
+        members, with scalar leaves or leading axes that disagree, and for states of the
+        wrong shape.
+        """
+        if isinstance(params, Grid):
+            grid, batched, n_members = params, None, params.size
+        else:
+            n_members = batch_size(params)
+            grid, batched = None, jtu.tree_map(jnp.asarray, params)
+        q0s = _states(q0, "q0", n_members)
+        qd0s = _states(qd0, "qd0", n_members)
+        if q0s.shape != qd0s.shape:
+            raise ShapeError(
+                f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
+                f"and {qd0s.shape[1:]}"
+            )
+        if grid is not None:  # swept initial-state components (q0_i / qd0_i axes)
+            q0s, qd0s = grid.initial_states(q0s, qd0s)
+        dtype = jnp.result_type(q0s.dtype, qd0s.dtype)
+        return cls(grid, batched, q0s.astype(dtype), qd0s.astype(dtype))
+
+    @property
+    def size(self) -> int:
+        """The number of members."""
+        return self.q0s.shape[0]
+
+    @property
+    def dims(self) -> tuple[str, ...]:
+        """The result's sweep dimensions: the grid's, or `("member",)`."""
+        return self.grid.dims if self.grid is not None else ("member",)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The shape of the sweep dimensions."""
+        return self.grid.shape if self.grid is not None else (self.size,)
+
+    def params_of(self, start: int = 0, stop: int | None = None) -> Any:
+        """Batched parameters of members `start:stop` (all by default)."""
+        if self.grid is not None:
+            return self.grid.params(start, stop)
+        if start == 0 and stop is None:
+            return self.params
+        return jtu.tree_map(lambda x: x[start:stop], self.params)
+
+    def first(self) -> Any:
+        """The first member's parameters (leaves without the member axis)."""
+        return jtu.tree_map(lambda x: jnp.asarray(x)[0], self.params_of(0, 1))
+
+
+def _states(x: Any, name: str, n_members: int) -> np.ndarray:
+    a = np.asarray(x, dtype=float if np.asarray(x).dtype.kind in "biu" else None)
+    if a.ndim == 1:
+        return np.broadcast_to(a, (n_members,) + a.shape)
+    if a.ndim >= 2 and math.prod(a.shape[:-1]) == n_members:
+        return a.reshape(n_members, a.shape[-1])
+    raise ShapeError(
+        f"{name} must have shape (n,) (shared by all members) or (members, n) / grid shape + "
+        f"(n,) with {n_members} members; got {a.shape}"
+    )
