@@ -113,6 +113,24 @@ def test_system_kinds_share_one_interface():
     assert bool(ok) and system.observables(0.0, q, qd, params, None) == {}
 
 
+def test_final_maxima_are_observables_the_system_reports():
+    """What a sweep reports as a maximum at the final state is the system's to say (not
+    keys the sweep knows of one kind): observables it has, only those of its constraints."""
+    system, params = lx.models.planar_2r()
+    assert system.final_maxima == ()
+    pendulum, p = lx.models.cartesian_pendulum()
+    knife = lx.ConstrainedSystem(
+        pendulum.system, None, velocity_constraints=lambda q, p: jnp.stack([q[1], -q[0]])
+    )
+    q, qd = jnp.array([0.6, -0.8]), jnp.array([0.8, 0.6])
+    for kind, names in (
+        (pendulum, ("constraint_violation",)),
+        (knife, ("velocity_constraint_violation",)),
+    ):
+        assert kind.final_maxima == names
+        assert set(names) <= set(kind.observables(0.0, q, qd, p, None))
+
+
 def test_simulate_under_jit_raises_the_failures_own_message(arm):
     system, params = arm
     run = jax.jit(lambda q0: lx.simulate(system, q0, jnp.zeros(2), params, t1=1.0, max_steps=10).q)
