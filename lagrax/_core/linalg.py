@@ -130,3 +130,54 @@ def lu_solve_small(factors, b: Float[Array, " n"]) -> Float[Array, " n"]:
         s = y[i] - sum((lu[i, j] * x[j] for j in range(i + 1, n)), start=0.0)
         x[i] = s / lu[i, i]
     return jnp.stack(x)
+
+
+def spd_inverse(m: Float[Array, "n n"]) -> Float[Array, "n n"]:
+    """`m⁻¹` of a symmetric positive-definite `m` (NaN where it is not), for applying
+    `M⁻¹` to many right-hand sides at once: the tangents of the accelerations.
+
+    Unrolled for `n <= _UNROLL_MAX`: `m = L Lᵀ` (the pivot test of
+    `solve_spd_unrolled`), `L⁻¹` by forward substitution and `m⁻¹ = L⁻ᵀ L⁻¹`, about
+    `n³/2` scalar operations that XLA fuses into the surrounding computation. Above, LAPACK
+    (`cho_factor` and `cho_solve` on the identity).
+    """
+    n = m.shape[-1]
+    if n > _UNROLL_MAX:
+        eye = jnp.eye(n, dtype=m.dtype)
+        return cholesky_solve_many(m, eye)
+    rows = [[m[i, j] for j in range(n)] for i in range(n)]
+    scale = jnp.abs(rows[0][0])
+    for i in range(1, n):
+        scale = jnp.maximum(scale, jnp.abs(rows[i][i]))
+    bound = _tol(m) * scale
+    low = [[None] * n for _ in range(n)]
+    for j in range(n):
+        d = rows[j][j] - sum((low[j][k] * low[j][k] for k in range(j)), start=0.0)
+        low[j][j] = jnp.sqrt(_checked(d, bound))
+        for i in range(j + 1, n):
+            s = rows[i][j] - sum((low[i][k] * low[j][k] for k in range(j)), start=0.0)
+            low[i][j] = s / low[j][j]
+    inv_low = [[None] * n for _ in range(n)]  # L⁻¹, lower triangular
+    for i in range(n):
+        for j in range(i + 1):
+            s = (1.0 if i == j else 0.0) - sum(
+                (low[i][k] * inv_low[k][j] for k in range(j, i)), start=0.0
+            )
+            inv_low[i][j] = s / low[i][i]
+    out = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            out[i][j] = out[j][i] = sum(
+                (inv_low[k][i] * inv_low[k][j] for k in range(j, n)), start=0.0
+            )
+    return jnp.stack([jnp.stack(row) for row in out])
+
+
+def cholesky_solve_many(m: Float[Array, "n n"], b: Float[Array, "n k"]) -> Float[Array, "n k"]:
+    """Solve `m x = b` for a symmetric positive-definite `m` and `k` right-hand sides
+    (NaN if `m` is not positive-definite): one LAPACK factorization for all of them."""
+    factor, lower = jsl.cho_factor(m, lower=True)
+    x = jsl.cho_solve((factor, lower), b)
+    pivots = jnp.diagonal(factor) ** 2
+    bound = _tol(m) * jnp.max(jnp.abs(jnp.diagonal(m)))
+    return jnp.where(jnp.min(pivots) > bound, x, jnp.nan)

@@ -163,3 +163,12 @@ class SceneEquations(eqx.Module):
         """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`)."""
         mass, bias = self.mass_and_bias(q, qd, params)
         return bias if qdd is None else mass @ qdd.astype(q.dtype) + bias
+
+    def derivatives(self, q, qd, qdd, params: Params) -> tuple[Any, Any, Any]:
+        """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`: forward-mode
+        Jacobians of [`inverse_dynamics`][] at the fixed `q̈`, and `M`."""
+        qd, qdd = qd.astype(q.dtype), qdd.astype(q.dtype)
+        dq, dqd = jax.jacfwd(lambda a, b: self.inverse_dynamics(a, b, qdd, params), argnums=(0, 1))(
+            q, qd
+        )
+        return dq, dqd, self.mass_matrix(q, params)

@@ -12,6 +12,7 @@ import numpy as np
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
 from . import recursions as a
+from .derivative_recursions import rnea_derivatives
 
 
 def _check(n: int, q) -> None:
@@ -204,3 +205,13 @@ class ChainEquations(eqx.Module):
         links = chain.passes.links
         qdd = None if qdd is None else links(qdd.astype(q.dtype))
         return a.stack(a.rnea(chain, links(qd.astype(q.dtype)), qdd), q)
+
+    def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
+        """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`, analytically in
+        `O(n²)` (see `lagrax._multibody.derivative_recursions`)."""
+        chain = self.at(q, params)
+        links = chain.passes.links
+        _, dq, dqd, mass = rnea_derivatives(
+            chain, links(qd.astype(q.dtype)), links(qdd.astype(q.dtype))
+        )
+        return dq, dqd, mass

@@ -27,8 +27,9 @@ from .._core.errors import (
     NonFiniteError,
     ShapeError,
 )
-from .._core.linalg import PIVOT_RTOL, cholesky_solve
+from .._core.linalg import PIVOT_RTOL, cholesky_solve, spd_inverse
 from . import derivatives as d
+from . import implicit
 from .abstract import AbstractSystem
 from .lagrangian import LagrangianSystem
 
@@ -346,11 +347,9 @@ class ConstrainedSystem(AbstractSystem):
         return self._kmat(q, params)
 
     # ------------------------------------------------------------ dynamics
-    def _kkt(self, t, q, qd, params, tau):
-        """`(q̈, (λ, μ))` without raising: NaN where `M` is not PD or `K` loses
-        rank."""
-        sys = self.system
-        mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+    def _rows(self, q, qd, params):
+        """The stacked constraint matrix `K = [J; A]` and the right-hand side `γ` of
+        `K q̈ = γ` (with Baumgarte stabilization)."""
         rows, gammas = [], []
         if self.constraints is not None:
 
@@ -370,10 +369,24 @@ class ConstrainedSystem(AbstractSystem):
             (amat, aqd), (_, adot_qd) = jax.jvp(a_and_rate, (q,), (qd,))
             rows.append(amat)
             gammas.append(-adot_qd - self.beta * aqd)
-        dtype = jnp.result_type(mass, *rows)
+        dtype = jnp.result_type(*rows)
         kmat = jnp.concatenate([r.astype(dtype) for r in rows], axis=0)
         gamma = jnp.concatenate([g.astype(dtype) for g in gammas])
-        return solve_kkt(mass, kmat, force, gamma)
+        return kmat, gamma
+
+    def _kkt_raw(self, t, q, qd, params, tau):
+        sys = self.system
+        mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+        kmat, gamma = self._rows(q, qd, params)
+        dtype = jnp.result_type(mass, kmat)
+        return solve_kkt(mass, kmat.astype(dtype), force, gamma.astype(dtype))
+
+    def _kkt(self, t, q, qd, params, tau):
+        """`(q̈, (λ, μ))` without raising: NaN where `M` is not PD or `K` loses
+        rank. Differentiated through the KKT system (`_kkt_with_rule`)."""
+        if not implicit.rule_on():
+            return self._kkt_raw(t, q, qd, params, tau)
+        return _kkt_with_rule(self, t, q, qd, params, tau)
 
     def accelerations(self, t, q, qd, params, tau):
         """Constrained accelerations without raising (what `simulate` integrates)."""
@@ -692,3 +705,40 @@ class ConstrainedSystem(AbstractSystem):
 @eqx.filter_jit
 def _project_jit(system: ConstrainedSystem, q, qd, params):
     return system._project(q, qd, params)
+
+
+@eqx.filter_custom_jvp
+def _kkt_with_rule(system: ConstrainedSystem, t, q, qd, params, tau):
+    return system._kkt_raw(t, q, qd, params, tau)
+
+
+@_kkt_with_rule.def_jvp
+def _kkt_tangent(primals, tangents):
+    r"""The tangent of `(q̈, λ)` through the KKT system: with the residual
+    `R = (r(q̈) − τ − Kᵀλ, K q̈ − γ)` (`r` the system's inverse dynamics less its applied
+    forces), `[[M, −Kᵀ], [K, 0]] (δq̈, δλ) = −∂R/∂(t, q, q̇, p, τ) δ(t, q, q̇, p, τ)`, solved
+    as the primal is (`solve_kkt`) at the primal `(q̈, λ)`."""
+    system, t, q, qd, params, tau = primals
+    _, dt, dq, dqd, dparams, dtau = tangents
+    qdd, lam = system._kkt_raw(t, q, qd, params, tau)
+    inner = system.system
+    mass = d.mass_matrix(inner, q, qd, params, t)
+    kmat, _ = system._rows(q, qd, params)
+
+    def constrained_residual(s, a, b, p):
+        k_a, gamma = system._rows(a, b, p)
+        top = implicit.residual(inner, s, a, b, qdd, p) - k_a.T @ lam
+        return top, k_a @ qdd - gamma
+
+    dres = implicit.jvp_of_given(constrained_residual, (t, q, qd, params), (dt, dq, dqd, dparams))
+    top = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
+    bottom = jnp.zeros_like(lam)
+    if dres is not None:
+        top, bottom = top - dres[0], bottom - dres[1]
+    # linear in (top, bottom): every matrix below is formed from the primal values only
+    m_inv = spd_inverse(mass)
+    m_inv_kt = m_inv @ kmat.T.astype(m_inv.dtype)
+    s_inv = spd_inverse(0.5 * (kmat @ m_inv_kt + (kmat @ m_inv_kt).T))
+    free = m_inv @ top
+    dlam = s_inv @ (bottom - kmat @ free)
+    return (qdd, lam), (free + m_inv_kt @ dlam, dlam)

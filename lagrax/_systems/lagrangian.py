@@ -20,7 +20,9 @@ from .._core.checks import (
 from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 from .._core.errors import ArgumentTypeError, ConfigurationError, MassMatrixError, NonFiniteError
 from . import derivatives as d
+from . import implicit, sensitivity
 from .abstract import AbstractSystem
+from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
 
 # autonomous energies, or with the time first (time_dependent=True)
 KineticFn = Callable[[Vector, Vector, Params], Scalar] | Callable[..., Scalar]
@@ -380,7 +382,7 @@ class LagrangianSystem(AbstractSystem):
     def accelerations(self, t, q, qd, params, tau):
         """Forward dynamics of checked 1-D arrays without raising: `q̈`, NaN where `M`
         is not positive-definite (what the solvers integrate)."""
-        return d.accelerations(self, self.scalar_derivatives, t, q, qd, params, tau)
+        return implicit.accelerations(self, self.scalar_derivatives, t, q, qd, params, tau)
 
     def forward_dynamics(
         self,
@@ -482,22 +484,105 @@ class LagrangianSystem(AbstractSystem):
         also moves `t` at unit rate, adding `∂²T/∂q̇∂t`; all terms are at time `t`.
         """
         q, qd, qdd = self._state(q, qd, qdd=qdd)
-        if self.equations is not None:
-            applied = d.applied(self, t, q, qd, params, None)
-            return self.equations.inverse_dynamics(q, qd, qdd, params) - applied
-        if self.time_dependent:
-            s = d.time_of(t, q)
-            (t_q, _), (_, dp) = jax.jvp(
-                lambda a, b, c: d.grad_kinetic(self, a, b, params, c),
-                (q, qd, s),
-                (qd, qdd, jnp.ones_like(s)),
-            )
-        else:
-            (t_q, _), (_, dp) = jax.jvp(
-                lambda a, b: d.grad_kinetic(self, a, b, params), (q, qd), (qd, qdd)
-            )
-        applied = d.applied(self, t, q, qd, params, None)
-        return dp - t_q + d.gravity(self, q, params, t) - applied
+        return implicit.residual(self, t, q, qd, qdd, params)
+
+    def forward_dynamics_derivatives(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> ForwardDynamicsDerivatives:
+        r"""The accelerations and their derivatives at one state, in one call (as
+        Pinocchio's `computeABADerivatives`).
+
+        Differentiating the inverse dynamics `r(q, q̇, q̈) = τ` at the primal `q̈`:
+
+        $$
+        \frac{∂q̈}{∂q} = −M⁻¹ \frac{∂r}{∂q}, \qquad \frac{∂q̈}{∂q̇} = −M⁻¹ \frac{∂r}{∂q̇},
+        \qquad \frac{∂q̈}{∂τ} = M⁻¹, \qquad \frac{∂q̈}{∂p} = −M⁻¹ \frac{∂r}{∂p},
+        $$
+
+        with `r = M q̈ + C q̇ + G + ∂D/∂q̇ − F`. For chains and trees `∂r/∂q`, `∂r/∂q̇` come
+        from Featherstone's recursions differentiated analytically (`O(n²)`); for energies
+        from forward-mode derivatives of the inverse dynamics. `jax.jacfwd` of
+        [`forward_dynamics`][lagrax.LagrangianSystem.forward_dynamics] gives the same numbers
+        (it goes through the same rule), at the cost of `3n` tangents.
+
+        **Arguments:** the state `q`, `qd` (shape `(n,)`), `params`, the input `tau`
+        (default zero), the time `t`, and `wrt_params=True` to add `∂q̈/∂params`.
+
+        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives]
+        (`qdd`, `dq`, `dqd`, `dtau`, `dparams`).
+
+        **Raises:** as [`forward_dynamics`][lagrax.LagrangianSystem.forward_dynamics].
+
+        **Example:**
+
+        ```python
+        system, params = lagrax.models.planar_2r()
+        out = system.forward_dynamics_derivatives(jnp.array([0.3, 0.8]), jnp.zeros(2), params)
+        out.dq, out.dqd, out.dtau        # ∂q̈/∂q, ∂q̈/∂q̇, M⁻¹
+        ```
+        """
+        q, qd, tau = self._state(q, qd, tau=tau)
+        eager = not is_traced(q, qd, tau, params, t)
+        out = _forward_derivatives(
+            self, t, q, qd, _arrays(params) if eager else params, tau, wrt_params
+        )
+        return self._finite_derivatives(out, q, qd, params, tau, t, "forward_dynamics")
+
+    def inverse_dynamics_derivatives(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        qdd: Velocities,
+        params: Params,
+        t: Time = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> InverseDynamicsDerivatives:
+        """The inputs `τ = M q̈ + C q̇ + G + ∂D/∂q̇ − F` and their derivatives at one state,
+        in one call (as Pinocchio's `computeRNEADerivatives`): `∂τ/∂q`, `∂τ/∂q̇`,
+        `∂τ/∂q̈ = M` and, with `wrt_params=True`, `∂τ/∂params` (`τ` is linear in masses
+        and inertias: the regressor of identification). Chains and trees differentiate
+        Featherstone's recursions analytically (`O(n²)`).
+
+        **Arguments:** `q`, `qd`, `qdd` (shape `(n,)`), `params`, the time `t`, and
+        `wrt_params`.
+
+        **Returns:** an [`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives]
+        (`tau`, `dq`, `dqd`, `dqdd`, `dparams`).
+
+        **Raises:** `ShapeError` for mismatched shapes; `NonFiniteError` for NaN/inf
+        inputs or results (under `jit` by `equinox.error_if`).
+        """
+        q, qd, qdd = self._state(q, qd, qdd=qdd)
+        eager = not is_traced(q, qd, qdd, params, t)
+        out = _inverse_derivatives(
+            self, t, q, qd, qdd, _arrays(params) if eager else params, wrt_params
+        )
+        return self._finite_derivatives(out, q, qd, params, None, t, "inverse_dynamics")
+
+    def _finite_derivatives(self, out, q, qd, params, tau, t, what: str):
+        """`out` if every array in it is finite, else the error `forward_dynamics` would
+        raise there (eagerly), or a `NonFiniteError` (under `jit`, at run time)."""
+        ok = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(out)]))
+        message = (
+            f"{what}_derivatives of {self.name} are not finite: the state, tau or params "
+            "contain NaN/inf, or M(q) is singular or not positive-definite there"
+        )
+        if is_traced(q, qd, tau, params, t, out):
+            return eqx.error_if(out, ~ok, message + ". Outside jit the message names which.")
+        if not bool(ok):
+            finite(q, "q")
+            finite(qd, "qd")
+            self.check_state(q, qd, params, t=t)  # raises if M(q) or the energies are bad
+            raise NonFiniteError(message)
+        return out
 
     def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
         """Validate a state eagerly (outside `jit`) with the values in the messages.
@@ -563,10 +648,10 @@ class LagrangianSystem(AbstractSystem):
         that `x_eq` is an equilibrium (compare ``forward_dynamics(q_eq, qd_eq, params,
         tau_eq)`` with zero).
 
-        Both Jacobians come from one `jax.jacfwd` of the forward dynamics with respect to
-        `(x, τ)`: `3n` forward-mode tangents, the right choice at the sizes of
-        mechanisms (a few to a few dozen coordinates), where forward mode costs a small
-        multiple of one evaluation per tangent and needs no stored intermediate values.
+        Both come from the derivatives of the inverse dynamics at the primal `q̈` and
+        `M⁻¹` (as in
+        [`forward_dynamics_derivatives`][lagrax.LagrangianSystem.forward_dynamics_derivatives]),
+        compiled as one program.
 
         Works under `jax.jit`, `jax.vmap` and `jax.grad` (e.g. to differentiate an
         LQR design with respect to `params`).
@@ -602,7 +687,6 @@ class LagrangianSystem(AbstractSystem):
             (tau,) = self._state(q, tau=tau_eq)[1:]
         dtype = jnp.result_type(q, qd, tau)
         q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-        n = q.shape[0]
         eager = not is_traced(q, qd, tau, params, t)
         if eager:
             finite(q, "q_eq")
@@ -610,10 +694,7 @@ class LagrangianSystem(AbstractSystem):
             finite(tau, "tau_eq")
             self.check_state(q, qd, params, t=t)  # shapes, parameters, M positive-definite
 
-        def field(x, u):
-            return jnp.concatenate([x[n:], self.accelerations(t, x[:n], x[n:], params, u)])
-
-        a_mat, b_mat = jax.jacfwd(field, argnums=(0, 1))(jnp.concatenate([q, qd]), tau)
+        a_mat, b_mat = _linearization(self, t, q, qd, params if not eager else _arrays(params), tau)
         if eager:
             finite(a_mat, "the linearization A")
             finite(b_mat, "the linearization B")
@@ -633,3 +714,33 @@ class LagrangianSystem(AbstractSystem):
 def _energy_and_mass(system: LagrangianSystem, q, qd, params, t):
     """`(T + V, M)` at one state: one compiled call for `check_state`."""
     return system.energy(q, qd, params, t=t), system.mass_matrix(q, params, qd, t=t)
+
+
+def _arrays(params: Params) -> Params:
+    """Python floats in `params` as NumPy scalars, so that a compiled call does not
+    recompile for every new value (`filter_jit` keeps Python scalars static)."""
+    return jax.tree_util.tree_map(lambda x: np.asarray(x) if isinstance(x, float) else x, params)
+
+
+@eqx.filter_jit
+def _forward_derivatives(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
+    """`sensitivity.forward` as one compiled program (eager calls would otherwise
+    dispatch its thousands of operations one by one)."""
+    return sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, wrt_params)
+
+
+@eqx.filter_jit
+def _inverse_derivatives(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
+    """`sensitivity.inverse` as one compiled program."""
+    return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
+
+
+@eqx.filter_jit
+def _linearization(system: LagrangianSystem, t, q, qd, params, tau):
+    """`(A, B)` of the state equations at one state, as one compiled program."""
+    out = sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, False)
+    n = q.shape[0]
+    zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
+    a_mat = jnp.block([[zero, eye], [out.dq, out.dqd]])
+    b_mat = jnp.concatenate([zero, out.dtau], axis=0)
+    return a_mat, b_mat

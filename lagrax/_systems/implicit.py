@@ -1,0 +1,169 @@
+r"""Derivatives of the accelerations through the inverse dynamics.
+
+The accelerations `q̈ = FD(t, q, q̇, p, τ)` solve `r(t, q, q̇, q̈, p) = τ` with the
+*residual*
+
+$$
+r(t, q, q̇, q̈, p) = M(q) q̈ + C(q, q̇) q̇ + G(q) + ∂D/∂q̇ − F(t, q, q̇)
+$$
+
+(the inverse dynamics less the applied forces: what the input must be for `q̈`), and
+`∂r/∂q̈ = M`. Differentiating `r(…, FD(…), …) = τ` (the implicit function theorem) gives
+the tangent of the accelerations
+
+$$
+δq̈ = M⁻¹ \bigl(δτ − \tfrac{∂r}{∂q} δq − \tfrac{∂r}{∂q̇} δq̇ − \tfrac{∂r}{∂p} δp
+− \tfrac{∂r}{∂t} δt\bigr), \qquad \frac{∂q̈}{∂τ} = M⁻¹,
+$$
+
+at the primal `q̈`: only derivatives of the inverse dynamics at a *fixed* `q̈` and the
+mass matrix, never a derivative of the factorization or of the articulated-body recursion.
+`accelerations` carries this rule (a custom JVP), so `jax.jvp`, `jax.jacfwd`, `jax.grad`
+(JAX transposes the linear tangent map), `jax.vmap`, `linearize` and `simulate` all use it.
+
+- `∂r/∂q`, `∂r/∂q̇` and `M` are formed once per state from the primal values (so a Jacobian
+  of `3n` tangents costs them once): for chains and trees by the structure-aware equations'
+  `derivatives` (Featherstone's recursions differentiated analytically, `O(n²)`), for
+  energies by forward-mode derivatives of the inverse dynamics.
+- `∂r/∂p δp` and `∂r/∂t δt` are directional derivatives, computed only when `p` or `t` is
+  differentiated.
+- `M⁻¹` is an explicit small inverse from one Cholesky factorization, shared by every
+  tangent (NaN where `M` is not positive-definite, as the accelerations are).
+
+The primal is the same computation as without the rule (bit for bit), so a solve gives the
+same steps whether it is differentiated or not. Values a derivative should flow into must
+come in through the arguments (`params`, the state, `τ`, `t`), not through a closure of
+the energy functions over traced values.
+"""
+
+import contextlib
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jax.tree_util as jtu
+
+from .._core.linalg import spd_inverse
+from . import derivatives as d
+
+_RULE = {"on": True}
+
+
+@contextlib.contextmanager
+def plain_autodiff() -> Iterator[None]:
+    """Within this context, functions traced differentiate the accelerations by plain
+    automatic differentiation through their computation (the factorization, the
+    articulated-body recursion) instead of through the inverse dynamics: the definition the
+    tests hold the rule to. Trace-time only: a function compiled outside keeps its rule."""
+    before = _RULE["on"]
+    _RULE["on"] = False
+    try:
+        yield
+    finally:
+        _RULE["on"] = before
+
+
+def rule_on() -> bool:
+    """Whether the accelerations traced now carry the inverse-dynamics rule."""
+    return _RULE["on"]
+
+
+def residual(e: d.Energies, t, q, qd, qdd, params):
+    """`r = M q̈ + C q̇ + G + ∂D/∂q̇ − F`: the input `τ` for which `q̈` are the accelerations."""
+    if e.equations is not None:
+        out = e.equations.inverse_dynamics(q, qd, qdd, params)
+    elif d.timed(e):
+        s = d.time_of(t, q)
+        (t_q, _), (_, dp) = jax.jvp(
+            lambda a, b, c: d.grad_kinetic(e, a, b, params, c),
+            (q, qd, s),
+            (qd, qdd, jnp.ones_like(s)),
+        )
+        out = dp - t_q + d.gravity(e, q, params, t)
+    else:
+        (t_q, _), (_, dp) = jax.jvp(
+            lambda a, b: d.grad_kinetic(e, a, b, params), (q, qd), (qd, qdd)
+        )
+        out = dp - t_q + d.gravity(e, q, params, t)
+    if e.force is not None or e.dissipation is not None:
+        out = out - d.applied(e, t, q, qd, params, None)
+    return out
+
+
+def residual_jacobians(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params):
+    """`(∂r/∂q, ∂r/∂q̇, M)` at `(t, q, q̇, q̈)`, each `(n, n)`.
+
+    Structure-aware equations give their own (`equations.derivatives`, analytic for chains
+    and trees); the energies' come from `jax.jacfwd` of the residual, and `M` from the same
+    derivatives of `T` the accelerations use. Applied forces and dissipation add their own
+    Jacobians.
+    """
+    if e.equations is not None:
+        jq, jqd, mass = e.equations.derivatives(q, qd, qdd, params)
+        if e.force is not None or e.dissipation is not None:
+            aq, aqd = jax.jacfwd(lambda a, b: d.applied(e, t, a, b, params, None), argnums=(0, 1))(
+                q, qd
+            )
+            jq, jqd = jq - aq, jqd - aqd
+        return jq, jqd, mass
+    jq, jqd = jax.jacfwd(lambda a, b: residual(e, t, a, b, qdd, params), argnums=(0, 1))(q, qd)
+    if d.use_scalar(q.shape[0], scalar):
+        rows, _ = d.eom_small(e, q, qd, params, t)
+        mass = jnp.stack([jnp.stack(row) for row in rows])
+    else:
+        mass = d.mass_matrix(e, q, qd, params, t)
+    return jq, jqd, mass
+
+
+def jvp_of_given(fn: Callable, primals: tuple, tangents: tuple):
+    """`jax.jvp(fn, primals, tangents)[1]` along the leaves whose tangent is given (a
+    symbolic zero is `None`, leaf by leaf); `None` when no tangent is given."""
+    leaves, tree = jtu.tree_flatten(primals)
+    given = jtu.tree_leaves(tangents, is_leaf=lambda x: x is None)
+    picked = [i for i, x in enumerate(given) if x is not None]
+    if not picked:
+        return None
+
+    def along(*values):
+        full = list(leaves)
+        for i, value in zip(picked, values, strict=True):
+            full[i] = value
+        return fn(*jtu.tree_unflatten(tree, full))
+
+    return jax.jvp(along, tuple(leaves[i] for i in picked), tuple(given[i] for i in picked))[1]
+
+
+def _raw(e, scalar, t, q, qd, params, tau):
+    return d.accelerations(e, scalar, t, q, qd, params, tau)
+
+
+@eqx.filter_custom_jvp
+def _with_rule(e, scalar, t, q, qd, params, tau):
+    return _raw(e, scalar, t, q, qd, params, tau)
+
+
+@_with_rule.def_jvp
+def _tangent(primals, tangents):
+    e, scalar, t, q, qd, params, tau = primals
+    _, _, dt, dq, dqd, dparams, dtau = tangents
+    qdd = _raw(e, scalar, t, q, qd, params, tau)
+    jq, jqd, mass = residual_jacobians(e, scalar, t, q, qd, qdd, params)
+    rhs = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
+    if dq is not None:
+        rhs = rhs - jq @ dq
+    if dqd is not None:
+        rhs = rhs - jqd @ dqd
+    rest = jvp_of_given(lambda s, p: residual(e, s, q, qd, qdd, p), (t, params), (dt, dparams))
+    if rest is not None:
+        rhs = rhs - rest
+    return qdd, spd_inverse(mass) @ rhs
+
+
+def accelerations(e: d.Energies, scalar: bool | None, t, q, qd, params, tau) -> Any:
+    """`q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)` (see `derivatives.accelerations`), whose
+    derivatives go through the inverse dynamics (see the module docstring)."""
+    if not _RULE["on"]:
+        return _raw(e, scalar, t, q, qd, params, tau)
+    return _with_rule(e, scalar, t, q, qd, params, tau)

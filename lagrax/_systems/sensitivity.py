@@ -1,0 +1,115 @@
+r"""The derivatives of the forward and inverse dynamics at one state, in one call
+(in the spirit of Pinocchio's `computeABADerivatives` and `computeRNEADerivatives`).
+
+With the residual `r(t, q, q̇, q̈, p) = M q̈ + C q̇ + G + ∂D/∂q̇ − F` of `implicit`:
+
+- inverse dynamics `τ = r`: `∂τ/∂q`, `∂τ/∂q̇`, `∂τ/∂q̈ = M` and `∂τ/∂p`;
+- forward dynamics `q̈ = FD(t, q, q̇, p, τ)`: `∂q̈/∂q = −M⁻¹ ∂r/∂q`,
+  `∂q̈/∂q̇ = −M⁻¹ ∂r/∂q̇`, `∂q̈/∂τ = M⁻¹` and `∂q̈/∂p = −M⁻¹ ∂r/∂p`.
+
+`∂r/∂q`, `∂r/∂q̇` and `M` come from the same place as the tangents of the accelerations
+(`implicit.residual_jacobians`: analytic recursions for chains and trees), so one call costs
+about what one Jacobian-vector product of the accelerations does plus `n³/2` for `M⁻¹`.
+"""
+
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._core.custom_types import Matrix, Params, Vector
+from .._core.linalg import spd_inverse
+from . import derivatives as d
+from . import implicit
+
+
+class ForwardDynamicsDerivatives(eqx.Module):
+    """The accelerations `q̈ = FD(q, q̇, τ; params)` at one state and their derivatives.
+
+    **Fields:**
+
+    - `qdd`: `q̈`, shape `(n,)`.
+    - `dq`: `∂q̈/∂q`, shape `(n, n)` (`dq[i, j] = ∂q̈_i/∂q_j`).
+    - `dqd`: `∂q̈/∂q̇`, shape `(n, n)`.
+    - `dtau`: `∂q̈/∂τ = M⁻¹`, shape `(n, n)`.
+    - `dparams`: `∂q̈/∂params`, a pytree of `params`' structure whose leaves have shape
+      `(n, *leaf.shape)`; `None` unless asked for (`wrt_params=True`).
+    """
+
+    qdd: Vector
+    dq: Matrix
+    dqd: Matrix
+    dtau: Matrix
+    dparams: Any = None
+
+
+class InverseDynamicsDerivatives(eqx.Module):
+    """The inputs `τ = ID(q, q̇, q̈; params)` at one state and their derivatives.
+
+    **Fields:**
+
+    - `tau`: `τ = M q̈ + C q̇ + G + ∂D/∂q̇ − F`, shape `(n,)`.
+    - `dq`: `∂τ/∂q`, shape `(n, n)`.
+    - `dqd`: `∂τ/∂q̇`, shape `(n, n)`.
+    - `dqdd`: `∂τ/∂q̈ = M(q)`, shape `(n, n)`.
+    - `dparams`: `∂τ/∂params` (leaves of shape `(n, *leaf.shape)`), or `None` unless
+      asked for (`wrt_params=True`). `τ` is linear in the masses and inertias: these are
+      the columns of the regressor of identification.
+    """
+
+    tau: Vector
+    dq: Matrix
+    dqd: Matrix
+    dqdd: Matrix
+    dparams: Any = None
+
+
+def _jacobian_wrt_params(fn, params: Params) -> Any:
+    """`∂fn/∂params` leaf by leaf (forward mode; leaves that are not inexact arrays get
+    `None`), each of shape `(n, *leaf.shape)`."""
+    dynamic, static = eqx.partition(params, eqx.is_inexact_array)
+    return jax.jacfwd(lambda p: fn(eqx.combine(p, static)))(dynamic)
+
+
+def forward(e: d.Energies, scalar: bool | None, t, q, qd, params: Params, tau, wrt_params: bool):
+    """[`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives] of a system given by
+    its energies (or structure-aware equations), at checked 1-D arrays; NaN where `M` is
+    not positive-definite."""
+    qdd = implicit.accelerations(e, scalar, t, q, qd, params, tau)
+    jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
+    m_inv = spd_inverse(mass)
+    dparams = None
+    if wrt_params:
+        dparams = _jacobian_wrt_params(
+            lambda p: implicit.accelerations(e, scalar, t, q, qd, p, tau), params
+        )
+    return ForwardDynamicsDerivatives(qdd, -(m_inv @ jq), -(m_inv @ jqd), m_inv, dparams)
+
+
+def inverse(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params: Params, wrt_params: bool):
+    """[`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives] at checked 1-D
+    arrays."""
+    tau = implicit.residual(e, t, q, qd, qdd, params)
+    jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
+    dparams = None
+    if wrt_params:
+        dparams = _jacobian_wrt_params(lambda p: implicit.residual(e, t, q, qd, qdd, p), params)
+    return InverseDynamicsDerivatives(tau, jq, jqd, mass, dparams)
+
+
+def forward_by_jacobian(accelerations, q, qd, tau, params: Params, wrt_params: bool):
+    """[`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives] of any
+    `accelerations(q, qd, tau, params)` by one `jax.linearize` and the `3n` basis tangents
+    (a constrained system's, whose tangents go through its KKT system)."""
+    n = q.shape[0]
+    qdd, lin = jax.linearize(lambda a, b, c: accelerations(a, b, c, params), q, qd, tau)
+    eye = jnp.eye(n, dtype=qdd.dtype)
+    zero = jnp.zeros((n, n), qdd.dtype)
+    dq = jax.vmap(lin, in_axes=(1, 1, 1), out_axes=1)(eye, zero, zero)
+    dqd = jax.vmap(lin, in_axes=(1, 1, 1), out_axes=1)(zero, eye, zero)
+    dtau = jax.vmap(lin, in_axes=(1, 1, 1), out_axes=1)(zero, zero, eye)
+    dparams = None
+    if wrt_params:
+        dparams = _jacobian_wrt_params(lambda p: accelerations(q, qd, tau, p), params)
+    return ForwardDynamicsDerivatives(qdd, dq, dqd, dtau, dparams)
