@@ -557,3 +557,9 @@ def test_other_bad_arguments():
 def test_import_lagrax_does_not_import_sympy():
     code = "import sys, lagrax; assert 'sympy' not in sys.modules; lagrax.symbolic.equations"
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_missing_sympy_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "sympy", None)  # `import sympy` now raises ImportError
+    with pytest.raises(sym.SympyMissingError, match=r'pip install "lagrax\[symbolic\]"'):
+        sym.equations(_pendulum(), {"m": 1.0})

@@ -141,7 +141,8 @@ class _Derivation:
         out = interpret_arrays(fn, *args)
         expr = to_sympy(out)
         self.deadline.check()
-        check_size(expr if np.ndim(out) == 0 else sum(expr, self.sp.Integer(0)), self.budget, what)
+        whole = expr if np.ndim(out) == 0 else self.sp.Add(*expr, evaluate=False)
+        check_size(whole, self.budget, what)
         return expr
 
     def simp(self, expr: Any, what: str) -> Any:
@@ -224,20 +225,21 @@ def _derive(d: _Derivation) -> Equations:
     if force is not None:
         applied = d.simp_matrix(force, "F")
         tau -= applied
+    fixed = sp.ImmutableMatrix
     return Equations(
-        M=mass,
-        C=c_mat,
-        G=gravity,
-        tau=tau,
-        coriolis=coriolis,
-        damping=damping,
-        force=applied,
-        time_rate=time_rate,
+        M=fixed(mass),
+        C=fixed(c_mat),
+        G=fixed(gravity),
+        tau=fixed(tau),
+        coriolis=fixed(coriolis),
+        damping=None if damping is None else fixed(damping),
+        force=None if applied is None else fixed(applied),
+        time_rate=None if time_rate is None else fixed(time_rate),
         T=kinetic,
         V=potential,
-        q=q,
-        qd=qd,
-        qdd=qdd,
+        q=fixed(q),
+        qd=fixed(qd),
+        qdd=fixed(qdd),
         t=d.t,
         parameters=d.params.symbols,
         parameter_keys=d.params.keys,

@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.extend import core as jcore
 
-from .conversions import is_symbolic, numeric_or_none, symbolic_array, to_sympy, wrap
+from .conversions import is_symbolic, load_sympy, numeric_or_none, symbolic_array, to_sympy, wrap
 from .errors import UnsupportedPrimitiveError
 from .primitives import MOVED, bind_equation, decided, rules
 
@@ -170,8 +170,6 @@ def evaluate(
 def _leaf(x: Any) -> tuple[bool, Any]:
     """`(symbolic?, value)` of an argument leaf: SymPy objects and object arrays are
     symbolic (as object arrays); anything else is a number or an array of numbers."""
-    from .conversions import load_sympy
-
     sp = load_sympy()
     if isinstance(x, (sp.Basic, sp.MatrixBase, sp.NDimArray)):
         return True, symbolic_array(x)

@@ -266,11 +266,9 @@ def _moved(primitive: str) -> Rule:
 _DATA_OPERANDS = {"gather": {0}, "pad": {0, 1}, "scatter": {0, 2}}
 
 
-@functools.cache
-def rules() -> dict[str, Rule]:
-    """The rules by primitive name (built on first use, when SymPy is imported)."""
-    sp = load_sympy()
-    table: dict[str, Rule] = {
+def _arithmetic(sp: Any) -> dict[str, Rule]:
+    """Element-wise rules: arithmetic, elementary functions, comparisons."""
+    return {
         "neg": _unary(lambda a: -a),
         "sin": _unary(sp.sin),
         "cos": _unary(sp.cos),
@@ -307,6 +305,7 @@ def rules() -> dict[str, Rule]:
         "max": _binary(sp.Max),
         "min": _binary(sp.Min),
         "atan2": _binary(sp.atan2),
+        "clamp": _clamp,
         "lt": _binary(sp.Lt),
         "le": _binary(sp.Le),
         "gt": _binary(sp.Gt),
@@ -316,7 +315,12 @@ def rules() -> dict[str, Rule]:
         "and": _binary(sp.And),
         "or": _binary(sp.Or),
         "not": _unary(sp.Not),
-        "clamp": _clamp,
+    }
+
+
+def _structural(sp: Any) -> dict[str, Rule]:
+    """Rules that move, select, reduce or contract entries."""
+    return {
         "select_n": _select_n,
         "convert_element_type": _convert,
         "copy": lambda params, x: [x],
@@ -333,7 +337,6 @@ def rules() -> dict[str, Rule]:
         "transpose": lambda params, x: [np.transpose(x, params["permutation"])],
         "reshape": _reshape,
         "squeeze": lambda params, x: [np.squeeze(x, axis=tuple(params["dimensions"]))],
-        "expand_dims": lambda params, x: [np.expand_dims(x, tuple(params["dimensions"]))],
         "broadcast_in_dim": _broadcast_in_dim,
         "slice": _slice,
         "dynamic_slice": _dynamic_slice,
@@ -344,7 +347,13 @@ def rules() -> dict[str, Rule]:
         "unstack": lambda params, x: [wrap(v) for v in np.moveaxis(x, params["axis"], 0)],
         "rev": lambda params, x: [np.flip(x, tuple(params["dimensions"]))],
     }
-    return table
+
+
+@functools.cache
+def rules() -> dict[str, Rule]:
+    """The rules by primitive name (built on first use, when SymPy is imported)."""
+    sp = load_sympy()
+    return {**_arithmetic(sp), **_structural(sp)}
 
 
 # primitives whose rule needs the equation itself (to bind it on positions)
