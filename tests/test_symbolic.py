@@ -382,6 +382,14 @@ _custom_square = jax.custom_jvp(_custom_square)
 _custom_square.defjvp(lambda primals, tangents: (primals[0] ** 2, 2 * primals[0] * tangents[0]))
 
 
+@jax.custom_vjp
+def _custom_cube(x):
+    return x**3
+
+
+_custom_cube.defvjp(lambda x: (x**3, x), lambda x, g: (3 * x**2 * g,))
+
+
 PROGRAMS = {
     "arithmetic": lambda x: x[0] / (1 + x[1] ** 2) - jnp.sqrt(2 + x[2]) + x[0] ** 3,
     "functions": lambda x: jnp.stack(
@@ -412,6 +420,10 @@ PROGRAMS = {
     )[1],
     "cond on numbers": lambda x: jax.lax.cond(True, lambda y: y + 1, lambda y: y - 1, x),
     "pad": lambda x: jnp.pad(x, (1, 2)) * 2.0,
+    "lax.map": lambda x: jax.lax.map(lambda a: a * jnp.cos(a), x),
+    "checkpoint": jax.checkpoint(lambda x: jnp.sin(x) * x[0]),
+    "custom vjp": lambda x: _custom_cube(x),
+    "vmap": lambda x: jax.vmap(lambda a, b: a * b + 1)(x, x[::-1]),
 }
 
 
@@ -547,6 +559,8 @@ def test_other_bad_arguments():
         sym.equations(_pendulum(), {"m": 1.0}, numeric=("mass",))
     with pytest.raises(lx.ConfigurationError, match="two symbols are named 'x'"):
         sym.equations(_pendulum(), {"m": 1.0, "x": 2.0}, coordinates=("x",))
+    with pytest.raises(lx.ParameterError, match=r"reads params\['m'\], which params lacks"):
+        sym.equations(_pendulum(), {"mass": 1.0})
     eq = sym.equations(_pendulum(), {"m": 1.0})
     with pytest.raises(lx.ConfigurationError, match="numpy"):
         sym.lambdify(eq, modules="torch")

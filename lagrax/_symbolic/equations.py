@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.errors import ArgumentTypeError
+from .._core.errors import ArgumentTypeError, ParameterError
 from .conversions import load_sympy, to_sympy, tree_size
 from .interpreter import interpret_arrays
 from .simplification import DEFAULT_MAX_SIZE, DEFAULT_TIMEOUT, Budget, Deadline, check_size
@@ -138,7 +138,15 @@ class _Derivation:
 
     def call(self, fn, *args, what: str) -> Any:
         """`fn` interpreted at the symbols (the time first for a time-dependent energy)."""
-        out = interpret_arrays(fn, *args)
+        try:
+            out = interpret_arrays(fn, *args)
+        except KeyError as err:
+            if isinstance(err, ParameterError):
+                raise
+            raise ParameterError(
+                f"{what} reads params[{err.args[0]!r}], which params lacks: add it (its "
+                f"value decides the symbol's assumptions); params has {sorted(self.params.values)}"
+            ) from err
         expr = to_sympy(out)
         self.deadline.check()
         whole = expr if np.ndim(out) == 0 else self.sp.Add(*expr, evaluate=False)

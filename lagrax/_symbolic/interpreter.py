@@ -37,6 +37,7 @@ _CALLS = {
     "custom_vjp_call_jaxpr": "fun_jaxpr",
     "checkpoint": "jaxpr",
     "remat": "jaxpr",
+    "remat2": "jaxpr",
 }
 # primitives that change derivatives without changing values: SymPy's derivative of the
 # value would not be JAX's
@@ -158,7 +159,7 @@ def evaluate(
     for var, val in zip(jaxpr.constvars, consts, strict=True):
         env[var] = np.asarray(val)
     for var, val in zip(jaxpr.invars, args, strict=True):
-        env[var] = val
+        env[var] = wrap(val)
     for eqn in jaxpr.eqns:
         outs = _apply(eqn, [read(v) for v in eqn.invars], ctx)
         for var, val in zip(eqn.outvars, outs, strict=True):

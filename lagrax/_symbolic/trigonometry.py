@@ -89,21 +89,24 @@ def _to_ring(expr: Any, table: dict[Any, Any], ring: Any, m: int) -> Any:
 
 def _laurent(expr: Any) -> tuple[dict, list[Any], list[Any]] | None:
     """The Laurent coefficients of `expr` in `z_i = e^{iθ_i}`: `{k: {monomial of the
-    other symbols: Gaussian rational}}`, with the angles and the other symbols; `None`
-    when `expr` is not a polynomial in `sin`, `cos` of integer combinations of angles."""
+    other symbols: Gaussian rational}}`, with the angles and the other symbols (a `sin`
+    or `cos` of anything but an integer combination of symbols, `sin(ν t)`, counts as one
+    more symbol: the result is exact, but identities between such terms are not applied);
+    `None` when `expr` is not a polynomial in these."""
     sp = load_sympy()
     from sympy.polys.domains import QQ_I
     from sympy.polys.orderings import lex
     from sympy.polys.rings import ring as make_ring
 
     trig = expr.atoms(sp.sin, sp.cos)
-    angles = sorted(set().union(*(a.args[0].free_symbols for a in trig)), key=str)
-    freqs = {atom: _frequencies(atom.args[0], angles) for atom in trig}
-    if any(k is None for k in freqs.values()):
-        return None
+    own = {a: _frequencies(a.args[0], sorted(a.args[0].free_symbols, key=str)) for a in trig}
+    opaque = sorted((a for a, k in own.items() if k is None), key=str)  # sin(ν t), cos(q + π/2)
+    linear = [a for a, k in own.items() if k is not None]
+    angles = sorted(set().union(*(a.args[0].free_symbols for a in linear)), key=str)
+    freqs = {atom: _frequencies(atom.args[0], angles) for atom in linear}
     marker = sp.Dummy("trig")
     hidden = expr.xreplace(dict.fromkeys(trig, marker)).free_symbols & set(angles)
-    others = sorted(expr.free_symbols - set(angles), key=str) + sorted(hidden, key=str)
+    others = sorted(expr.free_symbols - set(angles), key=str) + sorted(hidden, key=str) + opaque
     m = len(angles)
     dummies = [sp.Dummy(f"z{i}") for i in range(m)] + [sp.Dummy(f"w{i}") for i in range(m)]
     ring, *gens = make_ring([*dummies, *others], QQ_I, lex)
