@@ -561,6 +561,9 @@ def test_other_bad_arguments():
         sym.equations(_pendulum(), {"m": 1.0, "x": 2.0}, coordinates=("x",))
     with pytest.raises(lx.ParameterError, match=r"reads params\['m'\], which params lacks"):
         sym.equations(_pendulum(), {"mass": 1.0})
+    vector_energy = lx.LagrangianSystem(lambda q, qd, p: 0.5 * p["m"] * qd**2, n_dof=1)
+    with pytest.raises(lx.ShapeError, match=r"kinetic energy T .* returns shape \(1,\)"):
+        sym.equations(vector_energy, {"m": 1.0})
     eq = sym.equations(_pendulum(), {"m": 1.0})
     with pytest.raises(lx.ConfigurationError, match="numpy"):
         sym.lambdify(eq, modules="torch")

@@ -6,14 +6,15 @@ r"""The lecture's three derivations of the 2R arm's equations, compared symbolic
   link cut free, `m a_c = Σ f` and `I α = Σ M`, the joint reaction eliminated),
   interpreted on the same symbols.
 - **Kane's method**: the arm built from two [`PlanarBody`][lagrax.bodies.PlanarBody]s, and
-  the equations its scene evaluates from the bodies' pose maps,
-  `M = Σ_b m_b J_{v,b}ᵀ J_{v,b} + I_b J_{ω,b}ᵀ J_{ω,b}` and
-  `C q̇ + G = Σ_b m_b J_{v,b}ᵀ (a_b − g⃗) + I_b J_{ω,b}ᵀ α_b`, interpreted on the symbols.
+  the equations its scene evaluates from the bodies' pose maps (`Scene(equations="poses")`),
+  interpreted on the symbols: `M = Σ_b m_b J_{v,b}ᵀ J_{v,b} + I_b J_{ω,b}ᵀ J_{ω,b}` and
+  `C q̇ = Σ_b m_b J_{v,b}ᵀ J̇_{v,b} q̇ + I_b J_{ω,b}ᵀ J̇_{ω,b} q̇`, plus `G = ∂V/∂q`.
   The columns of `J_{v,b} = ∂v_b/∂q̇` and `J_{ω,b} = ∂ω_b/∂q̇` are Kane's partial
-  velocities; `−Σ_b (m_b a_b·∂v_b/∂q̇_r + I_b α_b ∂ω_b/∂q̇_r)` (with `a_b = J_v q̈ +
-  J̇_v q̇`) are the generalized inertia forces `F*_r`, and `Σ_b m_b g⃗·∂v_b/∂q̇_r + τ_r` the
-  generalized active forces `F_r`; Kane's equations `F_r + F*_r = 0` are `τ = M q̈ + C q̇ +
-  G`, which is what the scene computes.
+  velocities; `F*_r = −Σ_b (m_b a_b·∂v_b/∂q̇_r + I_b α_b ∂ω_b/∂q̇_r)` (with
+  `a_b = J_{v,b} q̈ + J̇_{v,b} q̇`, `α_b = J_{ω,b} q̈ + J̇_{ω,b} q̇`) are the generalized
+  inertia forces, and `F_r = Σ_b m_b g⃗·∂v_b/∂q̇_r + τ_r = −∂V/∂q_r + τ_r` the generalized
+  active forces; Kane's equations `F_r + F*_r = 0` are `τ = M q̈ + C q̇ + G`, which is
+  what the scene computes (its `G` as the gradient of `V`, the same active forces).
 
 All three must equal the slide's equations (the lecture's notation, `c12 = cos(θ1 + θ2)`):
 

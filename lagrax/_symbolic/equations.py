@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.errors import ArgumentTypeError, ParameterError
+from .._core.errors import ArgumentTypeError, ParameterError, ShapeError
 from .conversions import load_sympy, to_sympy, tree_size
 from .interpreter import interpret_arrays
 from .simplification import DEFAULT_MAX_SIZE, DEFAULT_TIMEOUT, Budget, Deadline, check_size
@@ -136,8 +136,9 @@ class _Derivation:
         self.table = check_unique(all_symbols)
         self.deadline = Deadline(budget)
 
-    def call(self, fn, *args, what: str) -> Any:
-        """`fn` interpreted at the symbols (the time first for a time-dependent energy)."""
+    def call(self, fn, *args, what: str, shape: tuple[int, ...] = ()) -> Any:
+        """`fn` interpreted at the symbols (the time first for a time-dependent energy),
+        checked to have `shape`."""
         try:
             out = interpret_arrays(fn, *args)
         except KeyError as err:
@@ -147,6 +148,8 @@ class _Derivation:
                 f"{what} reads params[{err.args[0]!r}], which params lacks: add it (its "
                 f"value decides the symbol's assumptions); params has {sorted(self.params.values)}"
             ) from err
+        if np.shape(out) != shape:
+            raise ShapeError(f"{what} returns shape {np.shape(out)}, expected {shape}")
         expr = to_sympy(out)
         self.deadline.check()
         whole = expr if np.ndim(out) == 0 else self.sp.Add(*expr, evaluate=False)
@@ -185,7 +188,8 @@ def _energies(d: _Derivation) -> tuple[Any, Any, Any, Any]:
         dissipation = d.call(s.dissipation, *t, d.q, d.qd, p, what=f"the dissipation D of {name!r}")
     force = None
     if s.force is not None:
-        force = d.call(s.force, d.t, d.q, d.qd, p, what=f"the force F of {name!r}")
+        what = f"the force F of {name!r}"
+        force = d.call(s.force, d.t, d.q, d.qd, p, what=what, shape=(len(d.q),))
     return kinetic, potential, dissipation, force
 
 
@@ -272,7 +276,8 @@ def equations(
     The system's `T`, `V` (and `D`, `F`) are interpreted on SymPy symbols (see
     [`interpret`][lagrax.symbolic.interpret]), differentiated by SymPy (`M = ∂²T/∂q̇²`,
     `C q̇ = (∂²T/∂q̇∂q) q̇ − ∂T/∂q`, `G = ∂V/∂q`, the Christoffel matrix `C`) and
-    simplified with trigonometric identities, so the 2R arm's `M₁₂` reads
+    simplified ([`simplify`][lagrax.symbolic.simplify]: an exact canonical form for the
+    trigonometric polynomials of mechanisms), so the 2R arm's `M₁₂` reads
     `I₂ + m₂ r₂² + l₁ m₂ r₂ cos θ₂` as on the lecture's slide. A system with
     structure-aware `equations` (a chain's recursions) is derived from its energies, the
     definition.
@@ -288,7 +293,7 @@ def equations(
       default the system's `coordinate_names`, else `q0, q1, …`.
     - `signed`: keys whose symbols are only real, even if their values are positive.
     - `numeric`: keys kept as their numbers (exactly) instead of symbols.
-    - `simplify`: `False` skips the trigonometric simplification (fast, long results).
+    - `simplify`: `False` skips the simplification (fast; long, but exact, results).
     - `max_size`: the largest expression simplified, in nodes of its expression tree.
     - `timeout`: seconds for the whole derivation (`None`: no limit).
 
@@ -298,8 +303,10 @@ def equations(
     **Raises:** `UnsupportedPrimitiveError` for an operation of the energies without a
     SymPy meaning (named); `ExpressionSizeError` past `max_size` or `timeout` (naming the
     expression and its size); `ArgumentTypeError` for `params` that is not a dict of
-    numbers, or a system that is not a `LagrangianSystem`; `ConfigurationError` for
-    coordinates or options that do not fit the system.
+    numbers, or a system that is not a `LagrangianSystem`; `ParameterError` for a
+    parameter an energy reads that `params` lacks; `ShapeError` for an energy that is not a
+    scalar (or a force that is not `(n,)`); `ConfigurationError` for coordinates or
+    options that do not fit the system; `SympyMissingError` without SymPy.
 
     **Example:**
 
