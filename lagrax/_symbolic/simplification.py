@@ -86,8 +86,11 @@ class Deadline:
             return
         assert timeout is not None
 
+        caught = []
+
         def expire(signum, frame):
-            raise _Expired
+            if not caught:
+                raise _Expired
 
         previous = signal.signal(signal.SIGALRM, expire)
         # fire at the deadline, then every 0.1 s until the exception gets out of SymPy
@@ -95,6 +98,7 @@ class Deadline:
         try:
             yield
         except _Expired:
+            caught.append(True)
             raise self.error() from None
         finally:
             signal.setitimer(signal.ITIMER_REAL, 0.0)
