@@ -29,6 +29,7 @@ from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
 from . import plot as plot  # noqa: E402
 from . import rigid_body as rigid_body  # noqa: E402
+from . import symbolic as symbolic  # noqa: E402
 from ._core.errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
 from ._core.errors import CheckpointError as CheckpointError  # noqa: E402
 from ._core.errors import CheckpointWarning as CheckpointWarning  # noqa: E402
@@ -87,6 +88,7 @@ __all__ = [
     "chains",
     "newton_euler",
     "plot",
+    "symbolic",
     "LagraxError",
     "ArgumentTypeError",
     "CheckpointError",

@@ -51,6 +51,7 @@ PUBLIC_MODULES = (
     "lagrax.plot",
     "lagrax.integrators",
     "lagrax.bench",
+    "lagrax.symbolic",
 )
 
 ROLE = re.compile(r":(?:py:)?(class|func|meth|attr|mod|data|obj|exc):`([^`]+)`")

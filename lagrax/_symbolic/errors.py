@@ -1,0 +1,27 @@
+"""The errors of `lagrax.symbolic`: each names what it could not do and what to do instead."""
+
+from .._core.errors import LagraxError
+
+
+class SymbolicError(LagraxError, ValueError):
+    """Base class of the errors of [`lagrax.symbolic`][]: a function or a system whose
+    equations it cannot write symbolically, or SymPy missing."""
+
+
+class UnsupportedPrimitiveError(SymbolicError):
+    """A JAX operation has no SymPy equivalent in lagrax's interpreter: a primitive it does
+    not map (the message names it and the function it appeared in), a branch or a loop
+    whose condition depends on `q` or `params` (`jnp.where(x > 0, ...)`), or a conversion
+    to an integer type. Never replaced by a guess: the equations would be wrong."""
+
+
+class ExpressionSizeError(SymbolicError):
+    """An expression grew past the size budget (`max_size`, counted in nodes of its
+    expression tree), or simplifying it took longer than the time budget (`timeout`): the
+    message names the expression, its size and the budget. Symbolic equations of this size
+    are pages long; use the numeric equations, or raise the budget."""
+
+
+class SympyMissingError(SymbolicError, ImportError):
+    """SymPy, which [`lagrax.symbolic`][] needs, is not installed: `pip install
+    "lagrax[symbolic]"`."""
