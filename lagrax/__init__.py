@@ -57,6 +57,8 @@ from ._sweep import sweep as sweep  # noqa: E402
 from ._systems.abstract import AbstractSystem as AbstractSystem  # noqa: E402
 from ._systems.constrained import ConstrainedSystem as ConstrainedSystem  # noqa: E402
 from ._systems.lagrangian import LagrangianSystem as LagrangianSystem  # noqa: E402
+from ._systems.sensitivity import ForwardDynamicsDerivatives as ForwardDynamicsDerivatives  # noqa: E402
+from ._systems.sensitivity import InverseDynamicsDerivatives as InverseDynamicsDerivatives  # noqa: E402
 
 try:
     __version__ = importlib.metadata.version("lagrax")
@@ -67,6 +69,8 @@ __all__ = [
     "AbstractSystem",
     "LagrangianSystem",
     "ConstrainedSystem",
+    "ForwardDynamicsDerivatives",
+    "InverseDynamicsDerivatives",
     "rigid_body",
     "ConstraintError",
     "simulate",
