@@ -15,6 +15,7 @@ The table in `docs/symbolic.md` comes from this script:
 """
 
 import argparse
+import inspect
 import time
 
 import jax.numpy as jnp
@@ -78,13 +79,19 @@ MORE = {
 }
 
 
+# lagrax.symbolic.equations' own defaults
+MAX_SIZE = inspect.signature(lx.symbolic.equations).parameters["max_size"].default
+TIMEOUT = inspect.signature(lx.symbolic.equations).parameters["timeout"].default
+
+
 def measure(name, make, options):
     import sympy
 
     sympy.core.cache.clear_cache()
     system, params = make()
     if "numeric" in options:
-        options = {"numeric": tuple(k for k in options["numeric"] if k in params)}
+        numeric = tuple(k for k in options["numeric"] if k in params)
+        options = {**options, "numeric": numeric}
     t0 = time.perf_counter()
     try:
         eq = lx.symbolic.equations(system, params, **options)
@@ -113,16 +120,26 @@ def _symbols(eq, params):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     parser.add_argument("--more", action="store_true", help="also the larger systems")
+    parser.add_argument(
+        "--max-size", type=int, default=MAX_SIZE, help="expression budget (nodes) per system"
+    )
+    parser.add_argument(
+        "--timeout", type=float, default=TIMEOUT, help="time budget (seconds) per system"
+    )
     args = parser.parse_args(argv)
+    budget = {"max_size": args.max_size, "timeout": args.timeout}
     system, params = lx.models.planar_2r()
     lx.symbolic.equations(system, params)  # warm-up: imports, first traces
     print("| system | n | time (s) | T as interpreted (nodes) | M, C q̇, G simplified (nodes) |")
     print("|---|---|---|---|---|")
     cases = {**CASES, **(MORE if args.more else {})}
     for name, (make, options) in cases.items():
-        print(measure(name, make, options), flush=True)
+        print(measure(name, make, {**options, **budget}), flush=True)
 
 
 if __name__ == "__main__":
