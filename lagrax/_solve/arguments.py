@@ -7,12 +7,14 @@ not a dozen. Under `jit` they use `jax.numpy`, and the checks of traced options 
 with the values returned (`equinox.error_if`, see `checks`).
 """
 
+import diffrax as dfx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax._src.interpreters import ad as _ad
 
 from .._core import checks
-from .._core.errors import ArgumentTypeError, ShapeError
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import split_tau
 
@@ -70,3 +72,53 @@ def options(t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager: bool):
         if eager:
             checks.save_times(ts, t0, t1)
     return t0, t1, rtol, atol, n_save, ts
+
+
+def _modes(tracer) -> set[str]:
+    """The autodiff modes among the transformations that traced `tracer` (each JAX
+    tracer holds the one it wraps): `"forward"` for `jax.jvp` / `jax.jacfwd`,
+    `"reverse"` for `jax.grad` / `jax.vjp` / `jax.jacrev` (JAX linearizes, then
+    transposes)."""
+    found = set()
+    while isinstance(tracer, jax.core.Tracer):
+        if isinstance(tracer, _ad.JVPTracer):
+            found.add("forward")
+        elif isinstance(tracer, _ad.LinearizeTracer):
+            found.add("reverse")
+        inner = None
+        for attr in ("primal", "val"):  # JVP and linearize tracers; batch tracers
+            value = getattr(tracer, attr, None)
+            if isinstance(value, jax.core.Tracer):
+                inner = value
+                break
+        tracer = inner
+    return found
+
+
+def adjoint_for(adjoint, *values):
+    """The adjoint a traced `simulate` runs with: for `jax.jvp` / `jax.jacfwd` through it
+    (a forward-mode tracer among `values`), `diffrax.ForwardMode()` (its lean loop as a
+    plain `lax.while_loop`), or `diffrax.DirectAdjoint()` where reverse mode is applied
+    as well (a Hessian); otherwise `adjoint` unchanged.
+
+    **Raises:** `ConfigurationError` where `adjoint` was given and cannot differentiate
+    in forward mode.
+    """
+    modes = set()
+    for leaf in jax.tree_util.tree_leaves(values):
+        modes |= _modes(leaf)
+    if "forward" not in modes:
+        return adjoint
+    both = "reverse" in modes
+    if adjoint is None:
+        return dfx.DirectAdjoint() if both else dfx.ForwardMode()
+    if isinstance(adjoint, dfx.DirectAdjoint) or (
+        isinstance(adjoint, dfx.ForwardMode) and not both
+    ):
+        return adjoint
+    wanted = "adjoint=diffrax.DirectAdjoint()" if both else "adjoint=diffrax.ForwardMode()"
+    raise ConfigurationError(
+        f"simulate is differentiated in forward mode (jax.jvp, jax.jacfwd"
+        f"{', over reverse mode' if both else ''}), which adjoint={adjoint!r} cannot do: "
+        f"leave adjoint=None (lagrax then picks the mode), or pass {wanted}"
+    )

@@ -340,6 +340,7 @@ class _EventLoop:
     t1: jax.Array
     ts: jax.Array
     max_steps: int
+    kind: str  # the loops' kind (integrate.LOOP_KINDS)
     events: tuple[Event, ...]
     field: Any
     q0: jax.Array  # the initial coordinates (their shape and dtype)
@@ -380,7 +381,16 @@ class _EventLoop:
         # saves inside the step, up to the cut
         save_end = jnp.minimum(s.tnext, cut.t)
         save_i, ys = integrate.save_dense(
-            self.solver, dense, s.t, s.tnext, save_end, keep, self.ts, s.save_index, c.ys
+            self.solver,
+            dense,
+            s.t,
+            s.tnext,
+            save_end,
+            keep,
+            self.ts,
+            s.save_index,
+            c.ys,
+            kind=self.kind,
         )
         step = step._replace(new=eqx.tree_at(lambda x: x.save_index, new, save_i))
         new, g, t_reset = jax.lax.cond(
@@ -498,9 +508,22 @@ class _EventLoop:
 
 
 def integrate_events(
-    term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int, events, field
+    term,
+    solver,
+    controller,
+    y0,
+    args,
+    t0,
+    t1,
+    dt0,
+    ts,
+    max_steps: int,
+    events,
+    field,
+    kind="checkpointed",
 ):
-    """`integrate.integrate` with `events` (a tuple of [`Event`][lagrax.Event]).
+    """`integrate.integrate` with `events` (a tuple of [`Event`][lagrax.Event]), its
+    loops of `kind` (`integrate.LOOP_KINDS`).
 
     **Returns:** `(ys, state, records)`: as `integrate`, plus one
     [`EventRecord`][lagrax.EventRecord] per event.
@@ -517,6 +540,7 @@ def integrate_events(
         t1,
         ts,
         max_steps,
+        kind,
         events,
         field,
         q0,
@@ -537,7 +561,12 @@ def integrate_events(
         jnp.asarray(-jnp.inf, dtype),
     )
     out = eqxi.while_loop(
-        loop.cond, loop.body, init, max_steps=max_steps, buffers=lambda c: c.ys, kind="checkpointed"
+        loop.cond,
+        loop.body,
+        init,
+        max_steps=max_steps,
+        buffers=lambda c: c.ys,
+        **integrate.loop_kind(kind),
     )
     records = tuple(
         EventRecord(out.times[i], out.qs[i], out.qds[i], out.counts[i]) for i in range(len(events))

@@ -10,8 +10,9 @@ controller's `adapt_step_size`, diffrax's clipping of the last step to `t1`, and
 dense output at the save times (`solver.interpolation_cls`). Each step is therefore the
 one `diffeqsolve` would take. The loops are `equinox.internal.while_loop` with
 `kind="checkpointed"` (as diffrax's default adjoint), so reverse-mode `jax.grad`
-works through them with recursive checkpointing, and the saved outputs are written in
-place (`buffers`).
+works through them with recursive checkpointing, or `kind="lax"` (as diffrax's
+`ForwardMode`) for `jax.jvp` / `jax.jacfwd`; the saved outputs are written in place
+(`buffers`).
 
 The engine is `StepState` with `init_state` / `advance` (one attempted step, its
 counts and result) and `interpolate` / `save_due` / `save_dense` (dense saving: the
@@ -34,6 +35,19 @@ import numpy as np
 from .._core.results import RESULTS, code_of
 
 DEFAULT_DT0 = 0.01
+
+# How a trajectory's loops are differentiated: `"checkpointed"` (the default, as diffrax's
+# `RecursiveCheckpointAdjoint`) differentiates in reverse mode, with recursive
+# checkpointing; `"lax"` (a plain `jax.lax.while_loop`, as diffrax's `ForwardMode`) in
+# forward mode. Neither supports the other's mode.
+LOOP_KINDS = ("checkpointed", "lax")
+
+
+def loop_kind(kind: str, checkpoints: int | None = None) -> dict:
+    """The keyword arguments of `equinox.internal.while_loop` for a loop of `kind`."""
+    if kind == "lax" or checkpoints is None:
+        return {"kind": kind}
+    return {"kind": kind, "checkpoints": checkpoints}
 
 
 def tree_where(pred, a, b):
@@ -194,7 +208,7 @@ def save_due(keep, i, tnext, ts):
     return keep & (i < n_save) & (ts[jnp.minimum(i, n_save - 1)] <= tnext)
 
 
-def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None):
+def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None, kind="checkpointed"):
     """Write the dense output of the attempted step `[ta, tb]` at the save times it
     reached: the one save loop of the three schedulers.
 
@@ -218,8 +232,9 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None):
 
     **Returns:** `(index, ys)`, with `index` past the times written.
 
-    One trajectory loops with `equinox.internal.while_loop(kind="checkpointed")`, so
-    that reverse mode differentiates through it, and writes `ys` in place (a buffer);
+    One trajectory loops with `equinox.internal.while_loop(kind=kind)`, so that reverse
+    mode (`"checkpointed"`) or forward mode (`"lax"`) differentiates through it, and writes
+    `ys` in place (a buffer);
     the lanes loop until no lane has a save due, each lane advancing its own index.
     """
     n_save = ts.shape[0]
@@ -238,8 +253,7 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None):
             (index, ys),
             max_steps=n_save,
             buffers=lambda carry: carry[1],
-            kind="checkpointed",
-            checkpoints=n_save,
+            **loop_kind(kind, n_save),
         )
     n_rows = jtu.tree_leaves(ys)[0].shape[0]
 
@@ -259,12 +273,15 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None):
     return index, ys
 
 
-def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int):
+def integrate(
+    term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int, kind="checkpointed"
+):
     """Solve `y' = f(t, y, args)` on `[t0, t1]` and save at `ts`: the
     single-trajectory scheduler over `advance`.
 
     **Arguments:** as `diffrax.diffeqsolve`; `ts` are sorted save times inside
-    `[t0, t1]`, `max_steps` the budget of attempted steps.
+    `[t0, t1]`, `max_steps` the budget of attempted steps, `kind` the loop's kind
+    (`LOOP_KINDS`: `"checkpointed"` for reverse mode, `"lax"` for forward mode).
 
     **Returns:** `(ys, state)`: the states at `ts` (`inf` where not reached) and the
     final `StepState` (the last time and state reached, `t1` on success; the
@@ -280,11 +297,13 @@ def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: in
     def body(carry):
         s, ys = carry
         new, keep, dense = advance(term, solver, controller, s, args, t1, max_steps)
-        save_i, ys = save_dense(solver, dense, s.t, s.tnext, s.tnext, keep, ts, s.save_index, ys)
+        save_i, ys = save_dense(
+            solver, dense, s.t, s.tnext, s.tnext, keep, ts, s.save_index, ys, kind=kind
+        )
         return eqx.tree_at(lambda x: x.save_index, new, save_i), ys
 
     state, ys = eqxi.while_loop(
-        cond, body, (state, ys), max_steps=max_steps, buffers=lambda c: c[1], kind="checkpointed"
+        cond, body, (state, ys), max_steps=max_steps, buffers=lambda c: c[1], **loop_kind(kind)
     )
     return ys, state
 

@@ -83,8 +83,9 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     it could be formed) and collect the [`Solution`][lagrax.Solution].
 
     The lean loop (`integrate.integrate`, or `events.integrate_events` with events)
-    runs unless an adjoint, a custom `saveat` or a step-size controller it does not
-    reproduce asks for `diffrax.diffeqsolve`."""
+    runs unless an adjoint other than `diffrax.ForwardMode` (which runs it as a plain
+    `lax.while_loop`), a custom `saveat` or a step-size controller it does not reproduce
+    asks for `diffrax.diffeqsolve`."""
     system, params = config.system, inputs.params
     ts, saveat = _save_times(config, inputs)
     own_saveat = config.saveat is None
@@ -95,7 +96,8 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     term = dfx.ODETerm(field)
     args = (params, inputs.tau_const)
     records = None
-    if config.adjoint is None and own_saveat and integrate.is_lean(controller):
+    forward = isinstance(config.adjoint, dfx.ForwardMode)
+    if (config.adjoint is None or forward) and own_saveat and integrate.is_lean(controller):
         # the lean loop: the same steps as diffeqsolve, without its per-step machinery
         ts, q, qd, t_end, q_end, qd_end, result, stats, records = _lean(
             config, inputs, term, controller, y0, args, ts, field
@@ -152,13 +154,31 @@ def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, 
     events)."""
     solver, max_steps, records = config.solver, config.max_steps, None
     t0, t1, dt0 = inputs.t0, inputs.t1, inputs.dt0
+    kind = "checkpointed"
+    if isinstance(config.adjoint, dfx.ForwardMode):
+        kind = "lax"
+        if isinstance(solver, dfx.AbstractRungeKutta) and solver.scan_kind is None:
+            # its stages loop as diffrax's ForwardMode has them loop: no custom_vjp
+            solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
     if config.events is None:
         (q, qd), end = integrate.integrate(
-            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
         )
     else:
         (q, qd), end, records = _events.integrate_events(
-            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, config.events, field
+            term,
+            solver,
+            controller,
+            y0,
+            args,
+            t0,
+            t1,
+            dt0,
+            ts,
+            max_steps,
+            config.events,
+            field,
+            kind,
         )
     t_end, (q_end, qd_end), result = end.t, end.y, end.result
     ts = jnp.where(jnp.arange(ts.shape[0]) < end.save_index, ts, jnp.inf)
@@ -362,6 +382,8 @@ def simulate(
     solver, stepsize_controller, dt0, max_steps = stepping(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
+    if not eager:  # jax.jvp / jax.jacfwd through simulate: forward mode
+        adjoint = arguments.adjoint_for(adjoint, q0, qd0, params, tau_const, t0, t1, ts)
     events = _events.as_events(events)
     if events is not None:
         events_supported(solver, stepsize_controller, saveat, adjoint)
@@ -411,6 +433,8 @@ def events_supported(solver, controller, saveat, adjoint) -> None:
             "discrete variational structure): use solver='rk4' at a fixed dt, or an "
             "adaptive method such as 'tsit5' or 'dopri8'"
         )
+    if isinstance(adjoint, dfx.ForwardMode):
+        adjoint = None  # (forward mode runs on the lean loop too)
     for name, value in (("adjoint", adjoint), ("saveat", saveat)):
         if value is not None:
             raise ConfigurationError(
