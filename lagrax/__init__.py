@@ -8,7 +8,10 @@ lagrax enables JAX's 64-bit mode on import (`jax_enable_x64`): float64 is the de
 for accuracy. Arrays you pass in float32 stay float32. It also lets XLA:CPU compile small
 solver loops into single kernels (an `XLA_FLAGS` entry, added only if JAX has not
 started yet and you have not set `xla_backend_extra_options`; `LAGRAX_XLA_FLAGS=0`
-opts out): see `lagrax/_core/xla_flags.py`.
+opts out): see `lagrax/_core/xla_flags.py`. And it keeps what XLA compiles on disk, so
+that a new process (a notebook restart) loads instead of recompiling: JAX's persistent
+compilation cache in `~/.cache/lagrax/jax` (`LAGRAX_COMPILATION_CACHE=0` turns it off, a
+path moves it): see `lagrax/_core/compilation_cache.py`.
 """
 
 import importlib.metadata
@@ -20,6 +23,10 @@ _xla_flags.configure()  # before JAX starts its backend: see lagrax/_core/xla_fl
 import jax as _jax  # noqa: E402
 
 _jax.config.update("jax_enable_x64", True)
+
+from ._core import compilation_cache as _compilation_cache  # noqa: E402
+
+_compilation_cache.configure()  # compiled programs kept on disk: see its docstring
 
 from . import bench as bench  # noqa: E402
 from . import bodies as bodies  # noqa: E402

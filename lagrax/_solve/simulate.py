@@ -325,13 +325,18 @@ def simulate(
     - `stepsize_controller`: override the default `diffrax.PIDController(rtol, atol)`.
     - `adjoint`: how to differentiate the solve. Default `None`: lagrax's own lean
       stepping loop (diffrax's steps without `diffeqsolve`'s per-step machinery; about
-      2–3× faster for small mechanisms), differentiable by reverse mode (`jax.grad`,
-      recursive checkpointing, as diffrax's default). Pass a diffrax adjoint to run
-      `diffrax.diffeqsolve` with it instead, e.g. `diffrax.ForwardMode()` for
-      `jax.jacfwd` / `jax.jvp` (few parameters, many outputs) or
-      `diffrax.RecursiveCheckpointAdjoint()` for diffrax's default. A custom `saveat`
-      or a step-size controller other than `PIDController` / `ConstantStepSize`
-      also runs `diffeqsolve`.
+      2–3× faster for small mechanisms), differentiated the way it is asked to be:
+      reverse mode for `jax.grad` / `jax.vjp` (recursive checkpointing, as diffrax's
+      default), forward mode for `jax.jvp` / `jax.jacfwd` (plain `lax.while_loop`s, as
+      `diffrax.ForwardMode`; few inputs, many outputs), and `diffrax.DirectAdjoint` for
+      forward over reverse (`jax.hessian`). lagrax sees the mode from the arguments it
+      is given, so where the forward-mode transform is applied *outside* a `jax.jit`
+      that contains `simulate` (`jax.jacfwd(jax.jit(loss))`), pass
+      `adjoint=diffrax.ForwardMode()`. Any other diffrax adjoint runs
+      `diffrax.diffeqsolve` with it, e.g. `diffrax.RecursiveCheckpointAdjoint()` or
+      `diffrax.BacksolveAdjoint()`; one that cannot do forward mode, under `jax.jvp`,
+      raises a `ConfigurationError`. A custom `saveat` or a step-size controller other
+      than `PIDController` / `ConstantStepSize` also runs `diffeqsolve`.
     - `events`: a [`lagrax.Event`][] or a sequence of them: zero crossings of
       `condition(t, q, qd, params)`, located on the solver's dense output and recorded
       in `Solution.events`; a terminal event ends the solve at its root, an event with

@@ -1,0 +1,426 @@
+"""Derivatives of the dynamics: the accelerations differentiated through the inverse
+dynamics (a custom JVP) against plain automatic differentiation through the factorization
+or the articulated-body recursion, against Pinocchio's analytical derivatives, against
+`jax.test_util.check_grads`, and through `simulate` against central finite differences.
+
+The rule is switched off by `lagrax._systems.implicit.plain_autodiff()` at trace time:
+the reference is the same computation, differentiated by JAX instead of by the identity
+`δq̈ = M⁻¹(δτ − ∂r/∂q δq − ∂r/∂q̇ δq̇ − ∂r/∂p δp − ∂r/∂t δt)`.
+"""
+
+import diffrax as dfx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import lagrax as lx
+from _random_models import random_spatial  # tests/_random_models.py
+from lagrax._systems import implicit
+
+RTOL = 1e-12
+EPS = float(np.finfo(np.float64).eps)
+N_STATES = 3
+
+
+def _rel(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1.0))
+
+
+def _states(n, seed, k=N_STATES):
+    rng = np.random.default_rng(seed)
+    return tuple(jnp.asarray(rng.uniform(-1.5, 1.5, (k, n))) for _ in range(3))
+
+
+# ------------------------------------------------------------------ the systems
+def _damped_forced_arm():
+    """The 2R arm with a Rayleigh dissipation and a state- and time-dependent force."""
+    arm, params = lx.models.planar_2r()
+
+    def dissipation(q, qd, p):
+        return 0.5 * p["c"] * (qd[0] ** 2 + qd[1] ** 2 + qd[0] * qd[1] * jnp.cos(q[1]))
+
+    def force(t, q, qd, p):
+        return jnp.stack([p["f"] * jnp.sin(q[1] + t), -p["f"] * qd[0] * qd[1]])
+
+    system = lx.LagrangianSystem(
+        arm.kinetic, arm.potential, n_dof=2, dissipation=dissipation, force=force
+    )
+    return system, {**params, "c": 0.3, "f": 0.7}
+
+
+def _reeled_pendulum():
+    """A pendulum whose length `l(t) = l0 (1 + a sin ν t)` is prescribed (time-dependent)."""
+
+    def length(t, p):
+        return p["l0"] * (1 + p["a"] * jnp.sin(p["nu"] * t))
+
+    def kinetic(t, q, qd, p):
+        ldot = jax.grad(length)(t, p)
+        return 0.5 * p["m"] * (ldot**2 + (length(t, p) * qd[0]) ** 2)
+
+    def potential(t, q, p):
+        return -p["m"] * p["g"] * length(t, p) * jnp.cos(q[0])
+
+    system = lx.LagrangianSystem(kinetic, potential, n_dof=1, time_dependent=True)
+    return system, {"m": 0.8, "l0": 1.2, "a": 0.2, "nu": 1.7, "g": 9.81}
+
+
+def _bodies():
+    """A planar three-link scene of bodies with a spring and a damper, its equations from
+    the bodies' poses."""
+    from lagrax.bodies import Param, PlanarBody, Scene, TorsionalDamper, TorsionalSpring
+
+    def position(k):
+        def at(q, p):
+            angles = jnp.cumsum(q)[: k + 1]
+            return p["l"] * jnp.stack([jnp.sum(jnp.cos(angles)), jnp.sum(jnp.sin(angles))])
+
+        return at
+
+    bodies = [
+        PlanarBody(
+            mass=1.0 + 0.2 * k,
+            inertia=0.05 + 0.01 * k,
+            position=position(k),
+            angle=lambda q, p, k=k: jnp.sum(q[: k + 1]),
+        )
+        for k in range(3)
+    ]
+    scene = Scene(
+        bodies,
+        springs=[TorsionalSpring(Param("k"), 1, 0.2)],
+        dampers=[TorsionalDamper(Param("c"), 2)],
+        n_dof=3,
+        equations="poses",
+    )
+    return scene.system(), {"l": 0.7, "k": 2.0, "c": 0.4}
+
+
+def _planar_chain():
+    chain = lx.chains.PlanarChain(4)
+    return chain.system(), chain.params(m=[1.0, 0.8, 0.6, 0.5])
+
+
+def _spatial_chain():
+    chain, params, _ = random_spatial(
+        lambda **kw: lx.chains.SpatialChain("RPRR", **kw), 4, seed=7, gravity=True
+    )
+    return chain.system(), params
+
+
+def _tree():
+    tree, params, _ = random_spatial(
+        lambda **kw: lx.chains.Tree("RRPR", (-1, 0, 0, 2), **kw), 4, seed=8, gravity=True
+    )
+    return tree.system(), {**params, "damping": jnp.array([0.3, 0.1, 0.5, 0.2])}
+
+
+def _urdf():
+    tree, params = lx.chains.from_urdf(lx.models.urdf_path("arm7"))
+    return tree.system(), params
+
+
+SYSTEMS = {
+    "energies (2R arm)": lambda: lx.models.planar_2r(),
+    "energies, dissipation and force": _damped_forced_arm,
+    "time-dependent energies": _reeled_pendulum,
+    "bodies (poses)": _bodies,
+    "planar chain": _planar_chain,
+    "spatial chain, revolute and prismatic": _spatial_chain,
+    "tree, damped": _tree,
+    "URDF arm": _urdf,
+}
+
+
+def _jacobians(system, params, q, qd, tau, t):
+    """`∂q̈/∂(q, q̇, τ, t)` by `jacfwd` and the gradient of `|q̈|²` with respect to
+    `(q, params)` by reverse mode, vmapped over states and compiled (traced now: the
+    caller picks the rule)."""
+
+    def fd(q, qd, tau, p, t):
+        return system.forward_dynamics(q, qd, p, tau, t=t)
+
+    def loss(q, qd, tau, p, t):
+        return jnp.sum(fd(q, qd, tau, p, t) ** 2)
+
+    jac = jax.jacfwd(lambda a, b, c, s: fd(a, b, c, params, s), argnums=(0, 1, 2, 3))
+    grad = jax.grad(loss, argnums=(0, 3))
+    both = jax.vmap(lambda a, b, c: (jac(a, b, c, t), grad(a, b, c, params, t)))
+    return jax.jit(both)(q, qd, tau)
+
+
+# ∂/∂params in one call (identification), checked on these; the gradient with respect to
+# the params of every system is checked in test_rule_equals_plain_autodiff
+WRT_PARAMS = ("energies, dissipation and force", "time-dependent energies", "URDF arm")
+
+
+@pytest.fixture(scope="module", params=list(SYSTEMS))
+def system_case(request):
+    system, params = SYSTEMS[request.param]()
+    params = jax.tree_util.tree_map(jnp.asarray, params)
+    return request.param, system, params
+
+
+def test_rule_equals_plain_autodiff(system_case):
+    name, system, params = system_case
+    n = system.n_dof
+    q, qd, tau = _states(n, seed=n)
+    t = jnp.asarray(0.4)
+    ours = _jacobians(system, params, q, qd, tau, t)
+    with implicit.plain_autodiff():
+        plain = _jacobians(system, params, q, qd, tau, t)
+    paths, ref = zip(*jax.tree_util.tree_leaves_with_path(plain), strict=True)
+    leaves = jax.tree_util.tree_leaves(ours)
+    assert len(leaves) == len(ref) and len(leaves) > 5
+    errors = {
+        jax.tree_util.keystr(k): _rel(a, b) for k, a, b in zip(paths, leaves, ref, strict=True)
+    }
+    # both sides solve with M: round-off of order cond(M) ε (the URDF arm's M reaches
+    # cond ≈ 4e3 at these states), never less strict than 1e-12
+    mass = jax.vmap(lambda a: system.mass_matrix(a, params, t=t))(q)
+    cond = float(np.max(np.linalg.cond(np.asarray(mass))))
+    assert max(errors.values()) <= max(RTOL, 10 * cond * EPS), (name, cond, errors)
+    # the derivative with respect to τ is M⁻¹, whatever else the system has
+    dtau = ours[0][2]
+    identity = jnp.broadcast_to(jnp.eye(n), mass.shape)
+    assert _rel(jnp.einsum("kij,kjl->kil", dtau, mass), identity) <= 1e-10
+
+
+def test_derivatives_api_equals_jacobians(system_case):
+    """`forward_dynamics_derivatives` / `inverse_dynamics_derivatives` in one call equal
+    `jacfwd` of `forward_dynamics` / `inverse_dynamics` (plain autodiff), with respect to
+    the params too; `∂τ/∂q̈ = M`."""
+    name, system, params = system_case
+    n = system.n_dof
+    q, qd, tau = _states(n, seed=10 + n, k=1)
+    q, qd, tau = q[0], qd[0], tau[0]
+    t = 0.3
+    wrt = name in WRT_PARAMS
+    fwd = system.forward_dynamics_derivatives(q, qd, params, tau, t, wrt_params=wrt)
+    qdd = fwd.qdd
+    inv = system.inverse_dynamics_derivatives(q, qd, qdd, params, t, wrt_params=wrt)
+    argnums = (0, 1, 2, 3) if wrt else (0, 1, 2)
+    with implicit.plain_autodiff():
+        jf = jax.jacfwd(
+            lambda a, b, c, p: system.forward_dynamics(a, b, p, c, t=t), argnums=argnums
+        )(q, qd, tau, params)
+        ji = jax.jacfwd(
+            lambda a, b, c, p: system.inverse_dynamics(a, b, c, p, t=t), argnums=argnums
+        )(q, qd, qdd, params)
+    for ours, ref in (
+        ((fwd.dq, fwd.dqd, fwd.dtau, fwd.dparams), jf),
+        ((inv.dq, inv.dqd, inv.dqdd, inv.dparams), ji),
+    ):
+        for a, b in zip(
+            jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(ref), strict=True
+        ):
+            assert _rel(a, b) <= 1e-11, name
+    assert _rel(inv.tau, tau) <= 1e-10  # τ(q̈(τ)) = τ
+    assert _rel(inv.dqdd, system.mass_matrix(q, params, t=t)) <= RTOL
+    if wrt:  # without them: the same, and no dparams
+        without = system.forward_dynamics_derivatives(q, qd, params, tau, t)
+        assert without.dparams is None and _rel(without.dq, fwd.dq) <= RTOL
+    else:
+        assert fwd.dparams is None and inv.dparams is None
+
+
+def test_check_grads_forward_and_reverse_to_second_order():
+    system, params = _damped_forced_arm()
+    q, qd, tau = (x[0] for x in _states(2, seed=3))
+
+    @jax.jit
+    def fd(q, qd, tau, m2):
+        return system.forward_dynamics(q, qd, {**params, "m2": m2}, tau, t=0.2)
+
+    check_grads(fd, (q, qd, tau, jnp.asarray(1.3)), order=2, modes=("fwd", "rev"))
+
+
+def test_check_grads_of_a_chain():
+    system, params = _spatial_chain()
+    q, qd, tau = (x[0] for x in _states(4, seed=4))
+    check_grads(
+        jax.jit(lambda a, b, c: system.forward_dynamics(a, b, params, c)),
+        (q, qd, tau),
+        order=1,
+        modes=("fwd", "rev"),
+    )
+
+
+def test_constrained_tangents_go_through_the_kkt_system():
+    """A constrained system's accelerations differentiated by its rule (the tangents
+    through the KKT system) equal plain autodiff: holonomic and velocity constraints."""
+    pendulum, params = lx.models.cartesian_pendulum()
+    knife = lx.ConstrainedSystem(
+        pendulum.system,
+        None,
+        velocity_constraints=lambda q, p: jnp.stack([q[1], -q[0]]),
+    )
+    q, qd = jnp.array([0.6, -0.8]), jnp.array([0.8, 0.6])
+    tau = jnp.array([0.3, -0.2])
+    for system in (pendulum, knife):
+
+        def acc(q, qd, tau, p, s=system):
+            return s.accelerations(0.0, q, qd, p, tau)
+
+        ours = jax.jacfwd(acc, argnums=(0, 1, 2, 3))(q, qd, tau, params)
+        with implicit.plain_autodiff():
+            ref = jax.jacfwd(acc, argnums=(0, 1, 2, 3))(q, qd, tau, params)
+        for a, b in zip(
+            jax.tree_util.tree_leaves(ours), jax.tree_util.tree_leaves(ref), strict=True
+        ):
+            assert _rel(a, b) <= 1e-11
+
+
+def test_tau_function_takes_its_own_tangents():
+    """A state feedback `τ(t, q, q̇)` in the vector field: its Jacobian by the rule equals
+    plain autodiff (the feedback's derivatives chain into the accelerations')."""
+    system, params = lx.models.planar_2r()
+
+    def closed_loop(q, qd):
+        tau = -5.0 * jnp.sin(q) - 1.5 * qd * jnp.cos(q[::-1])
+        return system.forward_dynamics(q, qd, params, tau)
+
+    q, qd, _ = (x[0] for x in _states(2, seed=5))
+    ours = jax.jacfwd(closed_loop, argnums=(0, 1))(q, qd)
+    with implicit.plain_autodiff():
+        ref = jax.jacfwd(closed_loop, argnums=(0, 1))(q, qd)
+    assert max(_rel(a, b) for a, b in zip(ours, ref, strict=True)) <= RTOL
+
+
+# ------------------------------------------------------------------ against Pinocchio
+@pytest.mark.parametrize("robot", ["arm7", "torso_two_arms"])
+def test_derivatives_match_pinocchio(robot):
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio (pip install pin) is the reference")
+    path = lx.models.urdf_path(robot)
+    tree, params = lx.chains.from_urdf(path)
+    params = {**params, "damping": jnp.zeros(tree.n)}
+    system = tree.system()
+    model = pin.buildModelFromXML(path.read_text())
+    data = model.createData()
+    n = tree.n
+    q, qd, tau = (np.asarray(x) for x in _states(n, seed=n, k=2))
+    fwd = jax.jit(jax.vmap(lambda a, b, c: system.forward_dynamics_derivatives(a, b, params, c)))(
+        q, qd, tau
+    )
+    inv = jax.jit(jax.vmap(lambda a, b, c: system.inverse_dynamics_derivatives(a, b, c, params)))(
+        q, qd, tau
+    )  # (τ's values as accelerations)
+    worst = {}
+    for k in range(q.shape[0]):
+        qp, vp, order = _pin_state(pin, model, tree, q[k], qd[k])
+        t_pin, a_pin = np.zeros(n), np.zeros(n)
+        t_pin[order], a_pin[order] = tau[k], tau[k]
+        pin.computeABADerivatives(model, data, qp, vp, t_pin)
+        m_inv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        pin.computeRNEADerivatives(model, data, qp, vp, a_pin)
+        m = np.triu(data.M) + np.triu(data.M, 1).T
+        ix = np.ix_(order, order)
+        pairs = {
+            "ddq_dq": (fwd.dq[k], data.ddq_dq[ix]),
+            "ddq_dv": (fwd.dqd[k], data.ddq_dv[ix]),
+            "Minv": (fwd.dtau[k], m_inv[ix]),
+            "dtau_dq": (inv.dq[k], data.dtau_dq[ix]),
+            "dtau_dv": (inv.dqd[k], data.dtau_dv[ix]),
+            "M": (inv.dqdd[k], m[ix]),
+        }
+        for key, (ours, theirs) in pairs.items():
+            worst[key] = max(worst.get(key, 0.0), _rel(ours, theirs))
+    assert max(worst.values()) <= 1e-10, worst
+
+
+def _pin_state(pin, model, tree, q, qd):
+    """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
+    `(cos q, sin q)` in Pinocchio's configuration, its tangent the angle)."""
+    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
+    for k, name in enumerate(tree.joint_names):
+        joint = model.joints[model.getJointId(name)]
+        if joint.nq == 2:
+            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
+        else:
+            qp[joint.idx_q] = q[k]
+        vp[joint.idx_v] = qd[k]
+        order.append(joint.idx_v)
+    return qp, vp, np.asarray(order)
+
+
+# ------------------------------------------------------------------ through simulate
+@pytest.fixture(scope="module")
+def arm_loss():
+    system, params = lx.models.planar_2r()
+    qd0 = jnp.zeros(2)
+
+    def final(q0, m2, **kw):
+        sol = lx.simulate(
+            system, q0, qd0, {**params, "m2": m2}, t1=1.0, n_save=2, rtol=1e-11, atol=1e-11, **kw
+        )
+        return jnp.concatenate([sol.q[-1], sol.qd[-1]])
+
+    return final
+
+
+def _central(fn, x, eps=1e-6):
+    cols = [(fn(x + eps * e) - fn(x - eps * e)) / (2 * eps) for e in np.eye(x.shape[0])]
+    return np.stack(cols, axis=-1)
+
+
+def test_simulate_forward_and_reverse_against_finite_differences(arm_loss):
+    q0, m2 = jnp.array([0.3, 0.8]), 1.2
+    fwd = jax.jacfwd(arm_loss)(q0, m2)
+    rev = jax.jacrev(arm_loss)(q0, m2)
+    fd = _central(lambda q: np.asarray(arm_loss(q, m2)), np.asarray(q0))
+    assert _rel(fwd, fd) <= 1e-6 and _rel(rev, fwd) <= 1e-9
+    # with respect to a parameter, by jax.jvp
+    _, dm = jax.jvp(lambda m: arm_loss(q0, m), (m2,), (1.0,))
+    fd_m = (arm_loss(q0, m2 + 1e-6) - arm_loss(q0, m2 - 1e-6)) / 2e-6
+    assert _rel(dm, fd_m) <= 1e-6
+    # forward over reverse: a Hessian (lagrax picks diffrax.DirectAdjoint)
+    hess = jax.hessian(lambda q: arm_loss(q, m2)[0])(q0)
+    fd_h = _central(lambda q: np.asarray(jax.grad(lambda a: arm_loss(a, m2)[0])(q)), q0)
+    assert _rel(hess, fd_h) <= 1e-5
+
+
+def test_vmap_of_grad_through_simulate(arm_loss):
+    q0 = jnp.array([[0.3, 0.8], [0.5, -0.2], [1.0, 0.1]])
+    grads = jax.vmap(jax.grad(lambda q: jnp.sum(arm_loss(q, 1.0) ** 2)))(q0)
+    for k in range(q0.shape[0]):
+        one = jax.grad(lambda q: jnp.sum(arm_loss(q, 1.0) ** 2))(q0[k])
+        assert _rel(grads[k], one) <= 1e-9
+
+
+def test_forward_mode_through_events_and_resets():
+    """`jax.jacfwd` through a solve with an impact (a reset) equals reverse mode and
+    central differences: the event time's and the reset's derivatives included."""
+    system = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * qd[0] ** 2, lambda q, p: p["m"] * p["g"] * q[0], n_dof=1
+    )
+    params = {"m": 1.0, "g": 9.81, "e": 0.8}
+    floor = lx.Event(
+        lambda t, q, qd, p: q[0],
+        direction=-1,
+        reset=lambda t, q, qd, p: (q, -p["e"] * qd),
+    )
+
+    def final(y0):
+        sol = lx.simulate(
+            system, y0[:1], y0[1:], params, t1=1.5, n_save=2, events=floor, rtol=1e-12, atol=1e-12
+        )
+        return jnp.concatenate([sol.q[-1], sol.qd[-1]])
+
+    y0 = jnp.array([1.0, 0.5])
+    fwd = jax.jacfwd(final)(y0)
+    assert _rel(fwd, jax.jacrev(final)(y0)) <= 1e-9
+    assert _rel(fwd, _central(lambda y: np.asarray(final(y)), np.asarray(y0))) <= 1e-6
+
+
+def test_forward_mode_with_a_reverse_adjoint_is_a_clear_error(arm_loss):
+    with pytest.raises(lx.ConfigurationError, match="adjoint="):
+        jax.jacfwd(lambda q: arm_loss(q, 1.0, adjoint=dfx.RecursiveCheckpointAdjoint()))(
+            jnp.array([0.3, 0.8])
+        )
+    # an explicit ForwardMode also works where lagrax cannot see the mode (inside jit)
+    loss = jax.jit(lambda q: arm_loss(q, 1.0, adjoint=dfx.ForwardMode()))
+    out = jax.jacfwd(loss)(jnp.array([0.3, 0.8]))
+    assert _rel(out, jax.jacfwd(lambda q: arm_loss(q, 1.0))(jnp.array([0.3, 0.8]))) <= 1e-12
