@@ -19,8 +19,10 @@ from .._core.checks import physical
 from .._core.custom_types import Params, Vector
 from .._core.errors import ShapeError
 from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, PlanarBody, Scene, SpatialBody
+from .bodies import Param, PlanarBody, SpatialBody
+from .common import broadcast, float_dtype, rotation_tuple, unit_vector
 from .inertia import check_inertia
+from .scene import Scene
 from .tree_equations import ChainEquations
 
 BodyKind = Literal["planar", "spatial"]
@@ -38,20 +40,6 @@ _UNROLL_MAX = 6
 _UNROLL_MAX_PLANAR = 32
 # Planar chains from this many links evaluate their equations by the recursions.
 _RECURSIONS_MIN_PLANAR = 4
-
-
-def _broadcast(name: str, value: Any, shape: tuple[int, ...], dtype: Any) -> jnp.ndarray:
-    arr = jnp.asarray(value, dtype=dtype)
-    try:
-        return jnp.broadcast_to(arr, shape)
-    except ValueError:
-        raise ShapeError(
-            f"chain parameter {name!r} has shape {arr.shape}, which does not broadcast to {shape}"
-        ) from None
-
-
-def _float_dtype(dtype: Any) -> Any:
-    return jnp.result_type(float) if dtype is None else dtype
 
 
 # ------------------------------------------------------------------------------ planar
@@ -111,12 +99,12 @@ class PlanarChain(eqx.Module):
         **Raises:** `ShapeError` if a value does not broadcast to `(n,)`;
         `ParameterError` for a negative mass or inertia (naming the link).
         """
-        dtype = _float_dtype(dtype)
+        dtype = float_dtype(dtype)
         shape = (self.n,)
-        m_, l_ = _broadcast("m", m, shape, dtype), _broadcast("l", l, shape, dtype)
-        r_ = 0.5 * l_ if r is None else _broadcast("r", r, shape, dtype)
+        m_, l_ = broadcast("m", m, shape, dtype), broadcast("l", l, shape, dtype)
+        r_ = 0.5 * l_ if r is None else broadcast("r", r, shape, dtype)
         m_ = physical(m_, "PlanarChain.params m", item="link")
-        i_ = m_ * l_**2 / 12 if I is None else _broadcast("I", I, shape, dtype)
+        i_ = m_ * l_**2 / 12 if I is None else broadcast("I", I, shape, dtype)
         i_ = check_inertia(i_, name="PlanarChain.params I", semidefinite=True)
         return {"m": m_, "l": l_, "r": r_, "I": i_, "g": jnp.asarray(g, dtype=dtype)}
 
@@ -274,23 +262,6 @@ def planar_chain(
 
 
 # ----------------------------------------------------------------------------- spatial
-def _unit(v, what: str) -> tuple[float, float, float]:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
-        raise ValueError(f"{what} must be a non-zero finite 3-vector, got {v!r}")
-    a = a / np.linalg.norm(a)
-    return tuple(float(x) for x in a)
-
-
-def _rotation_tuple(rot, what: str) -> tuple:
-    r = np.asarray(rot, dtype=float)
-    if r.shape != (3, 3):
-        raise ValueError(f"{what} must be a 3x3 rotation matrix, got shape {r.shape}")
-    if not np.allclose(r.T @ r, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
-        raise ValueError(f"{what} is not a rotation matrix (R^T R = 1, det R = +1):\n{r}")
-    return tuple(tuple(float(x) for x in row) for row in r)
-
-
 def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
     """Rodrigues' formula: rotation by `angle` about the unit `axis`.
 
@@ -386,11 +357,11 @@ class SpatialChain(eqx.Module):
         if len(rotations) != n:
             raise ValueError(f"{n} joints need {n} fixed rotations, got {len(rotations)}")
         self.joint_types = types
-        self.axes = tuple(_unit(a, f"axes[{i}]") for i, a in enumerate(axes))
+        self.axes = tuple(unit_vector(a, f"axes[{i}]") for i, a in enumerate(axes))
         self.rotations = tuple(
-            _rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
+            rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
         )
-        self.up = _unit(up, "up")
+        self.up = unit_vector(up, "up")
 
     @property
     def n(self) -> int:
@@ -425,8 +396,8 @@ class SpatialChain(eqx.Module):
         inertia is not symmetric positive-semidefinite or violates `I1 + I2 ≥ I3`
         ([`lagrax.bodies.check_inertia`][], naming the link).
         """
-        n, dtype = self.n, _float_dtype(dtype)
-        m_ = _broadcast("m", m, (n,), dtype)
+        n, dtype = self.n, float_dtype(dtype)
+        m_ = broadcast("m", m, (n,), dtype)
         m_ = physical(m_, "SpatialChain.params m", item="link")
         if offset is None:
             offset = np.zeros((n, 3))
@@ -436,12 +407,12 @@ class SpatialChain(eqx.Module):
         if inertia is None:
             one = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1.0) / 12, (3 * 0.05**2 + 1.0) / 12])
             inertia = m_[:, None, None] * jnp.asarray(one, dtype)[None]
-        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
+        inertia = broadcast("inertia", inertia, (n, 3, 3), dtype)
         inertia = check_inertia(inertia, name="SpatialChain.params inertia", semidefinite=True)
         return {
             "m": m_,
-            "offset": _broadcast("offset", offset, (n, 3), dtype),
-            "com": _broadcast("com", com, (n, 3), dtype),
+            "offset": broadcast("offset", offset, (n, 3), dtype),
+            "com": broadcast("com", com, (n, 3), dtype),
             "inertia": inertia,
             "g": jnp.asarray(g, dtype=dtype),
         }

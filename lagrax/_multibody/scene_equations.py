@@ -31,28 +31,9 @@ import jax.numpy as jnp
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
 from .._core.linalg import cholesky_solve
-from .bodies import PlanarBody, PointMass, Scene, SpatialBody, _check_shape, _items, _value
-
-
-def _vee(s):
-    """The axial vector of the skew part of `s[..., 3, 3, ...]` (leading batch axes and
-    trailing axes kept): `½ (s₂₁ − s₁₂, s₀₂ − s₂₀, s₁₀ − s₀₁)`."""
-    return 0.5 * jnp.stack(
-        [
-            s[..., 2, 1, :] - s[..., 1, 2, :],
-            s[..., 0, 2, :] - s[..., 2, 0, :],
-            s[..., 1, 0, :] - s[..., 0, 1, :],
-        ],
-        axis=-2,
-    )
-
-
-def _batch(x, base_ndim: int):
-    """A body's per-item values as one array with the items along axis 0 (a list of `k`
-    is stacked; a single item gains an axis). Stacking the few items of a list and doing
-    one batched product beat a product per item by about 2x under `vmap`."""
-    items = _items(x, base_ndim)
-    return jnp.stack(items) if isinstance(items, list) else items
+from .bodies import PlanarBody, PointMass, SpatialBody
+from .common import batch, check_shape, per_body, per_item, value, vee
+from .scene import Scene
 
 
 def _pose_fn(body, params: Params):
@@ -62,12 +43,6 @@ def _pose_fn(body, params: Params):
     if isinstance(body, (PlanarBody, SpatialBody)):
         return lambda a: body._pose(a, params)
     raise TypeError(f"no pose map for {type(body).__name__}")  # pragma: no cover
-
-
-def _per_item(value, k: int, base_ndim: int, dtype):
-    """A parameter shared by the `k` items or given per item, as `(k, ...)`."""
-    value = jnp.asarray(value, dtype)
-    return jnp.broadcast_to(value, (k,) + value.shape[value.ndim - base_ndim :])
 
 
 def _body_terms(body, q, qd, params: Params, with_bias: bool):
@@ -85,33 +60,33 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
     kind = type(body).__name__
     if isinstance(body, (PlanarBody, SpatialBody)):
         dim = 2 if isinstance(body, PlanarBody) else 3
-        _check_shape(_items(prim[0], 1), (dim,), kind, "position")
+        check_shape(per_body(prim[0], 1), (dim,), kind, "position")
 
     # translation: Σ m J_vᵀ J_v and Σ m J_vᵀ a
-    jv = _batch(j_x, 2)  # (k, d, n)
-    m = _per_item(_value(body.mass, params), jv.shape[0], 0, q.dtype)
+    jv = batch(j_x, 2)  # (k, d, n)
+    m = per_item(value(body.mass, params), jv.shape[0], 0, q.dtype)
     mass = jnp.einsum("k,kdi,kdj->ij", m, jv, jv)
     bias = jnp.zeros_like(q)
     if with_bias:
-        bias = jnp.einsum("k,kdi,kd->i", m, jv, _batch(acc[0], 1))
+        bias = jnp.einsum("k,kdi,kd->i", m, jv, batch(acc[0], 1))
 
     if isinstance(body, PlanarBody):
-        _check_shape(_items(prim[1], 0), (), kind, "angle")
-        jw = _batch(j_o, 1)  # (k, n)
-        inertia = _per_item(_value(body.inertia, params), jw.shape[0], 0, q.dtype)
+        check_shape(per_body(prim[1], 0), (), kind, "angle")
+        jw = batch(j_o, 1)  # (k, n)
+        inertia = per_item(value(body.inertia, params), jw.shape[0], 0, q.dtype)
         mass = mass + jnp.einsum("k,ki,kj->ij", inertia, jw, jw)
         if with_bias:
-            bias = bias + jnp.einsum("k,ki,k->i", inertia, jw, _batch(acc[1], 0))
+            bias = bias + jnp.einsum("k,ki,k->i", inertia, jw, batch(acc[1], 0))
     elif isinstance(body, SpatialBody):
-        _check_shape(_items(prim[1], 2), (3, 3), kind, "rotation")
-        rot, d_rot = _batch(prim[1], 2), _batch(j_o, 3)  # (k, 3, 3), (k, 3, 3, n)
-        inertia = _per_item(_value(body.inertia, params), rot.shape[0], 2, q.dtype)
+        check_shape(per_body(prim[1], 2), (3, 3), kind, "rotation")
+        rot, d_rot = batch(prim[1], 2), batch(j_o, 3)  # (k, 3, 3), (k, 3, 3, n)
+        inertia = per_item(value(body.inertia, params), rot.shape[0], 2, q.dtype)
         # columns ω_j = vee(Rᵀ ∂R/∂q_j), in body axes: (k, 3, n)
-        omega_cols = _vee(jnp.einsum("kai,kajn->kijn", rot, d_rot))
+        omega_cols = vee(jnp.einsum("kai,kajn->kijn", rot, d_rot))
         mass = mass + jnp.einsum("kai,kab,kbj->ij", omega_cols, inertia, omega_cols)
         if with_bias:
-            w = _vee(jnp.einsum("kai,kaj->kij", rot, _batch(vel[1], 2))[..., None])[..., 0]
-            al = _vee(jnp.einsum("kai,kaj->kij", rot, _batch(acc[1], 2))[..., None])[..., 0]
+            w = vee(jnp.einsum("kai,kaj->kij", rot, batch(vel[1], 2))[..., None])[..., 0]
+            al = vee(jnp.einsum("kai,kaj->kij", rot, batch(acc[1], 2))[..., None])[..., 0]
             iw = jnp.einsum("kab,kb->ka", inertia, w)
             torque = jnp.einsum("kab,kb->ka", inertia, al) + jnp.cross(w, iw)
             bias = bias + jnp.einsum("kai,ka->i", omega_cols, torque)

@@ -21,9 +21,11 @@ from .._core.checks import physical
 from .._core.custom_types import Params, Vector
 from .._core.errors import ShapeError
 from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, Scene, SpatialBody
-from .chains import _broadcast, _float_dtype, _rotation_tuple, _unit, joint_constants
+from .bodies import Param, SpatialBody
+from .chains import joint_constants
+from .common import broadcast, float_dtype, rotation_tuple, unit_vector
 from .inertia import check_inertia
+from .scene import Scene
 from .tree_equations import ChainEquations
 
 
@@ -171,11 +173,11 @@ class Tree(eqx.Module):
             )
         self.joint_types = types
         self.parents = parents
-        self.axes = tuple(_unit(a, f"axes[{i}]") for i, a in enumerate(axes))
+        self.axes = tuple(unit_vector(a, f"axes[{i}]") for i, a in enumerate(axes))
         self.rotations = tuple(
-            _rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
+            rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
         )
-        self.up = _unit(up, "up")
+        self.up = unit_vector(up, "up")
         self.joint_names = _names(joint_names, n, "joint", "joint_names")
         self.body_names = _names(body_names, n, "body", "body_names")
         self.limits = _limits(limits, n)
@@ -219,17 +221,17 @@ class Tree(eqx.Module):
         negative mass or damping, or an inertia that is not symmetric positive-semidefinite
         or violates `I1 + I2 ≥ I3` (naming the body).
         """
-        n, dtype = self.n, _float_dtype(dtype)
-        m_ = physical(_broadcast("m", m, (n,), dtype), "Tree.params m", item="body")
+        n, dtype = self.n, float_dtype(dtype)
+        m_ = physical(broadcast("m", m, (n,), dtype), "Tree.params m", item="body")
         if inertia is None:
             inertia = m_[:, None, None] * (0.004 * jnp.eye(3, dtype=dtype))[None]
-        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
+        inertia = broadcast("inertia", inertia, (n, 3, 3), dtype)
         inertia = check_inertia(inertia, name="Tree.params inertia", semidefinite=True)
-        b = _broadcast("damping", damping, (n,), dtype)
+        b = broadcast("damping", damping, (n,), dtype)
         return {
             "m": m_,
-            "offset": _broadcast("offset", offset, (n, 3), dtype),
-            "com": _broadcast("com", com, (n, 3), dtype),
+            "offset": broadcast("offset", offset, (n, 3), dtype),
+            "com": broadcast("com", com, (n, 3), dtype),
             "inertia": inertia,
             "damping": physical(b, "Tree.params damping", item="joint"),
             "g": jnp.asarray(g, dtype=dtype),

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import ParameterError, URDFError
-from .chains import _float_dtype
+from .common import float_dtype
 from .inertia import check_inertia
 from .trees import Tree
 
@@ -427,6 +427,6 @@ def from_urdf(
         inertia=inertias,
         damping=np.array([j.damping for j in joint_list]),
         g=g,
-        dtype=_float_dtype(dtype),
+        dtype=float_dtype(dtype),
     )
     return tree, params
