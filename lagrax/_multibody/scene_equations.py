@@ -24,13 +24,13 @@ matrix. The gravity and spring forces `G = ∂V/∂q` are one reverse-mode gradi
 
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
 from .._core.linalg import cholesky_solve
+from .._systems.derivatives import AbstractEquations
 from .bodies import PlanarBody, PointMass, SpatialBody
 from .common import batch, check_shape, per_body, per_item, value, vee
 from .scene import Scene
@@ -93,7 +93,7 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
     return mass, bias
 
 
-class SceneEquations(eqx.Module):
+class SceneEquations(AbstractEquations):
     """The equations of a scene's `LagrangianSystem` from its bodies' pose maps (see the
     module docstring): `M` from one forward-mode Jacobian of the poses, the velocity
     products from one second-order forward derivative along `q̇`, `G = ∂V/∂q`."""
@@ -118,7 +118,12 @@ class SceneEquations(eqx.Module):
     def _gravity(self, q, params):
         return jax.grad(lambda a: self.scene.potential_energy(a, params))(q)
 
+    def energies(self, q, qd, params: Params) -> None:
+        """`None`: a scene's `(T, V)` come from its energy functions."""
+        return None
+
     def mass_matrix(self, q, params: Params) -> Any:
+        """`M(q)` from one forward-mode Jacobian of the poses."""
         return self._mass_and_velocity_products(q, jnp.zeros_like(q), params, False)[0]
 
     def mass_and_bias(self, q, qd, params: Params) -> tuple[Any, Any]:
