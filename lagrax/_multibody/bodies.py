@@ -17,7 +17,18 @@ import numpy as np
 from .._core.checks import is_traced, physical
 from .._core.custom_types import Params, Point, Rotation, Scalar, Vector
 from .._core.errors import ShapeError
-from .common import check_shape, dot_last, per_body, point, small_sum, squared_norm, value
+from .common import (
+    batch,
+    check_shape,
+    dot_last,
+    per_body,
+    per_item,
+    point,
+    small_sum,
+    squared_norm,
+    value,
+    vee,
+)
 from .inertia import check_inertia
 
 ParamLike = Any
@@ -131,6 +142,26 @@ class AbstractBody(eqx.Module):
         """Centre of mass `x_c(q)`: `(d,)`, or `k` of them (a list or `(k, d)`)."""
         return point(self.position, q, params)
 
+    @abc.abstractmethod
+    def pose(self, q: Vector, params: Params) -> tuple[Any, Any]:
+        """`(x_c, orientation)`: the centre of mass and the angle (planar body), the
+        rotation matrix (spatial body) or `None` (point mass), as pytrees of per-body
+        values (the pose map the scene's equations differentiate)."""
+
+    @abc.abstractmethod
+    def check_pose(self, pose: tuple[Any, Any]) -> None:
+        """`ShapeError` if the values of [`pose`][lagrax.bodies.AbstractBody.pose] do
+        not have this kind of body's shapes."""
+
+    @abc.abstractmethod
+    def rotation_terms(
+        self, mass: Any, bias: Any, derivatives: tuple[Any, ...], params: Params, dtype: Any
+    ) -> tuple[Any, Any]:
+        """`M` and `C q̇` with the body's rotational terms added: `J_ωᵀ I J_ω` and
+        `J_ωᵀ (I α + ω × I ω)`. `derivatives` are the orientation, its Jacobian in `q`
+        (a trailing axis of length `n`), and its first and second derivatives along `q̇`
+        (`None` for `M` alone)."""
+
     def potential_energy(self, q: Vector, params: Params, gravity: Any) -> Scalar:
         """Gravity potential `V = −m g⃗·x_c`.
 
@@ -171,6 +202,19 @@ class PointMass(AbstractBody):
             return self.position(q, params)
         return point(self.position, q, params)
 
+    def pose(self, q: Vector, params: Params) -> tuple[Any, None]:
+        """`(x_c, None)`: a point has no orientation."""
+        return self.com_position(q, params), None
+
+    def check_pose(self, pose: tuple[Any, Any]) -> None:
+        """Any dimension is a point mass's."""
+
+    def rotation_terms(
+        self, mass: Any, bias: Any, derivatives: tuple[Any, ...], params: Params, dtype: Any
+    ) -> tuple[Any, Any]:
+        """`M`, `C q̇` unchanged: a point has no rotational inertia."""
+        return mass, bias
+
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         _, v = jax.jvp(lambda a: self.position(a, params), (q,), (qd,))
         m = value(self.mass, params)
@@ -207,16 +251,34 @@ class PlanarBody(AbstractBody):
     def __check_init__(self):
         _check_body(self, "PlanarBody")
 
-    def _pose(self, q, params):
+    def pose(self, q: Vector, params: Params) -> tuple[Any, Any]:
+        """`(x_c, θ)`."""
         if self.angle is None:
             return self.position(q, params)
         return self.position(q, params), self.angle(q, params)
 
     def com_position(self, q: Vector, params: Params) -> Any:
-        return self._pose(q, params)[0]
+        return self.pose(q, params)[0]
+
+    def check_pose(self, pose: tuple[Any, Any]) -> None:
+        """Positions `(2,)` and angles `()` per body."""
+        check_shape(per_body(pose[0], 1), (2,), "PlanarBody", "position")
+        check_shape(per_body(pose[1], 0), (), "PlanarBody", "angle")
+
+    def rotation_terms(
+        self, mass: Any, bias: Any, derivatives: tuple[Any, ...], params: Params, dtype: Any
+    ) -> tuple[Any, Any]:
+        """`M + Σ I J_θᵀ J_θ` and `C q̇ + Σ I J_θᵀ θ̈|_{q̈=0}`."""
+        _, jacobian, _, acc = derivatives
+        jw = batch(jacobian, 1)  # (k, n)
+        inertia = per_item(value(self.inertia, params), jw.shape[0], 0, dtype)
+        mass = mass + jnp.einsum("k,ki,kj->ij", inertia, jw, jw)
+        if acc is not None:
+            bias = bias + jnp.einsum("k,ki,k->i", inertia, jw, batch(acc, 0))
+        return mass, bias
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        _, (v, w) = jax.jvp(lambda a: self._pose(a, params), (q,), (qd,))
+        _, (v, w) = jax.jvp(lambda a: self.pose(a, params), (q,), (qd,))
         check_shape(per_body(v, 1), (2,), "PlanarBody", "position")
         check_shape(per_body(w, 0), (), "PlanarBody", "angle")
         m, inertia = value(self.mass, params), value(self.inertia, params)
@@ -291,16 +353,40 @@ class SpatialBody(AbstractBody):
     def __check_init__(self):
         _check_body(self, "SpatialBody")
 
-    def _pose(self, q, params):
+    def pose(self, q: Vector, params: Params) -> tuple[Any, Any]:
+        """`(x_c, R)`."""
         if self.rotation is None:
             return self.position(q, params)
         return self.position(q, params), self.rotation(q, params)
 
     def com_position(self, q: Vector, params: Params) -> Any:
-        return self._pose(q, params)[0]
+        return self.pose(q, params)[0]
+
+    def check_pose(self, pose: tuple[Any, Any]) -> None:
+        """Positions `(3,)` and rotations `(3, 3)` per body."""
+        check_shape(per_body(pose[0], 1), (3,), "SpatialBody", "position")
+        check_shape(per_body(pose[1], 2), (3, 3), "SpatialBody", "rotation")
+
+    def rotation_terms(
+        self, mass: Any, bias: Any, derivatives: tuple[Any, ...], params: Params, dtype: Any
+    ) -> tuple[Any, Any]:
+        """`M + Σ J_ωᵀ I J_ω` with the columns `ω_j = vee(Rᵀ ∂R/∂q_j)` in body axes, and
+        `C q̇ + Σ J_ωᵀ (I α + ω × I ω)`."""
+        rot_, jacobian, vel, acc = derivatives
+        rot, d_rot = batch(rot_, 2), batch(jacobian, 3)  # (k, 3, 3), (k, 3, 3, n)
+        inertia = per_item(value(self.inertia, params), rot.shape[0], 2, dtype)
+        omega_cols = vee(jnp.einsum("kai,kajn->kijn", rot, d_rot))  # (k, 3, n)
+        mass = mass + jnp.einsum("kai,kab,kbj->ij", omega_cols, inertia, omega_cols)
+        if acc is not None:
+            w = vee(jnp.einsum("kai,kaj->kij", rot, batch(vel, 2))[..., None])[..., 0]
+            al = vee(jnp.einsum("kai,kaj->kij", rot, batch(acc, 2))[..., None])[..., 0]
+            iw = jnp.einsum("kab,kb->ka", inertia, w)
+            torque = jnp.einsum("kab,kb->ka", inertia, al) + jnp.cross(w, iw)
+            bias = bias + jnp.einsum("kai,ka->i", omega_cols, torque)
+        return mass, bias
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
-        (_, rot), (v, rot_dot) = jax.jvp(lambda a: self._pose(a, params), (q,), (qd,))
+        (_, rot), (v, rot_dot) = jax.jvp(lambda a: self.pose(a, params), (q,), (qd,))
         check_shape(per_body(v, 1), (3,), "SpatialBody", "position")
         check_shape(per_body(rot_dot, 2), (3, 3), "SpatialBody", "rotation")
         m, inertia = value(self.mass, params), jnp.asarray(value(self.inertia, params))

@@ -28,26 +28,20 @@ import jax
 import jax.numpy as jnp
 
 from .._core.custom_types import Params
-from .._core.errors import ShapeError
+from .._core.errors import ConfigurationError, ShapeError
 from .._core.linalg import cholesky_solve
 from .._systems.derivatives import AbstractEquations
-from .bodies import PlanarBody, PointMass, SpatialBody
-from .common import batch, check_shape, per_body, per_item, value, vee
+from .bodies import AbstractBody
+from .common import batch, per_item, value
 from .scene import Scene
 
 
-def _pose_fn(body, params: Params):
-    """`q -> (x_c, orientation or None)` of a body, as pytrees of per-item values."""
-    if isinstance(body, PointMass):
-        return lambda a: (body.com_position(a, params), None)
-    if isinstance(body, (PlanarBody, SpatialBody)):
-        return lambda a: body._pose(a, params)
-    raise TypeError(f"no pose map for {type(body).__name__}")  # pragma: no cover
-
-
-def _body_terms(body, q, qd, params: Params, with_bias: bool):
+def _body_terms(body: AbstractBody, q, qd, params: Params, with_bias: bool):
     """One body's (possibly `k` bodies') contributions to `M` and to `C q̇`."""
-    pose = _pose_fn(body, params)
+
+    def pose(a):
+        return body.pose(a, params)
+
     (j_x, j_o) = jax.jacfwd(pose)(q)  # every leaf gains a trailing axis of length n
     if with_bias:
 
@@ -56,11 +50,8 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
 
         (prim, vel), (_, acc) = jax.jvp(velocity, (q,), (qd,))
     else:
-        prim, vel, acc = pose(q), None, None
-    kind = type(body).__name__
-    if isinstance(body, (PlanarBody, SpatialBody)):
-        dim = 2 if isinstance(body, PlanarBody) else 3
-        check_shape(per_body(prim[0], 1), (dim,), kind, "position")
+        prim, vel, acc = pose(q), (None, None), (None, None)
+    body.check_pose(prim)
 
     # translation: Σ m J_vᵀ J_v and Σ m J_vᵀ a
     jv = batch(j_x, 2)  # (k, d, n)
@@ -69,28 +60,8 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
     bias = jnp.zeros_like(q)
     if with_bias:
         bias = jnp.einsum("k,kdi,kd->i", m, jv, batch(acc[0], 1))
-
-    if isinstance(body, PlanarBody):
-        check_shape(per_body(prim[1], 0), (), kind, "angle")
-        jw = batch(j_o, 1)  # (k, n)
-        inertia = per_item(value(body.inertia, params), jw.shape[0], 0, q.dtype)
-        mass = mass + jnp.einsum("k,ki,kj->ij", inertia, jw, jw)
-        if with_bias:
-            bias = bias + jnp.einsum("k,ki,k->i", inertia, jw, batch(acc[1], 0))
-    elif isinstance(body, SpatialBody):
-        check_shape(per_body(prim[1], 2), (3, 3), kind, "rotation")
-        rot, d_rot = batch(prim[1], 2), batch(j_o, 3)  # (k, 3, 3), (k, 3, 3, n)
-        inertia = per_item(value(body.inertia, params), rot.shape[0], 2, q.dtype)
-        # columns ω_j = vee(Rᵀ ∂R/∂q_j), in body axes: (k, 3, n)
-        omega_cols = vee(jnp.einsum("kai,kajn->kijn", rot, d_rot))
-        mass = mass + jnp.einsum("kai,kab,kbj->ij", omega_cols, inertia, omega_cols)
-        if with_bias:
-            w = vee(jnp.einsum("kai,kaj->kij", rot, batch(vel[1], 2))[..., None])[..., 0]
-            al = vee(jnp.einsum("kai,kaj->kij", rot, batch(acc[1], 2))[..., None])[..., 0]
-            iw = jnp.einsum("kab,kb->ka", inertia, w)
-            torque = jnp.einsum("kab,kb->ka", inertia, al) + jnp.cross(w, iw)
-            bias = bias + jnp.einsum("kai,ka->i", omega_cols, torque)
-    return mass, bias
+    # rotation: Σ J_ωᵀ I J_ω and Σ J_ωᵀ (I α + ω × I ω), by the kind of body
+    return body.rotation_terms(mass, bias, (prim[1], j_o, vel[1], acc[1]), params, q.dtype)
 
 
 class SceneEquations(AbstractEquations):
@@ -102,7 +73,9 @@ class SceneEquations(AbstractEquations):
 
     def __check_init__(self):
         if self.scene.kinetic is not None:
-            raise ValueError("SceneEquations needs a scene without a hand-written kinetic energy")
+            raise ConfigurationError(
+                "SceneEquations needs a scene without a hand-written kinetic energy"
+            )
 
     def _mass_and_velocity_products(self, q, qd, params, with_bias: bool):
         n = q.shape[0]
