@@ -4,6 +4,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from .._core.custom_types import Params, Scalar, Vector
+from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._systems.lagrangian import DissipationFn, ForceFn, KineticFn, LagrangianSystem, PotentialFn
 from .bodies import AbstractBody, ParamLike, PlanarBody, PointMass, SpatialBody
 from .common import value
@@ -20,7 +21,7 @@ from .forces import (
 def _check_members(items, kind, name: str) -> None:
     for i, item in enumerate(items):
         if not isinstance(item, kind):
-            raise TypeError(
+            raise ArgumentTypeError(
                 f"Scene.{name}[{i}] is a {type(item).__name__}; expected a {kind.__name__} "
                 f"subclass (e.g. {', '.join(c.__name__ for c in _EXAMPLES[kind])})"
             )
@@ -102,14 +103,16 @@ class Scene(eqx.Module):
 
     def __check_init__(self):
         if self.equations not in _EQUATIONS:
-            raise ValueError(
+            raise ConfigurationError(
                 f"Scene equations must be one of {sorted(_EQUATIONS)}, got {self.equations!r}"
             )
         _check_members(self.bodies, AbstractBody, "bodies")
         _check_members(self.springs, AbstractSpring, "springs")
         _check_members(self.dampers, AbstractDamper, "dampers")
         if not self.bodies and self.kinetic is None:
-            raise ValueError("a Scene needs at least one body or a hand-written kinetic energy")
+            raise ConfigurationError(
+                "a Scene needs at least one body or a hand-written kinetic energy"
+            )
 
     def kinetic_energy(self, q: Vector, qd: Vector, params: Params) -> Scalar:
         """`T = Σ T_b + T_extra`."""
@@ -175,7 +178,7 @@ class Scene(eqx.Module):
             return False
         if self.kinetic is not None:
             if self.equations == "poses":
-                raise ValueError(
+                raise ConfigurationError(
                     "Scene(equations='poses') needs every kinetic term to come from bodies; "
                     "this scene has a hand-written kinetic energy"
                 )
