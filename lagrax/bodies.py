@@ -67,19 +67,18 @@ axial dashpot), [`TorsionalDamper`][lagrax.bodies.TorsionalDamper] (on a coordin
 """
 
 from ._multibody.bodies import AbstractBody as AbstractBody
-from ._multibody.bodies import AbstractDamper as AbstractDamper
-from ._multibody.bodies import AbstractSpring as AbstractSpring
-from ._multibody.bodies import LinearDamper as LinearDamper
-from ._multibody.bodies import LinearSpring as LinearSpring
 from ._multibody.bodies import Param as Param
 from ._multibody.bodies import ParamLike as ParamLike
 from ._multibody.bodies import PlanarBody as PlanarBody
 from ._multibody.bodies import PointFn as PointFn
 from ._multibody.bodies import PointMass as PointMass
-from ._multibody.bodies import Scene as Scene
 from ._multibody.bodies import SpatialBody as SpatialBody
-from ._multibody.bodies import TorsionalDamper as TorsionalDamper
-from ._multibody.bodies import TorsionalSpring as TorsionalSpring
+from ._multibody.forces import AbstractDamper as AbstractDamper
+from ._multibody.forces import AbstractSpring as AbstractSpring
+from ._multibody.forces import LinearDamper as LinearDamper
+from ._multibody.forces import LinearSpring as LinearSpring
+from ._multibody.forces import TorsionalDamper as TorsionalDamper
+from ._multibody.forces import TorsionalSpring as TorsionalSpring
 from ._multibody.inertia import PrincipalAxes as PrincipalAxes
 from ._multibody.inertia import box_inertia as box_inertia
 from ._multibody.inertia import check_inertia as check_inertia
@@ -89,6 +88,7 @@ from ._multibody.inertia import principal_axes as principal_axes
 from ._multibody.inertia import rod_inertia as rod_inertia
 from ._multibody.inertia import rotate_inertia as rotate_inertia
 from ._multibody.inertia import sphere_inertia as sphere_inertia
+from ._multibody.scene import Scene as Scene
 
 __all__ = [
     "Scene",

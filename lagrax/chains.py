@@ -1,7 +1,9 @@
 """Serial chains, kinematic trees and URDF robots.
 
 Planar n-link arms and spatial revolute/prismatic chains; [`Tree`][lagrax.chains.Tree], a kinematic
-tree (a parent index per body: a torso with two arms, a hand);
+tree (a parent index per body: a torso with two arms, a hand). A spatial chain is a tree whose
+parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] and `Tree` share
+[`AbstractTree`][lagrax.chains.AbstractTree] (kinematics, `frames`, `scene`, `system`);
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
 bodies) with its joint names, limits and damping:
 
@@ -48,6 +50,7 @@ from ._multibody.chains import SpatialChain as SpatialChain
 from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
 from ._multibody.chains import planar_chain as planar_chain
 from ._multibody.chains import spatial_chain as spatial_chain
+from ._multibody.trees import AbstractTree as AbstractTree
 from ._multibody.trees import Tree as Tree
 from ._multibody.urdf import from_urdf as from_urdf
 
@@ -56,6 +59,7 @@ __all__ = [
     "SpatialChain",
     "planar_chain",
     "spatial_chain",
+    "AbstractTree",
     "Tree",
     "from_urdf",
     "axis_angle_rotation",

@@ -12,6 +12,7 @@ No Lagrangian appears anywhere in this module, and `rnea` reads only the chain's
 structure (joint types, axes, fixed rotations) and `params`, with its own kinematics.
 """
 
+import functools
 from typing import NamedTuple
 
 import jax.numpy as jnp
@@ -19,9 +20,10 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from ._core.custom_types import Params
-from ._core.errors import ShapeError
+from ._core.errors import ArgumentTypeError, ShapeError
 from ._multibody.chains import PlanarChain, SpatialChain
-from ._multibody.trees import Tree
+from ._multibody.joints import revolute
+from ._multibody.trees import AbstractTree, Tree
 
 __all__ = ["planar_2r", "planar_2r_free_body", "FreeBody2R", "rnea"]
 
@@ -159,20 +161,36 @@ def rnea(
 
     **Returns:** `τ`, shape `(n,)`: joint torques (revolute) or forces (prismatic).
 
-    **Raises:** `ShapeError` for inputs of the wrong length; `TypeError` for another
-    kind of chain.
+    **Raises:** `ShapeError` for inputs of the wrong length; `ArgumentTypeError` (a
+    `TypeError`) for another kind of chain.
     """
-    if not isinstance(chain, (PlanarChain, SpatialChain, Tree)):
-        raise TypeError(
-            f"rnea needs a PlanarChain, SpatialChain or Tree, got {type(chain).__name__}"
-        )
+    return _rnea(chain, q, qd, qdd, params)
+
+
+def _checked(chain, q, qd, qdd):
     q, qd, qdd = (jnp.asarray(x) for x in (q, qd, qdd))
     for name, x in (("q", q), ("qd", qd), ("qdd", qdd)):
         if x.shape != (chain.n,):
             raise ShapeError(f"rnea: {name} has shape {x.shape}, expected ({chain.n},)")
-    if isinstance(chain, PlanarChain):
-        return _rnea_planar(chain.n, q, qd, qdd, params)
-    return _rnea_spatial(chain, q, qd, qdd, params)
+    return q, qd, qdd
+
+
+# One oracle per kind of chain, registered by type: a new kind registers its own.
+@functools.singledispatch
+def _rnea(chain, q, qd, qdd, params):
+    raise ArgumentTypeError(
+        f"rnea needs a PlanarChain, SpatialChain or Tree, got {type(chain).__name__}"
+    )
+
+
+@_rnea.register
+def _(chain: PlanarChain, q, qd, qdd, params):
+    return _rnea_planar(chain.n, *_checked(chain, q, qd, qdd), params)
+
+
+@_rnea.register
+def _(chain: AbstractTree, q, qd, qdd, params):
+    return _rnea_spatial(chain, *_checked(chain, q, qd, qdd), params)
 
 
 def _rnea_planar(n, q, qd, qdd, p):
@@ -225,14 +243,14 @@ def _rnea_spatial(chain, q, qd, qdd, p):
     # ⁱ⁻¹R_i and ⁱ⁻¹p_i (position of origin i in frame i-1)
     rel_rot, rel_pos = [], []
     for i, kind in enumerate(chain.joint_types):
-        if kind == "R":
+        if revolute(kind):
             rel_rot.append(fixed[i] @ _rotation_about(axes[i], q[i]))
             rel_pos.append(offset[i])
         else:
             rel_rot.append(fixed[i])
             rel_pos.append(offset[i] + fixed[i] @ (axes[i] * q[i]))
 
-    parents = getattr(chain, "parents", tuple(range(-1, n - 1)))
+    parents = chain.parents
     # outward: each body from its parent (the base: at rest, accelerating up: gravity)
     base = (
         jnp.zeros(3, dtype),
@@ -247,7 +265,7 @@ def _rnea_spatial(chain, q, qd, qdd, p):
         a = axes[i]
         pi = offset[i]
         acc = e @ (acc + jnp.cross(wd, pi) + jnp.cross(w, jnp.cross(w, pi)))
-        if kind == "R":
+        if revolute(kind):
             w_prev = e @ w
             w = w_prev + qd[i] * a
             wd = e @ wd + jnp.cross(w_prev, qd[i] * a) + qdd[i] * a
@@ -278,5 +296,5 @@ def _rnea_spatial(chain, q, qd, qdd, p):
             f_i = f_i + f_child
             mom = mom + rel_rot[c] @ n_on[c] + jnp.cross(rel_pos[c], f_child)
         f_on[i], n_on[i] = f_i, mom
-        tau[i] = jnp.dot(mom if chain.joint_types[i] == "R" else f_i, axes[i])
+        tau[i] = jnp.dot(mom if revolute(chain.joint_types[i]) else f_i, axes[i])
     return jnp.stack(tau)

@@ -8,20 +8,25 @@ of [`lagrax.bodies`][] (one batched body for all links) and its structure is wha
 """
 
 import dataclasses
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import physical
 from .._core.custom_types import Params, Vector
-from .._core.errors import ShapeError
+from .._core.errors import ConfigurationError, ShapeError
 from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, PlanarBody, Scene, SpatialBody
+from .bodies import Param, PlanarBody, SpatialBody
+from .common import broadcast, float_dtype
 from .inertia import check_inertia
-from .tree_equations import ChainEquations
+from .joints import parse_joint_types
+from .recursions import Chain
+from .scene import Scene
+from .tree_equations import AbstractArticulated, ChainEquations
+from .tree_equations import planar_chain as planar_articulated
+from .trees import UNROLL_MAX, AbstractTree, structure
 
 BodyKind = Literal["planar", "spatial"]
 
@@ -30,32 +35,14 @@ BodyKind = Literal["planar", "spatial"]
 # nested forward-mode derivatives XLA fuses that into straight-line code, where stacking
 # and re-slicing tiny arrays made the 2R arm's forward dynamics ~15x slower (measured,
 # batch of 4096 on CPU). Planar links are written out in scalars up to 32 links; spatial
-# chains keep 3×3 matrix products (written out entry by entry in scalars, the program of
-# the nested derivatives of a 5-joint chain grew ~10x and compiled ~20x slower) and loop
-# (``lax.scan``, arrays) beyond 6 joints, which compiles in time independent of n and ran
-# about as fast as unrolled code at n = 10.
-_UNROLL_MAX = 6
+# chains see `SpatialChain.kinematics_scan_above`.
 _UNROLL_MAX_PLANAR = 32
 # Planar chains from this many links evaluate their equations by the recursions.
 _RECURSIONS_MIN_PLANAR = 4
 
 
-def _broadcast(name: str, value: Any, shape: tuple[int, ...], dtype: Any) -> jnp.ndarray:
-    arr = jnp.asarray(value, dtype=dtype)
-    try:
-        return jnp.broadcast_to(arr, shape)
-    except ValueError:
-        raise ShapeError(
-            f"chain parameter {name!r} has shape {arr.shape}, which does not broadcast to {shape}"
-        ) from None
-
-
-def _float_dtype(dtype: Any) -> Any:
-    return jnp.result_type(float) if dtype is None else dtype
-
-
 # ------------------------------------------------------------------------------ planar
-class PlanarChain(eqx.Module):
+class PlanarChain(AbstractArticulated):
     r"""A planar serial chain of `n` links joined by revolute joints (the lecture's 2R arm,
     generalized).
 
@@ -87,7 +74,7 @@ class PlanarChain(eqx.Module):
 
     def __check_init__(self):
         if not isinstance(self.n, int) or self.n < 1:
-            raise ValueError(f"PlanarChain needs n >= 1 links, got {self.n!r}")
+            raise ConfigurationError(f"PlanarChain needs n >= 1 links, got {self.n!r}")
 
     def params(
         self,
@@ -111,23 +98,18 @@ class PlanarChain(eqx.Module):
         **Raises:** `ShapeError` if a value does not broadcast to `(n,)`;
         `ParameterError` for a negative mass or inertia (naming the link).
         """
-        dtype = _float_dtype(dtype)
+        dtype = float_dtype(dtype)
         shape = (self.n,)
-        m_, l_ = _broadcast("m", m, shape, dtype), _broadcast("l", l, shape, dtype)
-        r_ = 0.5 * l_ if r is None else _broadcast("r", r, shape, dtype)
+        m_, l_ = broadcast("m", m, shape, dtype), broadcast("l", l, shape, dtype)
+        r_ = 0.5 * l_ if r is None else broadcast("r", r, shape, dtype)
         m_ = physical(m_, "PlanarChain.params m", item="link")
-        i_ = m_ * l_**2 / 12 if I is None else _broadcast("I", I, shape, dtype)
+        i_ = m_ * l_**2 / 12 if I is None else broadcast("I", I, shape, dtype)
         i_ = check_inertia(i_, name="PlanarChain.params I", semidefinite=True)
         return {"m": m_, "l": l_, "r": r_, "I": i_, "g": jnp.asarray(g, dtype=dtype)}
 
     def _check_q(self, q: Vector) -> None:
         if q.shape != (self.n,):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this chain")
-
-    def link_angles(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Absolute link angles `φ_i = q_1 + … + q_i` from the x axis, shape `(n,)`."""
-        self._check_q(q)
-        return jnp.cumsum(q)
 
     def _directions(self, q):
         phi = jnp.cumsum(q)
@@ -147,7 +129,7 @@ class PlanarChain(eqx.Module):
     def _pose(self, q, params):
         """Every link's centre of mass and angle in one pass along the chain: lists of
         `n` `(2,)` points and `n` angles, written out link by link in scalars (see
-        `_UNROLL_MAX`); arrays `(n, 2)`, `(n,)` by cumulative sums for very long
+        `_UNROLL_MAX_PLANAR`); arrays `(n, 2)`, `(n,)` by cumulative sums for very long
         chains."""
         self._check_q(q)
         length, r = jnp.asarray(params["l"]), jnp.asarray(params["r"])
@@ -192,6 +174,20 @@ class PlanarChain(eqx.Module):
         zero = jnp.zeros_like(g)
         return jnp.stack([zero, -g, zero])
 
+    @property
+    def parents(self) -> tuple[int, ...]:
+        """`(−1, 0, …, n − 2)`: link `i` hangs from link `i − 1`."""
+        return tuple(range(-1, self.n - 1))
+
+    def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
+        """Motion subspaces and link inertias at `q` (see
+        `lagrax._multibody.tree_equations.planar_chain`)."""
+        return planar_articulated(self.n, q, params, scan)
+
+    def link_energies(self, q, qd, params: Params) -> None:
+        """`None`: the vectorized pose maps are already the cheaper route to `(T, V)`."""
+        return None
+
     def scene(self, *, bodies: BodyKind = "planar") -> Scene:
         """The chain as a [`lagrax.bodies.Scene`][].
 
@@ -211,7 +207,7 @@ class PlanarChain(eqx.Module):
             body = SpatialBody(Param("m"), self._inertia_3d, self._pose_3d, None)
             gravity = self._gravity_3d
         else:
-            raise ValueError(f"bodies must be 'planar' or 'spatial', got {bodies!r}")
+            raise ConfigurationError(f"bodies must be 'planar' or 'spatial', got {bodies!r}")
         return Scene([body], gravity=gravity, n_dof=self.n, name=f"planar {self.n}-link chain")
 
     def system(self, *, bodies: BodyKind = "planar") -> LagrangianSystem:
@@ -274,23 +270,6 @@ def planar_chain(
 
 
 # ----------------------------------------------------------------------------- spatial
-def _unit(v, what: str) -> tuple[float, float, float]:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0:
-        raise ValueError(f"{what} must be a non-zero finite 3-vector, got {v!r}")
-    a = a / np.linalg.norm(a)
-    return tuple(float(x) for x in a)
-
-
-def _rotation_tuple(rot, what: str) -> tuple:
-    r = np.asarray(rot, dtype=float)
-    if r.shape != (3, 3):
-        raise ValueError(f"{what} must be a 3x3 rotation matrix, got shape {r.shape}")
-    if not np.allclose(r.T @ r, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
-        raise ValueError(f"{what} is not a rotation matrix (R^T R = 1, det R = +1):\n{r}")
-    return tuple(tuple(float(x) for x in row) for row in r)
-
-
 def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
     """Rodrigues' formula: rotation by `angle` about the unit `axis`.
 
@@ -302,26 +281,7 @@ def axis_angle_rotation(axis: Any, angle: Any) -> jnp.ndarray:
     return eye + jnp.sin(angle) * k + (1 - jnp.cos(angle)) * (k @ k)
 
 
-def joint_constants(types: str, axes: Any, rotations: Any) -> tuple[np.ndarray, ...]:
-    """Per-joint constants `(A, B, C, s)`, stacked: ``ⁱ⁻¹R_i = A + sin q B +
-    (1 − cos q) C` and the origin slides by `q s` in frame `i − 1``.
-
-    Revolute (Rodrigues): `A = S`, `B = S [a]×`, `C = S [a]×²`, `s = 0`;
-    prismatic: `A = S`, `B = C = 0`, `s = S a`.
-    """
-    consts = []
-    for kind, axis, fixed in zip(types, axes, rotations, strict=True):
-        a, rot = np.asarray(axis), np.asarray(fixed)
-        k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-        zero = np.zeros((3, 3))
-        if kind == "R":
-            consts.append((rot, rot @ k, rot @ k @ k, np.zeros(3)))
-        else:
-            consts.append((rot, zero, zero, rot @ a))
-    return tuple(np.stack(c) for c in zip(*consts, strict=True))
-
-
-class SpatialChain(eqx.Module):
+class SpatialChain(AbstractTree):
     r"""A spatial serial chain of revolute (`"R"`) and prismatic (`"P"`) joints.
 
     Frames: frame 0 is the fixed (world) frame; frame `i` is attached to link `i`. Joint
@@ -363,6 +323,12 @@ class SpatialChain(eqx.Module):
     rotations: tuple[tuple[tuple[float, ...], ...], ...] = eqx.field(static=True)
     up: tuple[float, float, float] = eqx.field(static=True)
 
+    # Forward kinematics: 3×3 matrix products joint by joint up to 6 joints (written out
+    # entry by entry in scalars, the program of the nested derivatives of a 5-joint chain
+    # grew ~10x and compiled ~20x slower), then a ``lax.scan``, which compiles in time
+    # independent of n and ran about as fast as unrolled code at n = 10.
+    kinematics_scan_above: ClassVar[float] = UNROLL_MAX
+
     def __init__(
         self,
         joint_types: str,
@@ -370,32 +336,13 @@ class SpatialChain(eqx.Module):
         rotations: Any = None,
         up: Any = (0.0, 0.0, 1.0),
     ):
-        types = str(joint_types).upper()
-        if not types or set(types) - {"R", "P"}:
-            raise ValueError(
-                f"joint_types must be a non-empty string of 'R' (revolute) and 'P' "
-                f"(prismatic), got {joint_types!r}"
-            )
-        n = len(types)
-        if axes is None:
-            axes = [(0.0, 0.0, 1.0)] * n
-        if len(axes) != n:
-            raise ValueError(f"{n} joints need {n} axes, got {len(axes)}")
-        if rotations is None:
-            rotations = [np.eye(3)] * n
-        if len(rotations) != n:
-            raise ValueError(f"{n} joints need {n} fixed rotations, got {len(rotations)}")
-        self.joint_types = types
-        self.axes = tuple(_unit(a, f"axes[{i}]") for i, a in enumerate(axes))
-        self.rotations = tuple(
-            _rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
-        )
-        self.up = _unit(up, "up")
+        self.joint_types = parse_joint_types(joint_types)
+        self.axes, self.rotations, self.up = structure(self.joint_types, axes, rotations, up)
 
     @property
-    def n(self) -> int:
-        """Number of joints (and links)."""
-        return len(self.joint_types)
+    def parents(self) -> tuple[int, ...]:
+        """`(−1, 0, …, n − 2)`: link `i` hangs from link `i − 1`."""
+        return tuple(range(-1, self.n - 1))
 
     def params(
         self,
@@ -425,115 +372,29 @@ class SpatialChain(eqx.Module):
         inertia is not symmetric positive-semidefinite or violates `I1 + I2 ≥ I3`
         ([`lagrax.bodies.check_inertia`][], naming the link).
         """
-        n, dtype = self.n, _float_dtype(dtype)
-        m_ = _broadcast("m", m, (n,), dtype)
-        m_ = physical(m_, "SpatialChain.params m", item="link")
         if offset is None:
-            offset = np.zeros((n, 3))
+            offset = np.zeros((self.n, 3))
             offset[1:, 0] = 1.0
         if com is None:
             com = (0.5, 0.0, 0.0)
-        if inertia is None:
-            one = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1.0) / 12, (3 * 0.05**2 + 1.0) / 12])
-            inertia = m_[:, None, None] * jnp.asarray(one, dtype)[None]
-        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
-        inertia = check_inertia(inertia, name="SpatialChain.params inertia", semidefinite=True)
-        return {
-            "m": m_,
-            "offset": _broadcast("offset", offset, (n, 3), dtype),
-            "com": _broadcast("com", com, (n, 3), dtype),
-            "inertia": inertia,
-            "g": jnp.asarray(g, dtype=dtype),
-        }
+        rod = np.diag([0.5 * 0.05**2, (3 * 0.05**2 + 1.0) / 12, (3 * 0.05**2 + 1.0) / 12])
+        dtype = float_dtype(dtype)
+        values = {"m": m, "offset": offset, "com": com, "inertia": inertia}
+        out = self._body_params(values, rod, dtype, item="link")
+        out["g"] = jnp.asarray(g, dtype=dtype)
+        return out
 
-    def _joint_constants(self) -> tuple[np.ndarray, ...]:
-        """Per-joint constants, stacked (see `joint_constants`)."""
-        return joint_constants(self.joint_types, self.axes, self.rotations)
+    def dissipation(self) -> None:
+        """`None`: a spatial chain has no joint damping."""
+        return None
 
-    def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """Forward kinematics: origins `(n, 3)` and rotations `(n, 3, 3)` of the link
-        frames in the world frame (`R_i` takes frame-`i` components to world ones).
+    def label(self) -> str:
+        """`"<joint_types> chain"`."""
+        return f"{self.joint_types} chain"
 
-        `R_i = R_{i−1} ⁱ⁻¹R_i`, `o_i = o_{i−1} + R_{i−1} (offset_i + q_i s_i)`, written out
-        joint by joint for short chains and as a `lax.scan` over the joints for long ones
-        (see `_UNROLL_MAX`).
-        """
-        origins, rots, _ = self._kinematics(q, params, with_com=False)
-        return origins, rots
-
-    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, `x_ci = o_i + R_i com_i`, shape `(n, 3)`."""
-        return self._kinematics(q, params, with_com=True)[2]
-
-    def link_rotations(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Link rotation matrices `R_i`, shape `(n, 3, 3)`."""
-        return self.frames(q, params)[1]
-
-    def _pose(self, q, params):
-        _, rots, coms = self._kinematics(q, params, with_com=True, lists=True)
-        return coms, rots
-
-    def _kinematics(self, q, params, *, with_com: bool, lists: bool = False):
-        if q.shape != (self.n,):
-            raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this chain")
-        offset = jnp.asarray(params["offset"])
-        dtype = jnp.result_type(q, offset)
-        q, offset = q.astype(dtype), offset.astype(dtype)
-        com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
-        if self.n > _UNROLL_MAX:
-            return self._kinematics_scan(q, offset, com, dtype)
-        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
-        rot = jnp.eye(3, dtype=dtype)
-        origin = jnp.zeros(3, dtype)
-        origins, rots, coms = [], [], []
-        for i, kind in enumerate(self.joint_types):
-            step = offset[i] if kind == "R" else offset[i] + q[i] * slide[i]
-            origin = origin + rot @ step
-            if kind == "R":
-                rot = rot @ (a[i] + jnp.sin(q[i]) * b[i] + (1 - jnp.cos(q[i])) * c[i])
-            else:
-                rot = rot @ a[i]
-            origins.append(origin)
-            rots.append(rot)
-            if com is not None:
-                coms.append(origin + rot @ com[i])
-        if lists:  # per-link arrays, not stacked across links (see _UNROLL_MAX)
-            return origins, rots, coms if com is not None else None
-        out_com = jnp.stack(coms) if com is not None else None
-        return jnp.stack(origins), jnp.stack(rots), out_com
-
-    def _kinematics_scan(self, q, offset, com, dtype):
-        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
-
-        def joint(carry, x):
-            rot, origin = carry
-            qi, ai, bi, ci, si, off = x
-            origin = origin + rot @ (off + qi * si)
-            rot = rot @ (ai + jnp.sin(qi) * bi + (1 - jnp.cos(qi)) * ci)
-            return (rot, origin), (origin, rot)
-
-        init = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
-        _, (origins, rots) = jax.lax.scan(joint, init, (q, a, b, c, slide, offset))
-        coms = None if com is None else origins + jnp.einsum("nij,nj->ni", rots, com)
-        return origins, rots, coms
-
-    def _gravity(self, params):
-        g = jnp.asarray(params["g"])
-        return -g * jnp.asarray(self.up, g.dtype)
-
-    def scene(self) -> Scene:
-        """The chain as a [`lagrax.bodies.Scene`][]: one batched
-        [`SpatialBody`][lagrax.bodies.SpatialBody] for all links, gravity `−g up`."""
-        types = self.joint_types
-        body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
-        return Scene([body], gravity=self._gravity, n_dof=self.n, name=f"{types} chain")
-
-    def system(self) -> LagrangianSystem:
-        """The chain's [`lagrax.LagrangianSystem`][], its equations evaluated by
-        Featherstone's recursions (`q̈` by the articulated-body algorithm, O(n); `M` by
-        the composite-rigid-body algorithm). ``dataclasses.replace(system,
-        equations=None)`` differentiates the energies instead (the definition)."""
-        return dataclasses.replace(self.scene().system(), equations=ChainEquations(self))
+    def coordinate_names(self) -> None:
+        """`None`: a spatial chain's coordinates are unnamed."""
+        return None
 
 
 def spatial_chain(

@@ -15,7 +15,7 @@ from jax import core as _jax_core
 from jaxtyping import Array, ArrayLike, Float
 
 from .._core.custom_types import Inertia, Rotation
-from .._core.errors import ParameterError, ShapeError
+from .._core.errors import ConfigurationError, ParameterError, ShapeError
 
 _AXES = {"x": 0, "y": 1, "z": 2, 0: 0, 1: 1, 2: 2}
 
@@ -24,7 +24,7 @@ def _axis(axis: Any) -> int:
     try:
         return _AXES[axis]
     except (KeyError, TypeError):
-        raise ValueError(f"axis must be 0, 1, 2 or 'x', 'y', 'z', got {axis!r}") from None
+        raise ConfigurationError(f"axis must be 0, 1, 2 or 'x', 'y', 'z', got {axis!r}") from None
 
 
 def _diag3(a, b, c) -> Float[Array, "3 3"]:

@@ -24,55 +24,24 @@ matrix. The gravity and spring forces `G = ∂V/∂q` are one reverse-mode gradi
 
 from typing import Any
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 
 from .._core.custom_types import Params
-from .._core.errors import ShapeError
+from .._core.errors import ConfigurationError, ShapeError
 from .._core.linalg import cholesky_solve
-from .bodies import PlanarBody, PointMass, Scene, SpatialBody, _check_shape, _items, _value
+from .._systems.derivatives import AbstractEquations
+from .bodies import AbstractBody
+from .common import batch, per_item, value
+from .scene import Scene
 
 
-def _vee(s):
-    """The axial vector of the skew part of `s[..., 3, 3, ...]` (leading batch axes and
-    trailing axes kept): `½ (s₂₁ − s₁₂, s₀₂ − s₂₀, s₁₀ − s₀₁)`."""
-    return 0.5 * jnp.stack(
-        [
-            s[..., 2, 1, :] - s[..., 1, 2, :],
-            s[..., 0, 2, :] - s[..., 2, 0, :],
-            s[..., 1, 0, :] - s[..., 0, 1, :],
-        ],
-        axis=-2,
-    )
-
-
-def _batch(x, base_ndim: int):
-    """A body's per-item values as one array with the items along axis 0 (a list of `k`
-    is stacked; a single item gains an axis). Stacking the few items of a list and doing
-    one batched product beat a product per item by about 2x under `vmap`."""
-    items = _items(x, base_ndim)
-    return jnp.stack(items) if isinstance(items, list) else items
-
-
-def _pose_fn(body, params: Params):
-    """`q -> (x_c, orientation or None)` of a body, as pytrees of per-item values."""
-    if isinstance(body, PointMass):
-        return lambda a: (body.com_position(a, params), None)
-    if isinstance(body, (PlanarBody, SpatialBody)):
-        return lambda a: body._pose(a, params)
-    raise TypeError(f"no pose map for {type(body).__name__}")  # pragma: no cover
-
-
-def _per_item(value, k: int, base_ndim: int, dtype):
-    """A parameter shared by the `k` items or given per item, as `(k, ...)`."""
-    value = jnp.asarray(value, dtype)
-    return jnp.broadcast_to(value, (k,) + value.shape[value.ndim - base_ndim :])
-
-
-def _body_terms(body, q, qd, params: Params, with_bias: bool):
+def _body_terms(body: AbstractBody, q, qd, params: Params, with_bias: bool):
     """One body's (possibly `k` bodies') contributions to `M` and to `C q̇`."""
-    pose = _pose_fn(body, params)
+
+    def pose(a):
+        return body.pose(a, params)
+
     (j_x, j_o) = jax.jacfwd(pose)(q)  # every leaf gains a trailing axis of length n
     if with_bias:
 
@@ -81,44 +50,21 @@ def _body_terms(body, q, qd, params: Params, with_bias: bool):
 
         (prim, vel), (_, acc) = jax.jvp(velocity, (q,), (qd,))
     else:
-        prim, vel, acc = pose(q), None, None
-    kind = type(body).__name__
-    if isinstance(body, (PlanarBody, SpatialBody)):
-        dim = 2 if isinstance(body, PlanarBody) else 3
-        _check_shape(_items(prim[0], 1), (dim,), kind, "position")
+        prim, vel, acc = pose(q), (None, None), (None, None)
+    body.check_pose(prim)
 
     # translation: Σ m J_vᵀ J_v and Σ m J_vᵀ a
-    jv = _batch(j_x, 2)  # (k, d, n)
-    m = _per_item(_value(body.mass, params), jv.shape[0], 0, q.dtype)
+    jv = batch(j_x, 2)  # (k, d, n)
+    m = per_item(value(body.mass, params), jv.shape[0], 0, q.dtype)
     mass = jnp.einsum("k,kdi,kdj->ij", m, jv, jv)
     bias = jnp.zeros_like(q)
     if with_bias:
-        bias = jnp.einsum("k,kdi,kd->i", m, jv, _batch(acc[0], 1))
-
-    if isinstance(body, PlanarBody):
-        _check_shape(_items(prim[1], 0), (), kind, "angle")
-        jw = _batch(j_o, 1)  # (k, n)
-        inertia = _per_item(_value(body.inertia, params), jw.shape[0], 0, q.dtype)
-        mass = mass + jnp.einsum("k,ki,kj->ij", inertia, jw, jw)
-        if with_bias:
-            bias = bias + jnp.einsum("k,ki,k->i", inertia, jw, _batch(acc[1], 0))
-    elif isinstance(body, SpatialBody):
-        _check_shape(_items(prim[1], 2), (3, 3), kind, "rotation")
-        rot, d_rot = _batch(prim[1], 2), _batch(j_o, 3)  # (k, 3, 3), (k, 3, 3, n)
-        inertia = _per_item(_value(body.inertia, params), rot.shape[0], 2, q.dtype)
-        # columns ω_j = vee(Rᵀ ∂R/∂q_j), in body axes: (k, 3, n)
-        omega_cols = _vee(jnp.einsum("kai,kajn->kijn", rot, d_rot))
-        mass = mass + jnp.einsum("kai,kab,kbj->ij", omega_cols, inertia, omega_cols)
-        if with_bias:
-            w = _vee(jnp.einsum("kai,kaj->kij", rot, _batch(vel[1], 2))[..., None])[..., 0]
-            al = _vee(jnp.einsum("kai,kaj->kij", rot, _batch(acc[1], 2))[..., None])[..., 0]
-            iw = jnp.einsum("kab,kb->ka", inertia, w)
-            torque = jnp.einsum("kab,kb->ka", inertia, al) + jnp.cross(w, iw)
-            bias = bias + jnp.einsum("kai,ka->i", omega_cols, torque)
-    return mass, bias
+        bias = jnp.einsum("k,kdi,kd->i", m, jv, batch(acc[0], 1))
+    # rotation: Σ J_ωᵀ I J_ω and Σ J_ωᵀ (I α + ω × I ω), by the kind of body
+    return body.rotation_terms(mass, bias, (prim[1], j_o, vel[1], acc[1]), params, q.dtype)
 
 
-class SceneEquations(eqx.Module):
+class SceneEquations(AbstractEquations):
     """The equations of a scene's `LagrangianSystem` from its bodies' pose maps (see the
     module docstring): `M` from one forward-mode Jacobian of the poses, the velocity
     products from one second-order forward derivative along `q̇`, `G = ∂V/∂q`."""
@@ -127,7 +73,9 @@ class SceneEquations(eqx.Module):
 
     def __check_init__(self):
         if self.scene.kinetic is not None:
-            raise ValueError("SceneEquations needs a scene without a hand-written kinetic energy")
+            raise ConfigurationError(
+                "SceneEquations needs a scene without a hand-written kinetic energy"
+            )
 
     def _mass_and_velocity_products(self, q, qd, params, with_bias: bool):
         n = q.shape[0]
@@ -143,7 +91,12 @@ class SceneEquations(eqx.Module):
     def _gravity(self, q, params):
         return jax.grad(lambda a: self.scene.potential_energy(a, params))(q)
 
+    def energies(self, q, qd, params: Params) -> None:
+        """`None`: a scene's `(T, V)` come from its energy functions."""
+        return None
+
     def mass_matrix(self, q, params: Params) -> Any:
+        """`M(q)` from one forward-mode Jacobian of the poses."""
         return self._mass_and_velocity_products(q, jnp.zeros_like(q), params, False)[0]
 
     def mass_and_bias(self, q, qd, params: Params) -> tuple[Any, Any]:

@@ -1,8 +1,10 @@
-"""Chains' structure-aware equations: their kinematics as a `Chain`,
-and `ChainEquations`, which a chain's `LagrangianSystem` evaluates instead of
-differentiating its energies (see `lagrax._multibody.recursions`)."""
+"""Chains' and trees' structure-aware equations: what the recursions need of a chain
+or a tree (`AbstractArticulated`), their kinematics as a `recursions.Chain`, and
+`ChainEquations`, which their `LagrangianSystem` evaluates instead of differentiating
+its energies (see `lagrax._multibody.recursions`)."""
 
-from typing import Any
+import abc
+from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -11,8 +13,34 @@ import numpy as np
 
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
+from .._systems.derivatives import AbstractEquations
 from . import recursions as a
 from .derivative_recursions import rnea_derivatives
+from .joints import revolute_flags
+
+if TYPE_CHECKING:
+    from .trees import AbstractTree
+
+
+class AbstractArticulated(eqx.Module):
+    """Bodies joined by one-coordinate joints, as the recursions see them: a planar chain
+    ([`PlanarChain`][lagrax.chains.PlanarChain]) or a spatial tree
+    ([`AbstractTree`][lagrax.chains.AbstractTree]: a spatial chain or a
+    [`Tree`][lagrax.chains.Tree]). Structure only (static fields); the numbers are in
+    `params`."""
+
+    n: eqx.AbstractVar[int]  # the number of joints (and bodies)
+    parents: eqx.AbstractVar[tuple[int, ...]]  # each body's parent (−1: the base)
+
+    @abc.abstractmethod
+    def articulated(self, q, params: Params, scan: bool | None = None) -> a.Chain:
+        """The motion subspaces and body inertias at `q`, for the recursions
+        (`scan=None`: unrolled for short chains, a `lax.scan` for long ones)."""
+
+    @abc.abstractmethod
+    def link_energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
+        """`(T, V)` by a pass over the bodies, or `None` where the pose maps are the
+        cheaper route."""
 
 
 def _check(n: int, q) -> None:
@@ -94,7 +122,9 @@ def _energy_link(carry, x):
     return (w, v, up, h), (kinetic, m * lift * (h + up @ com))
 
 
-def spatial_energies(chain: Any, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+def spatial_energies(
+    chain: "AbstractTree", q, qd, params: Params
+) -> tuple[jnp.ndarray, jnp.ndarray]:
     """`(T, V)` of a spatial chain or tree by one outward pass in link frames:
     `ω_i = J_iᵀ ω_p + a_i q̇_i`, the origin's velocity `v_i = J_iᵀ (v_p + ω_p × d_i +
     s_i q̇_i)` (`d_i` the step from the parent's origin, `p` the parent), `T_i = ½ m_i
@@ -109,15 +139,15 @@ def spatial_energies(chain: Any, q, qd, params: Params) -> tuple[jnp.ndarray, jn
     """
     n, dtype = chain.n, q.dtype
     _check(n, q)
-    big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain._joint_constants())
+    big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain.joint_constants())
     axes = jnp.asarray(np.asarray(chain.axes, float), dtype)
-    rev = jnp.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types], dtype)
+    rev = jnp.asarray(revolute_flags(chain.joint_types), dtype)
     values = [jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m")]
     lift = jnp.broadcast_to(jnp.asarray(params["g"], dtype), (n,))
     xs = (q, qd.astype(dtype), big_a, big_b, big_c, slide, axes, rev, *values, lift)
     zero = jnp.zeros(3, dtype)
     init = (zero, zero, jnp.asarray(chain.up, dtype), jnp.zeros((), dtype))
-    parents = a.Passes(n, True, dtype, getattr(chain, "parents", None)).parents
+    parents = a.Passes(n, True, dtype, chain.parents).parents
     if parents is None:  # a chain (a tree whose parents form one is one too)
         _, (kinetic, potential) = jax.lax.scan(_energy_link, init, xs)
     else:  # a tree: every body's carry in a buffer (slot n: the base), read by parent
@@ -133,7 +163,7 @@ def spatial_energies(chain: Any, q, qd, params: Params) -> tuple[jnp.ndarray, jn
     return jnp.sum(kinetic), jnp.sum(potential)
 
 
-def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.Chain:
+def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = None) -> a.Chain:
     """A spatial chain or tree (a [`Tree`][lagrax.chains.Tree]: body `i` hangs from
     body `parents[i]`, and every pass runs over parents): world joint axes
     `z_i = R_i axis_i` through the joint origins `o_i`, `S_i = (z_i, o_i × z_i)`
@@ -142,10 +172,10 @@ def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.
     n = chain.n
     _check(n, q)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
-    passes = a.Passes(n, scan, q.dtype, getattr(chain, "parents", None))
-    big_a, big_b, big_c, slide = chain._joint_constants()
+    passes = a.Passes(n, scan, q.dtype, chain.parents)
+    big_a, big_b, big_c, slide = chain.joint_constants()
     axes = np.asarray(chain.axes, float)
-    rev = np.asarray([1.0 if k == "R" else 0.0 for k in chain.joint_types])
+    rev = revolute_flags(chain.joint_types)
     values = (jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m"))
     per_link = (q, big_a, big_b, big_c, slide, axes, rev, *values)
     eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(3)) for i in range(3))
@@ -156,22 +186,20 @@ def spatial_chain(chain: Any, q, params: Params, scan: bool | None = None) -> a.
     return a.Chain(passes, a.SPATIAL, s, inertia, a0)
 
 
-class ChainEquations(eqx.Module):
+class ChainEquations(AbstractEquations):
     """The equations of a chain's or a tree's `LagrangianSystem` from Featherstone's recursions:
     `q̈` by the articulated-body algorithm (O(n)), `M` by the composite-rigid-body
     algorithm, `M q̈ + C q̇ + G` by recursive Newton–Euler. They equal the autodiff
     Lagrangian of the chain's energies to round-off (tested against it and against
     [`lagrax.newton_euler.rnea`][])."""
 
-    chain: Any  # PlanarChain | SpatialChain | Tree: structure only (static fields)
+    chain: AbstractArticulated  # structure only (static fields)
 
     scan: bool | None = eqx.field(default=None, static=True)
 
     def at(self, q, params: Params) -> a.Chain:
         """The chain's motion subspaces and inertias at `q`."""
-        if hasattr(self.chain, "joint_types"):
-            return spatial_chain(self.chain, q, params, self.scan)
-        return planar_chain(self.chain.n, q, params, self.scan)
+        return self.chain.articulated(q, params, self.scan)
 
     def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
         """`q̈` solving `M q̈ + C q̇ + G = force` (`force` `None` means zero); NaN
@@ -186,9 +214,7 @@ class ChainEquations(eqx.Module):
         (`spatial_energies`: about half the cost of the pose maps' JVP per saved state
         in `simulate`), or `None` for a planar chain, whose vectorized pose maps are
         already the cheaper route (0.2 against 0.8 µs a state at n = 7 for a recursion)."""
-        if hasattr(self.chain, "joint_types"):
-            return spatial_energies(self.chain, q, qd, params)
-        return None
+        return self.chain.link_energies(q, qd, params)
 
     def mass_matrix(self, q, params: Params) -> jnp.ndarray:
         return a.crba(self.at(q, params))

@@ -1,5 +1,11 @@
 """Kinematic trees of rigid bodies: robots with branches (a torso with two arms, a hand).
 
+`AbstractTree` is what every spatial tree shares (a serial chain is a tree whose parents
+are `(−1, 0, 1, …)`): forward kinematics over parents, gravity, the scene, the system
+and what the recursions read. [`Tree`][lagrax.chains.Tree] and
+[`SpatialChain`][lagrax.chains.SpatialChain] are its final kinds; the joint kinds are in
+`lagrax._multibody.joints`.
+
 A [`Tree`][lagrax.chains.Tree] holds the *structure* (joint types, the parent of every body, joint
 axes, fixed joint rotations, names, limits); the numbers a sweep may vary (masses, joint
 placements, centres of mass, inertias, damping, g) live in `params` as arrays with a
@@ -9,22 +15,28 @@ parents (`lagrax._multibody.recursions`); [`lagrax.newton_euler.rnea`][] reads i
 for the independent oracle. [`lagrax.chains.from_urdf`][] builds one from a URDF file.
 """
 
+import abc
 import dataclasses
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, ClassVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import physical
 from .._core.custom_types import Params, Vector
-from .._core.errors import ShapeError
+from .._core.errors import ConfigurationError, ShapeError
 from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, Scene, SpatialBody
-from .chains import _broadcast, _float_dtype, _rotation_tuple, _unit, joint_constants
+from .bodies import Param, SpatialBody
+from .common import broadcast, float_dtype, rotation_tuple, unit_vector
 from .inertia import check_inertia
-from .tree_equations import ChainEquations
+from .joints import joint_constants, parse_joint_types, revolute
+from .recursions import Chain
+from .scene import Scene
+from .tree_equations import AbstractArticulated, ChainEquations, spatial_chain, spatial_energies
 
 
 def _joint_damping(q, qd, params):
@@ -37,9 +49,9 @@ def _names(values: Any, n: int, default: str, what: str) -> tuple[str, ...]:
         return tuple(f"{default}{i}" for i in range(n))
     out = tuple(str(v) for v in values)
     if len(out) != n:
-        raise ValueError(f"{n} joints need {n} {what}, got {len(out)}")
+        raise ConfigurationError(f"{n} joints need {n} {what}, got {len(out)}")
     if len(set(out)) != n:
-        raise ValueError(f"{what} must be distinct, got {out}")
+        raise ConfigurationError(f"{what} must be distinct, got {out}")
     return out
 
 
@@ -48,7 +60,7 @@ def _limits(values: Any, n: int) -> tuple[tuple[float, float], ...]:
         return tuple((-math.inf, math.inf) for _ in range(n))
     arr = np.asarray(values, float)
     if arr.shape != (n, 2) or np.any(np.isnan(arr)) or np.any(arr[:, 0] > arr[:, 1]):
-        raise ValueError(f"limits must be {n} pairs (lower <= upper), got {values!r}")
+        raise ConfigurationError(f"limits must be {n} pairs (lower <= upper), got {values!r}")
     return tuple((float(lo), float(hi)) for lo, hi in arr)
 
 
@@ -57,11 +69,218 @@ def _bounds(values: Any, n: int, what: str) -> tuple[float, ...]:
         return (math.inf,) * n
     arr = np.broadcast_to(np.asarray(values, float), (n,))
     if np.any(~(arr > 0)):
-        raise ValueError(f"{what} must be positive (inf: none), got {values!r}")
+        raise ConfigurationError(f"{what} must be positive (inf: none), got {values!r}")
     return tuple(float(x) for x in arr)
 
 
-class Tree(eqx.Module):
+# Forward kinematics of a chain longer than this may loop (``lax.scan``) over its joints
+# instead of being written out joint by joint (see `SpatialChain`).
+UNROLL_MAX = 6
+
+
+def structure(
+    joint_types: str, axes: Any, rotations: Any, up: Any
+) -> tuple[tuple[tuple[float, float, float], ...], tuple, tuple[float, float, float]]:
+    """The static joint axes (normalized), fixed rotations and `up` of `n =
+    len(joint_types)` joints (defaults: z axes, identity rotations);
+    `ConfigurationError` for lists of the wrong length or values that are not unit
+    vectors and rotations."""
+    n = len(joint_types)
+    axes = [(0.0, 0.0, 1.0)] * n if axes is None else list(axes)
+    rotations = [np.eye(3)] * n if rotations is None else list(rotations)
+    if len(axes) != n:
+        raise ConfigurationError(f"{n} joints need {n} axes, got {len(axes)}")
+    if len(rotations) != n:
+        raise ConfigurationError(f"{n} joints need {n} fixed rotations, got {len(rotations)}")
+    return (
+        tuple(unit_vector(a, f"axes[{i}]") for i, a in enumerate(axes)),
+        tuple(rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)),
+        unit_vector(up, "up"),
+    )
+
+
+class AbstractTree(AbstractArticulated):
+    r"""A spatial kinematic tree of rigid bodies fixed to the world at its base: what a
+    [`SpatialChain`][lagrax.chains.SpatialChain] (parents `(−1, 0, 1, …)`) and a
+    [`Tree`][lagrax.chains.Tree] share: forward kinematics over parents, gravity, the
+    scene of one batched [`SpatialBody`][lagrax.bodies.SpatialBody] and the system whose
+    equations are Featherstone's recursions.
+
+    Body `i` hangs from body `parents[i]` (`−1`: the base) by joint `i`, a letter of
+    `joint_types` (see `lagrax._multibody.joints`), which sits at `offset_i` in the
+    parent's frame with a fixed orientation `S_i` (`rotations[i]`) and moves along or
+    about `axis_i`. Gravity has magnitude `g` along `−up`.
+    """
+
+    joint_types: eqx.AbstractVar[str]
+    parents: eqx.AbstractVar[tuple[int, ...]]
+    axes: eqx.AbstractVar[tuple[tuple[float, float, float], ...]]
+    rotations: eqx.AbstractVar[tuple[tuple[tuple[float, ...], ...], ...]]
+    up: eqx.AbstractVar[tuple[float, float, float]]
+
+    # Forward kinematics loops over the joints (`lax.scan`, which follows one chain of
+    # parents) beyond this many joints; `inf` (a tree, whose bodies may branch): always
+    # written out body by body.
+    kinematics_scan_above: ClassVar[float] = math.inf
+
+    @property
+    def n(self) -> int:
+        """Number of moving joints (and bodies)."""
+        return len(self.joint_types)
+
+    def children(self, i: int) -> tuple[int, ...]:
+        """The bodies hanging from body `i` (`−1`: from the base)."""
+        return tuple(k for k, p in enumerate(self.parents) if p == i)
+
+    @abc.abstractmethod
+    def params(self, **values: Any) -> dict[str, jnp.ndarray]:
+        """Parameters as arrays with a leading axis of length `n`: `m: (n,)`,
+        `offset: (n, 3)`, `com: (n, 3)`, `inertia: (n, 3, 3)`, `g: ()`, and any more
+        the kind of tree reads (a tree's joint `damping`)."""
+
+    @abc.abstractmethod
+    def dissipation(self) -> Callable | None:
+        """The scene's Rayleigh dissipation `D(q, q̇, params)` (`None`: none)."""
+
+    @abc.abstractmethod
+    def label(self) -> str:
+        """The scene's and the system's name."""
+
+    @abc.abstractmethod
+    def coordinate_names(self) -> tuple[str, ...] | None:
+        """The system's coordinate names (`None`: unnamed)."""
+
+    def _body_params(
+        self, values: dict[str, Any], inertia_per_kg: Any, dtype: Any, item: str
+    ) -> dict[str, jnp.ndarray]:
+        """`values["m"], ["offset"], ["com"], ["inertia"]` broadcast to the `n` bodies
+        and checked (`inertia` `None`: `m` times `inertia_per_kg`); messages name the
+        class and the `item` (link or body)."""
+        n, who, inertia = self.n, type(self).__name__, values["inertia"]
+        m_ = physical(broadcast("m", values["m"], (n,), dtype), f"{who}.params m", item=item)
+        if inertia is None:
+            inertia = m_[:, None, None] * jnp.asarray(inertia_per_kg, dtype)[None]
+        inertia = broadcast("inertia", inertia, (n, 3, 3), dtype)
+        inertia = check_inertia(inertia, name=f"{who}.params inertia", semidefinite=True)
+        return {
+            "m": m_,
+            "offset": broadcast("offset", values["offset"], (n, 3), dtype),
+            "com": broadcast("com", values["com"], (n, 3), dtype),
+            "inertia": inertia,
+        }
+
+    def joint_constants(self) -> tuple[np.ndarray, ...]:
+        """Per-joint constants `(A, B, C, s)`, stacked (see
+        `lagrax._multibody.joints.joint_constants`)."""
+        return joint_constants(self.joint_types, self.axes, self.rotations)
+
+    def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """Forward kinematics: body-frame origins `(n, 3)` and rotations `(n, 3, 3)` in
+        the world frame (`R_i` takes frame-`i` components to world ones): `R_i = R_p ᵖR_i`,
+        `o_i = o_p + R_p ᵖp_i` with `p` the parent (the base: `R = 1`, `o = 0`)."""
+        origins, rots, _ = self._kinematics(q, params, with_com=False)
+        return _stacked(origins), _stacked(rots)
+
+    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
+        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n, 3)`."""
+        return _stacked(self._kinematics(q, params, with_com=True)[2])
+
+    def _pose(self, q, params):
+        _, rots, coms = self._kinematics(q, params, with_com=True)
+        return coms, rots
+
+    def _kinematics(self, q, params, *, with_com: bool):
+        """Origins, rotations and (`with_com`) centres of mass: lists of `n` small
+        arrays written out body by body (fused into straight-line code under `vmap`), or
+        stacked arrays from a `lax.scan` for a long chain (`kinematics_scan_above`)."""
+        if q.shape != (self.n,):
+            raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for the {self.label()}")
+        offset = jnp.asarray(params["offset"])
+        dtype = jnp.result_type(q, offset)
+        q, offset = q.astype(dtype), offset.astype(dtype)
+        com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
+        if self.n > self.kinematics_scan_above:
+            return self._kinematics_scan(q, offset, com, dtype)
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self.joint_constants())
+        base = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
+        origins, rots, coms = [], [], []
+        for i, kind in enumerate(self.joint_types):
+            p = self.parents[i]
+            rot, origin = base if p < 0 else (rots[p], origins[p])
+            step = offset[i] if revolute(kind) else offset[i] + q[i] * slide[i]
+            origins.append(origin + rot @ step)
+            if revolute(kind):
+                rots.append(rot @ (a[i] + jnp.sin(q[i]) * b[i] + (1 - jnp.cos(q[i])) * c[i]))
+            else:
+                rots.append(rot @ a[i])
+            if com is not None:
+                coms.append(origins[i] + rots[i] @ com[i])
+        return origins, rots, coms if com is not None else None
+
+    def _kinematics_scan(self, q, offset, com, dtype):
+        """`_kinematics` of a chain as one `lax.scan` over its joints."""
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self.joint_constants())
+
+        def joint(carry, x):
+            rot, origin = carry
+            qi, ai, bi, ci, si, off = x
+            origin = origin + rot @ (off + qi * si)
+            rot = rot @ (ai + jnp.sin(qi) * bi + (1 - jnp.cos(qi)) * ci)
+            return (rot, origin), (origin, rot)
+
+        init = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
+        _, (origins, rots) = jax.lax.scan(joint, init, (q, a, b, c, slide, offset))
+        coms = None if com is None else origins + jnp.einsum("nij,nj->ni", rots, com)
+        return origins, rots, coms
+
+    def _gravity(self, params):
+        g = jnp.asarray(params["g"])
+        return -g * jnp.asarray(self.up, g.dtype)
+
+    def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
+        """World joint axes, motion subspaces and body inertias at `q` (see
+        `lagrax._multibody.tree_equations.spatial_chain`)."""
+        return spatial_chain(self, q, params, scan)
+
+    def link_energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """`(T, V)` by one outward pass in link frames (see
+        `lagrax._multibody.tree_equations.spatial_energies`)."""
+        return spatial_energies(self, q, qd, params)
+
+    def scene(self) -> Scene:
+        """The tree as a [`lagrax.bodies.Scene`][]: one batched
+        [`SpatialBody`][lagrax.bodies.SpatialBody] for all bodies, gravity `−g up`, and
+        the tree's [`dissipation`][lagrax.chains.AbstractTree.dissipation] (a tree's joint
+        damping, `½ Σ b_i q̇_i²`)."""
+        body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
+        return Scene(
+            [body],
+            gravity=self._gravity,
+            dissipation=self.dissipation(),
+            n_dof=self.n,
+            name=self.label(),
+        )
+
+    def system(self) -> LagrangianSystem:
+        """The tree's [`lagrax.LagrangianSystem`][], its equations evaluated by
+        Featherstone's recursions over parents (`q̈` by the articulated-body algorithm,
+        O(n); `M` by the composite-rigid-body algorithm), its coordinates named by
+        [`coordinate_names`][lagrax.chains.AbstractTree.coordinate_names].
+        `dataclasses.replace(system, equations=None)` differentiates the energies
+        instead (the definition)."""
+        return dataclasses.replace(
+            self.scene().system(),
+            equations=ChainEquations(self),
+            coordinate_names=self.coordinate_names(),
+        )
+
+
+def _stacked(x):
+    """Per-body values as one array (a list of `n` is stacked; an array is kept)."""
+    return jnp.stack(x) if isinstance(x, list) else x
+
+
+class Tree(AbstractTree):
     r"""A kinematic tree of rigid bodies joined by revolute (`"R"`) and prismatic
     (`"P"`) joints, fixed to the world at its base.
 
@@ -110,8 +329,8 @@ class Tree(eqx.Module):
     - `velocity_limits`, `effort_limits`: `n` positive bounds (default `inf`),
       stored likewise.
 
-    **Raises:** `ValueError` for an unknown joint type, a parent index that is not an
-    earlier body, or lists of the wrong length.
+    **Raises:** `ConfigurationError` (a `ValueError`) for an unknown joint type, a
+    parent index that is not an earlier body, or lists of the wrong length.
 
     **Example:** a torso joint carrying two one-joint arms:
 
@@ -147,49 +366,25 @@ class Tree(eqx.Module):
         velocity_limits: Any = None,
         effort_limits: Any = None,
     ):
-        types = str(joint_types).upper().replace("C", "R")
-        if not types or set(types) - {"R", "P"}:
-            raise ValueError(
-                f"joint_types must be a non-empty string of 'R' (revolute), 'C' (continuous) "
-                f"and 'P' (prismatic), got {joint_types!r}"
-            )
+        types = parse_joint_types(joint_types, aliases={"C": "R"})
         n = len(types)
         parents = tuple(int(p) for p in parents)
         if len(parents) != n:
-            raise ValueError(f"{n} joints need {n} parent indices, got {len(parents)}")
+            raise ConfigurationError(f"{n} joints need {n} parent indices, got {len(parents)}")
         for i, p in enumerate(parents):
             if not -1 <= p < i:
-                raise ValueError(
+                raise ConfigurationError(
                     f"parents[{i}] = {p}: a body's parent must be an earlier body (0 <= p < "
                     f"{i}) or -1 (the base); number the bodies from the base outwards"
                 )
-        axes = [(0.0, 0.0, 1.0)] * n if axes is None else list(axes)
-        rotations = [np.eye(3)] * n if rotations is None else list(rotations)
-        if len(axes) != n or len(rotations) != n:
-            raise ValueError(
-                f"{n} joints need {n} axes and {n} rotations, got {len(axes)}, {len(rotations)}"
-            )
         self.joint_types = types
         self.parents = parents
-        self.axes = tuple(_unit(a, f"axes[{i}]") for i, a in enumerate(axes))
-        self.rotations = tuple(
-            _rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)
-        )
-        self.up = _unit(up, "up")
+        self.axes, self.rotations, self.up = structure(types, axes, rotations, up)
         self.joint_names = _names(joint_names, n, "joint", "joint_names")
         self.body_names = _names(body_names, n, "body", "body_names")
         self.limits = _limits(limits, n)
         self.velocity_limits = _bounds(velocity_limits, n, "velocity_limits")
         self.effort_limits = _bounds(effort_limits, n, "effort_limits")
-
-    @property
-    def n(self) -> int:
-        """Number of moving joints (and bodies)."""
-        return len(self.joint_types)
-
-    def children(self, i: int) -> tuple[int, ...]:
-        """The bodies hanging from body `i` (`−1`: from the base)."""
-        return tuple(k for k, p in enumerate(self.parents) if p == i)
 
     def params(
         self,
@@ -219,87 +414,22 @@ class Tree(eqx.Module):
         negative mass or damping, or an inertia that is not symmetric positive-semidefinite
         or violates `I1 + I2 ≥ I3` (naming the body).
         """
-        n, dtype = self.n, _float_dtype(dtype)
-        m_ = physical(_broadcast("m", m, (n,), dtype), "Tree.params m", item="body")
-        if inertia is None:
-            inertia = m_[:, None, None] * (0.004 * jnp.eye(3, dtype=dtype))[None]
-        inertia = _broadcast("inertia", inertia, (n, 3, 3), dtype)
-        inertia = check_inertia(inertia, name="Tree.params inertia", semidefinite=True)
-        b = _broadcast("damping", damping, (n,), dtype)
-        return {
-            "m": m_,
-            "offset": _broadcast("offset", offset, (n, 3), dtype),
-            "com": _broadcast("com", com, (n, 3), dtype),
-            "inertia": inertia,
-            "damping": physical(b, "Tree.params damping", item="joint"),
-            "g": jnp.asarray(g, dtype=dtype),
-        }
+        dtype = float_dtype(dtype)
+        values = {"m": m, "offset": offset, "com": com, "inertia": inertia}
+        out = self._body_params(values, 0.004 * np.eye(3), dtype, item="body")
+        b = broadcast("damping", damping, (self.n,), dtype)
+        out["damping"] = physical(b, "Tree.params damping", item="joint")
+        out["g"] = jnp.asarray(g, dtype=dtype)
+        return out
 
-    def _joint_constants(self) -> tuple[np.ndarray, ...]:
-        return joint_constants(self.joint_types, self.axes, self.rotations)
+    def dissipation(self) -> Callable:
+        """Viscous joint damping: the Rayleigh dissipation `½ Σ b_i q̇_i²`."""
+        return _joint_damping
 
-    def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """Forward kinematics: body-frame origins `(n, 3)` and rotations `(n, 3, 3)` in
-        the world frame: `R_i = R_p ᵖR_i`, `o_i = o_p + R_p ᵖp_i` with `p` the parent
-        (the base: `R = 1`, `o = 0`)."""
-        origins, rots, _ = self._kinematics(q, params, with_com=False)
-        return jnp.stack(origins), jnp.stack(rots)
+    def label(self) -> str:
+        """`"<n>-joint tree"`."""
+        return f"{self.n}-joint tree"
 
-    def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n, 3)`."""
-        return jnp.stack(self._kinematics(q, params, with_com=True)[2])
-
-    def _pose(self, q, params):
-        _, rots, coms = self._kinematics(q, params, with_com=True)
-        return coms, rots
-
-    def _kinematics(self, q, params, *, with_com: bool):
-        if q.shape != (self.n,):
-            raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for this tree")
-        offset = jnp.asarray(params["offset"])
-        dtype = jnp.result_type(q, offset)
-        q, offset = q.astype(dtype), offset.astype(dtype)
-        com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
-        a, b, c, slide = (jnp.asarray(x, dtype) for x in self._joint_constants())
-        base = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
-        origins, rots, coms = [], [], []
-        for i, kind in enumerate(self.joint_types):
-            p = self.parents[i]
-            rot, origin = base if p < 0 else (rots[p], origins[p])
-            step = offset[i] if kind == "R" else offset[i] + q[i] * slide[i]
-            origins.append(origin + rot @ step)
-            if kind == "R":
-                rots.append(rot @ (a[i] + jnp.sin(q[i]) * b[i] + (1 - jnp.cos(q[i])) * c[i]))
-            else:
-                rots.append(rot @ a[i])
-            if com is not None:
-                coms.append(origins[i] + rots[i] @ com[i])
-        return origins, rots, coms
-
-    def _gravity(self, params):
-        g = jnp.asarray(params["g"])
-        return -g * jnp.asarray(self.up, g.dtype)
-
-    def scene(self) -> Scene:
-        """The tree as a [`lagrax.bodies.Scene`][]: one batched
-        [`SpatialBody`][lagrax.bodies.SpatialBody] for all bodies, gravity `−g up`, joint
-        damping as the Rayleigh dissipation `½ Σ b_i q̇_i²`."""
-        body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
-        return Scene(
-            [body],
-            gravity=self._gravity,
-            dissipation=_joint_damping,
-            n_dof=self.n,
-            name=f"{self.n}-joint tree",
-        )
-
-    def system(self) -> LagrangianSystem:
-        """The tree's [`lagrax.LagrangianSystem`][], its equations evaluated by
-        Featherstone's recursions over parents, its coordinates named by
-        `joint_names` (`system.coordinate_names`). ``dataclasses.replace(system,
-        equations=None)`` differentiates the energies instead (the definition)."""
-        return dataclasses.replace(
-            self.scene().system(),
-            equations=ChainEquations(self),
-            coordinate_names=self.joint_names,
-        )
+    def coordinate_names(self) -> tuple[str, ...]:
+        """The joint names: a tree's system names its coordinates after its joints."""
+        return self.joint_names

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import ParameterError, URDFError
-from .chains import _float_dtype
+from .common import float_dtype
 from .inertia import check_inertia
 from .trees import Tree
 
@@ -343,20 +343,36 @@ def from_urdf(
     tree.joint_names, tree.limits
     ```
     """
+    links, joints = _parse(_read(source))
+    root, parent_of, children = _structure(links, joints, root)
+    keep = _keep(root, tip, links, parent_of, children)
+    bodies, place, order = _place_bodies(root, keep, children)
+    _merge_inertials(bodies, place, order, links, massless_links)
+    return _tree_and_params(bodies, up, g, dtype)
+
+
+def _read(source: str | os.PathLike) -> str:
+    """The URDF text: `source` itself if it starts with `<`, else the file it names."""
     text = os.fspath(source)
     if not text.lstrip().startswith("<"):
         with open(text, encoding="utf-8") as f:
             text = f.read()
-    links, joints = _parse(text)
-    root, parent_of, children = _structure(links, joints, root)
-    keep = _keep(root, tip, links, parent_of, children)
+    return text
 
+
+_Place = dict[str, tuple[int, np.ndarray, np.ndarray]]
+
+
+def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _Place, list[str]]:
+    """One body per moving joint below `root`, depth-first (pre-order: a parent before
+    its children) in file order, and every kept link's place `(body index, R, p)`: its
+    frame in its body's frame (body −1: the world; a link on a fixed joint is placed in
+    the body it is fixed to)."""
     bodies: list[_Body] = []
-    # (body index, R, p): the link frame in its body's frame (body −1: the world)
-    place: dict[str, tuple[int, np.ndarray, np.ndarray]] = {}
+    place: _Place = {}
     order: list[str] = []
     stack: list[tuple[str, _Joint | None]] = [(root, None)]
-    while stack:  # depth-first (pre-order: a parent before its children), file order
+    while stack:
         link, j = stack.pop()
         if j is None:
             place[link] = (-1, np.eye(3), np.zeros(3))
@@ -372,7 +388,15 @@ def from_urdf(
         stack.extend((c.child, c) for c in reversed(children[link]) if c.child in keep)
     if not bodies:
         raise URDFError(f"the robot has no revolute, continuous or prismatic joint below {root!r}")
+    return bodies, place, order
 
+
+def _merge_inertials(
+    bodies: list[_Body], place: _Place, order: list[str], links: dict, massless_links: bool
+) -> None:
+    """Add every link's `<inertial>` to its body: the mass, the first moment and the
+    inertia about the body's origin (parallel-axis theorem); links fixed to the world are
+    skipped."""
     for link in order:
         body, rot, pos = place[link]
         if body < 0:
@@ -398,6 +422,10 @@ def from_urdf(
         shift = inertial.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
         b.inertia_o = b.inertia_o + rot @ inertial.inertia @ rot.T + shift
 
+
+def _tree_and_params(bodies: list[_Body], up: Any, g: float, dtype: Any) -> tuple[Tree, dict]:
+    """The [`Tree`][lagrax.chains.Tree] of the merged bodies and its params: each body's
+    centre of mass and its inertia about it from the sums."""
     masses = np.array([b.mass for b in bodies])
     coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
     inertias = np.stack(
@@ -427,6 +455,6 @@ def from_urdf(
         inertia=inertias,
         damping=np.array([j.damping for j in joint_list]),
         g=g,
-        dtype=_float_dtype(dtype),
+        dtype=float_dtype(dtype),
     )
     return tree, params

@@ -14,9 +14,11 @@ For an autonomous system `t` is ignored and the kernels trace exactly the code t
 traced before time-dependent systems existed.
 """
 
+import abc
 from collections.abc import Callable
 from typing import Any, Protocol
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -28,17 +30,35 @@ from .._core.linalg import cholesky_solve, solve_spd_unrolled
 FOF_MAX = 6
 
 
-class Equations(Protocol):
+class AbstractEquations(eqx.Module):
     """A structure-aware evaluation of the equations of the same `T` and `V` (a chain's
-    recursions): `M`, `q̈` for a generalized force, and `M q̈ + C q̇ + G`. An
-    implementation may also offer `energies(q, qd, params) -> (T, V) | None` (see
-    `structured_energies`)."""
+    recursions, a scene's pose maps): `M`, `q̈` for a generalized force, `M q̈ + C q̇ + G`
+    and its derivatives, and `(T, V)` where the structure gives them more cheaply than
+    the energy functions (see `structured_energies`)."""
 
-    def mass_matrix(self, q: Any, params: Any) -> Any: ...
-    def mass_and_bias(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any]: ...
-    def accelerations(self, q: Any, qd: Any, params: Any, force: Any) -> Any: ...
-    def inverse_dynamics(self, q: Any, qd: Any, qdd: Any, params: Any) -> Any: ...
-    def derivatives(self, q: Any, qd: Any, qdd: Any, params: Any) -> tuple[Any, Any, Any]: ...
+    @abc.abstractmethod
+    def mass_matrix(self, q: Any, params: Any) -> Any:
+        """`M(q)`."""
+
+    @abc.abstractmethod
+    def mass_and_bias(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any]:
+        """`M` and the bias `C q̇ + G`."""
+
+    @abc.abstractmethod
+    def accelerations(self, q: Any, qd: Any, params: Any, force: Any) -> Any:
+        """`q̈` solving `M q̈ + C q̇ + G = force` (`None`: zero)."""
+
+    @abc.abstractmethod
+    def inverse_dynamics(self, q: Any, qd: Any, qdd: Any, params: Any) -> Any:
+        """`M q̈ + C q̇ + G` (`qdd=None`: the bias)."""
+
+    @abc.abstractmethod
+    def derivatives(self, q: Any, qd: Any, qdd: Any, params: Any) -> tuple[Any, Any, Any]:
+        """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G`."""
+
+    @abc.abstractmethod
+    def energies(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any] | None:
+        """`(T, V)` from the structure, or `None`: from the energy functions."""
 
 
 class Energies(Protocol):
@@ -49,7 +69,7 @@ class Energies(Protocol):
     potential: Callable[..., Any] | None
     dissipation: Callable[..., Any] | None
     force: Callable[..., Any] | None
-    equations: Equations | None
+    equations: AbstractEquations | None
     time_dependent: bool
 
 
@@ -129,8 +149,7 @@ def structured_energies(e: Energies, q, qd, params, t=None):
     """`(T, V)` of a system with structure-aware `equations`: from the equations'
     own `energies(q, q̇, params)` where they offer one (a spatial chain's outward pass:
     no derivative of the pose maps), else from the energy functions."""
-    energies = getattr(e.equations, "energies", None)
-    out = None if energies is None else energies(q, qd, params)
+    out = None if e.equations is None else e.equations.energies(q, qd, params)
     if out is not None:
         return out
     return kinetic(e, q, qd, params, t), potential(e, q, params, t)

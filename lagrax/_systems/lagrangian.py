@@ -139,7 +139,7 @@ class LagrangianSystem(AbstractSystem):
     n_dof: int | None = eqx.field(default=None, static=True)
     name: str = eqx.field(default="system", static=True)
     scalar_derivatives: bool | None = eqx.field(default=None, static=True)
-    equations: d.Equations | None = None
+    equations: d.AbstractEquations | None = None
     time_dependent: bool = eqx.field(default=False, static=True)
     coordinate_names: tuple[str, ...] | None = eqx.field(default=None, static=True)
 

@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._core.errors import ArgumentTypeError
 from .._systems.constrained import ConstrainedSystem
 from .._systems.lagrangian import LagrangianSystem
 
@@ -41,7 +42,7 @@ def cartesian_pendulum(*, alpha: float = 10.0, beta: float = 10.0, **overrides):
     """
     unknown = set(overrides) - set(PARAM_NAMES)
     if unknown:
-        raise TypeError(
+        raise ArgumentTypeError(
             f"cartesian_pendulum() got unknown parameters {sorted(unknown)}; known: {PARAM_NAMES}"
         )
     params = {"m": 1.0, "l": 1.0, "g": 9.81, **overrides}

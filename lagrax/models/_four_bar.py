@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 
+from .._core.errors import ArgumentTypeError
 from .._systems.constrained import ConstrainedSystem
 from .._systems.lagrangian import LagrangianSystem
 
@@ -94,7 +95,7 @@ def four_bar(*, alpha: float = 10.0, beta: float = 10.0, **overrides):
     """
     unknown = set(overrides) - set(PARAM_NAMES)
     if unknown:
-        raise TypeError(
+        raise ArgumentTypeError(
             f"four_bar() got unknown parameters {sorted(unknown)}; known: {PARAM_NAMES}"
         )
     params = dict(l1=0.5, l2=2.0, l3=1.5, d=2.0, m1=0.5, m2=2.0, m3=1.5, g=9.81)

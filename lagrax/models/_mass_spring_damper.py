@@ -3,6 +3,7 @@
 import jax.numpy as jnp
 
 from .._core.checks import physical
+from .._core.errors import ArgumentTypeError
 from .._systems.lagrangian import LagrangianSystem
 
 
@@ -33,7 +34,7 @@ def mass_spring_damper(**overrides):
     params = {"m": 1.0, "k": 1.0, "c": 0.0, "f0": 0.0, "omega": 1.0}
     unknown = set(overrides) - set(params)
     if unknown:
-        raise TypeError(f"mass_spring_damper() got unknown parameters {sorted(unknown)}")
+        raise ArgumentTypeError(f"mass_spring_damper() got unknown parameters {sorted(unknown)}")
     params.update(overrides)
     params = {k: jnp.asarray(v, dtype=float) for k, v in params.items()}
     physical(params["m"], "mass_spring_damper m")

@@ -3,18 +3,10 @@
 import jax.numpy as jnp
 
 from .._core.checks import physical
+from .._core.errors import ArgumentTypeError
 from .._systems.lagrangian import LagrangianSystem
 
 PARAM_NAMES = ("m1", "m2", "l1", "l2", "r1", "r2", "I1", "I2", "g")
-
-
-def _com_positions(q, p):
-    """Centres of mass of links 1 and 2 in the fixed frame (gravity along −y)."""
-    th1, th12 = q[0], q[0] + q[1]
-    c1 = jnp.stack([p["r1"] * jnp.cos(th1), p["r1"] * jnp.sin(th1)])
-    elbow = jnp.stack([p["l1"] * jnp.cos(th1), p["l1"] * jnp.sin(th1)])
-    c2 = elbow + jnp.stack([p["r2"] * jnp.cos(th12), p["r2"] * jnp.sin(th12)])
-    return c1, c2
 
 
 def kinetic(q, qd, p):
@@ -66,7 +58,7 @@ def planar_2r(**overrides):
     params = default_params()
     unknown = set(overrides) - set(PARAM_NAMES)
     if unknown:
-        raise TypeError(
+        raise ArgumentTypeError(
             f"planar_2r() got unknown parameters {sorted(unknown)}; known: {PARAM_NAMES}"
         )
     params.update({k: jnp.asarray(v, dtype=float) for k, v in overrides.items()})

@@ -5,6 +5,7 @@ and says how)."""
 
 from pathlib import Path
 
+from .._core.errors import ConfigurationError
 from .._systems.lagrangian import LagrangianSystem
 
 _DIR = Path(__file__).resolve().parent / "urdf"
@@ -19,7 +20,7 @@ def urdf_path(name: str) -> Path:
     **Raises:** `ValueError` for another name.
     """
     if name not in _NAMES:
-        raise ValueError(f"no URDF model {name!r}; lagrax has {_NAMES}")
+        raise ConfigurationError(f"no URDF model {name!r}; lagrax has {_NAMES}")
     return _DIR / f"{name}.urdf"
 
 
