@@ -304,12 +304,6 @@ class ConstrainedSystem(AbstractSystem):
         q, qd = self._state(q, qd)
         return self._kmat(q, params) @ qd
 
-    def constraint_jacobian(self, q: Coordinates, params: Params) -> ConstraintJacobian:
-        """`J = ∂φ/∂q` of the holonomic constraints, shape `(m₁, n)` (`n` JVPs of
-        `φ`)."""
-        (q,) = self._state(q)
-        return self._jacobian(q, params)
-
     def constraint_matrix(self, q: Coordinates, params: Params) -> ConstraintJacobian:
         """The stacked constraint matrix `K = [J; A]`, shape `(m₁ + m₂, n)`: the
         holonomic Jacobian `J = ∂φ/∂q`, then the velocity-constraint matrix `A(q)`.
