@@ -21,7 +21,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import call_energy, call_user, clamped_reads, energy_value, force_value
+from .._core.checks import call_energy, call_user, energy_value, force_value
+from .._core.clamped_reads import clamped_reads
 from .._core.linalg import cholesky_solve, solve_spd_unrolled
 
 # Up to this many coordinates, the equations use scalar forward-over-forward derivatives.
