@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ._core.errors import ConfigurationError, ShapeError
+from ._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from ._plot.axes import axes_for
 from ._plot.sweep import sweep_heatmap as sweep_heatmap
 from ._solve.solution import Solution
@@ -407,7 +407,9 @@ def work_precision(
     if isinstance(points, tuple) and len(points) == 2 and np.ndim(points[1]) == 0:
         points, reference_error = points
     if reference_error is None:
-        raise TypeError("work_precision needs reference_error= (or the (points, error) pair)")
+        raise ArgumentTypeError(
+            "work_precision needs reference_error= (or the (points, error) pair)"
+        )
     return plot_work_precision(
         points, reference_error=float(reference_error), title=title, axes=axes
     )
