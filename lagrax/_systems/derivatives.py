@@ -23,6 +23,7 @@ import numpy as np
 
 from .._core.checks import call_energy, call_user, energy_value, force_value
 from .._core.clamped_reads import clamped_reads
+from .._core.errors import ArgumentTypeError
 from .._core.linalg import cholesky_solve, solve_spd_unrolled
 
 # Up to this many coordinates, the equations use scalar forward-over-forward derivatives.
@@ -62,7 +63,7 @@ def timed(e: Energies) -> bool:
 def time_of(t, q):
     """The time as a scalar array of `q`'s dtype (what a time-dependent energy receives)."""
     if t is None:
-        raise TypeError("internal error: a time-dependent system's kernel needs the time t")
+        raise ArgumentTypeError("internal error: a time-dependent system's kernel needs the time t")
     return jnp.asarray(t, q.dtype)
 
 
