@@ -57,7 +57,7 @@ class Energies(Protocol):
 
 def timed(e: Energies) -> bool:
     """Whether the energies take the time first: `T(t, q, q̇)`, `V(t, q)`, `D(t, q, q̇)`."""
-    return getattr(e, "time_dependent", False)
+    return e.time_dependent
 
 
 def time_of(t, q):
