@@ -90,15 +90,7 @@ class AbstractSystem(eqx.Module):
         """Validate a state eagerly (outside `jit`), raising a `LagraxError` that names
         the problem and the values (at time `t` for a time-dependent system)."""
 
-    # ------------------------------------------------------------------ hooks
-    def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
-        """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
-
-        The default returns it unchanged with `ok = True`; a constrained system projects
-        it onto its constraints (`ok` false where that fails). Never raises.
-        """
-        return q, qd, jnp.asarray(True)
-
+    # ------------------------------------------------------------------ the energy balance
     @abc.abstractmethod
     def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
         """The energy reported along a solution (`Solution.energy`): the Jacobi integral
@@ -125,19 +117,28 @@ class AbstractSystem(eqx.Module):
         that does not vanish where `h` does (`|T| + |V|`), from which `Solution.energy_error` takes
         its scale; both from one evaluation of the energies. Never raises."""
 
-    def observables(
-        self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
-    ) -> dict[str, Any]:
-        """Extra quantities this kind reports at one state of a solution, by
-        [`lagrax.Solution`][] field name (default none). Never raises."""
-        return {}
-
     @abc.abstractmethod
     def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
         """The pieces the accelerations are made of at one state, by a readable name
         (applied forces first, then the energies' derivatives, the mass matrix, …), for
         a failure diagnosis to say which one is non-finite. Never raises on non-finite
         values."""
+
+    # ------------------------------------------------------------------ hooks with defaults
+    def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
+        """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
+
+        The default returns it unchanged with `ok = True`; a constrained system projects
+        it onto its constraints (`ok` false where that fails). Never raises.
+        """
+        return q, qd, jnp.asarray(True)
+
+    def observables(
+        self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
+    ) -> dict[str, Any]:
+        """Extra quantities this kind reports at one state of a solution, by
+        [`lagrax.Solution`][] field name (default none). Never raises."""
+        return {}
 
     def failure_hint(self, q: Any, params: Params) -> str | None:
         """Eagerly, a sentence on why the accelerations may be undefined at `q` beyond a
