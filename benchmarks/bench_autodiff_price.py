@@ -37,8 +37,8 @@ def main(argv=None):
     qd = jax.random.uniform(k2, (args.batch, 2), minval=-3.0, maxval=3.0)
     tau = jax.random.uniform(k3, (args.batch, 2), minval=-5.0, maxval=5.0)
 
-    T = lx.models._planar_2r.kinetic
-    V = lx.models._planar_2r.potential
+    T = system.kinetic
+    V = system.potential
 
     def naive(q, qd, tau):
         """The textbook autodiff right-hand side: Hessians and a LAPACK solve."""

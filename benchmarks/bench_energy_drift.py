@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 
 import lagrax as lx
-from lagrax.bench._stability import energy_trend
+from lagrax.bench.stability import energy_trend
 
 
 def main(argv=None):

@@ -88,8 +88,8 @@ def _bench_work_precision(args) -> int:
 
     matplotlib.use("Agg")
     import lagrax as lx
-    from lagrax.bench import _work_precision as wp
-    from lagrax.bench._stability import CHAOTIC_START
+    from lagrax.bench import precision as wp
+    from lagrax.bench.stability import CHAOTIC_START
 
     system, params = lx.models.planar_2r()
     q0, qd0 = jnp.array(CHAOTIC_START), jnp.zeros(2)
@@ -119,7 +119,7 @@ def _bench_stability(args) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    from lagrax.bench import _stability as st
+    from lagrax.bench import stability as st
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -21,19 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from ._core.errors import ConfigurationError, ShapeError
+from ._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from ._plot.axes import axes_for
+from ._plot.sweep import sweep_heatmap as sweep_heatmap
 from ._solve.solution import Solution
 
 Geometry = Callable[[Any], Any] | Sequence[float] | Any
 """What to draw: a function `q -> (k, 2)` points, link lengths, or a chain object."""
-
-
-def _axes(ax):
-    if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots()
-    return ax
 
 
 def _reached(sol: Solution) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -58,7 +52,7 @@ def joint_trajectories(
 
     **Returns:** the axes, one line per coordinate.
     """
-    ax = _axes(ax)
+    ax = axes_for(ax)
     q = np.asarray(sol.q)
     for i in range(q.shape[1]):
         ax.plot(np.asarray(sol.ts), q[:, i], label=labels[i] if labels else f"q{i + 1}")
@@ -83,7 +77,7 @@ def energy_error(sol: Solution, *, ax=None):
 
     **Returns:** the axes; its one line holds the positive errors.
     """
-    ax = _axes(ax)
+    ax = axes_for(ax)
     ts = np.asarray(sol.ts)
     err = np.abs(np.asarray(sol.energy_error))
     shown = np.isfinite(err) & (err > 0)
@@ -201,7 +195,7 @@ def arm_snapshots(
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    ax = _axes(ax)
+    ax = axes_for(ax)
     ts, q, _ = _reached(sol)
     pts = _chain_points(geometry, q, params)
     idx = np.unique(np.linspace(0, len(pts) - 1, n_snapshots).round().astype(int))
@@ -276,7 +270,7 @@ def phase_portrait(
     """
     from matplotlib.lines import Line2D
 
-    ax = _axes(ax)
+    ax = axes_for(ax)
     ts, q, qd = _reached(sol)
     dofs = list(range(q.shape[1])) if dof is None else [int(i) for i in np.atleast_1d(dof)]
     for k, i in enumerate(dofs):
@@ -385,186 +379,6 @@ def animate(
     return FuncAnimation(fig, draw, frames=len(frames), interval=interval, blit=False)
 
 
-def _edges(centres: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Cell edges around grid values (geometric midpoints for log-spaced values)."""
-    c = np.asarray(centres, dtype=float)
-    if c.size == 1:
-        return np.array([c[0] - 0.5, c[0] + 0.5]), False
-    log = bool(np.all(c > 0) and c.size > 2)
-    if log:
-        d = np.diff(np.log(c))
-        log = bool(np.allclose(d, d[0], rtol=1e-6)) and not np.allclose(
-            np.diff(c), c[1] - c[0], rtol=1e-6
-        )
-    x = np.log(c) if log else c
-    mid = 0.5 * (x[1:] + x[:-1])
-    e = np.concatenate([[x[0] - (mid[0] - x[0])], mid, [x[-1] + (x[-1] - mid[-1])]])
-    return (np.exp(e) if log else e), log
-
-
-def _coord_label(da: Any, dim: str) -> str:
-    """`name [units]` of a sweep dimension, from its coordinate's attrs."""
-    attrs = da[dim].attrs if dim in da.coords else {}
-    name = attrs.get("long_name", dim)
-    if name != dim:
-        name = f"{name} ({dim})"
-    unit = attrs.get("units")
-    return f"{name} [{unit}]" if unit else name
-
-
-def _value_label(da: Any, name: str, label: str | None, dof: Any = None) -> str:
-    """The label of the drawn value: `label`, else its long name (or name), its
-    coordinate `[dof]` and `[units]` from its attrs."""
-    if label:
-        return label
-    name = da.attrs.get("long_name", name)
-    if dof is not None:
-        name = f"{name}[{dof}]"
-    unit = da.attrs.get("units")
-    return f"{name} [{unit}]" if unit else name
-
-
-def _axis_values(da: Any, dim: str) -> np.ndarray:
-    c = np.asarray(da[dim].values) if dim in da.coords else np.arange(da.sizes[dim])
-    return c if np.issubdtype(c.dtype, np.number) else np.arange(c.size)
-
-
-def sweep_heatmap(
-    ds: Any,
-    var: Any,
-    *,
-    dof: int | str | None = None,
-    x: str | None = None,
-    y: str | None = None,
-    log: bool = False,
-    cmap: str = "viridis",
-    label: str | None = None,
-    ax=None,
-):
-    """A per-member quantity over a 1-D or 2-D grid from `lagrax.sweep`.
-
-    Over a 2-D grid: a heat map, cells centred on the swept values, with a colour bar.
-    Over a 1-D grid: a line through the members' values against the swept value. Axes
-    are labelled with the swept names and their units (the coordinates'
-    `attrs["units"]`, set by `lagrax.grid(..., units=...)`); log-spaced values get a log
-    axis. Members that failed (`ds.ok` False) or whose value is not finite are drawn
-    grey and hatched (a cell, or a band over a 1-D grid), and counted in the legend, so a
-    failure never looks like a number.
-
-    **Arguments:**
-
-    - `ds`: the `xarray.Dataset` of a sweep over a `lagrax.grid` of one or two names.
-    - `var`: a variable name of `ds` (`"energy_error"`, `"num_steps"`, `"q"`, a `keep=`
-      function's output, …) or an `xarray.DataArray` over the sweep dimensions (e.g.
-      `abs(ds.q.sel(dof=1) - ref)`).
-    - `dof`: the coordinate to show when `var` has a `"dof"` dimension.
-    - `x`, `y`: which sweep dimension goes on which axis of a 2-D grid (default: the
-      grid's second dimension on x, its first on y, as `xarray`'s own `.plot()`).
-    - `log`: logarithmic colour scale (2-D) or y axis (1-D); non-positive values are
-      then marked as failed.
-    - `cmap`, `label`: colour map; label of the value (default: the variable's name and
-      its `attrs["units"]`).
-    - `ax`: axes to draw on (default: a new figure).
-
-    **Returns:** the axes. 2-D: its first collection is the `QuadMesh` whose array has
-    the grid's shape `(len(y), len(x))`. 1-D: `ax.lines[0]` holds the values against the
-    swept values (failed members left out).
-
-    **Raises:** `ShapeError` when `var` has more than the sweep dimensions left (the
-    message names the dimensions to select or reduce), or a `"dof"` dimension and no
-    `dof=`.
-    """
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import LogNorm
-    from matplotlib.patches import Patch, Rectangle
-
-    da = ds[var] if isinstance(var, str) else var
-    name = var if isinstance(var, str) else (da.name or "value")
-    if "dof" in da.dims:
-        if dof is None:
-            raise ShapeError(
-                f"{name!r} has a 'dof' dimension: choose a coordinate with dof= (one of "
-                f"{list(np.asarray(da['dof'].values))})"
-            )
-        da = da.sel(dof=dof)
-    if da.ndim not in (1, 2):
-        extra = [d for d in da.dims if d == "time" or "_dim_" in d]
-        if "time" in extra:
-            hint = f"select a time first, e.g. ds[{name!r}].isel(time=-1)"
-        elif extra:
-            hint = f"select or reduce {extra} first, e.g. .isel({extra[0]}=0)"
-        else:
-            hint = f"select values of all but one or two of them first, e.g. .sel({da.dims[0]}=...)"
-        raise ShapeError(
-            f"sweep_heatmap draws a 1-D or 2-D grid; {name!r} has dimensions {da.dims}: {hint}"
-        )
-    bad_of = None
-    if "ok" in getattr(ds, "data_vars", {}) and set(ds["ok"].dims) == set(da.dims):
-        bad_of = ds["ok"]
-
-    ax = _axes(ax)
-    hatch = dict(facecolor="0.8", edgecolor="0.35", hatch="///", lw=0)
-    if da.ndim == 1:
-        (xd,) = da.dims
-        values = np.asarray(da.values, dtype=float)
-        bad = ~np.isfinite(values)
-        if bad_of is not None:
-            bad |= ~np.asarray(bad_of.values, dtype=bool)
-        if log:
-            with np.errstate(invalid="ignore"):
-                bad |= ~(values > 0)
-        xs = _axis_values(da, xd)
-        xe, xlog = _edges(xs)
-        ax.plot(xs[~bad], values[~bad], "-o", ms=3, lw=1.2)
-        for i in np.nonzero(bad)[0]:
-            ax.axvspan(xe[i], xe[i + 1], **hatch)
-        if xlog:
-            ax.set_xscale("log")
-        if log:
-            ax.set_yscale("log")
-        ax.set_xlim(xe[0], xe[-1])
-        ax.set_xlabel(_coord_label(da, xd))
-        ax.set_ylabel(_value_label(da, name, label, dof))
-        ax.grid(True, alpha=0.3)
-    else:
-        if x is None and y is None:
-            y, x = da.dims
-        elif x is None or y is None:
-            x = x if x is not None else next(d for d in da.dims if d != y)
-            y = y if y is not None else next(d for d in da.dims if d != x)
-        da = da.transpose(y, x)
-        values = np.asarray(da.values, dtype=float)
-        bad = ~np.isfinite(values)
-        if bad_of is not None:
-            bad |= ~np.asarray(bad_of.transpose(y, x).values, dtype=bool)
-        if log:
-            with np.errstate(invalid="ignore"):
-                bad |= ~(values > 0)
-        data = np.ma.masked_array(values, bad)
-        (xe, xlog), (ye, ylog) = _edges(_axis_values(da, x)), _edges(_axis_values(da, y))
-        colours = plt.get_cmap(cmap).with_extremes(bad="0.8")
-        norm = LogNorm() if log and not bad.all() else None
-        mesh = ax.pcolormesh(xe, ye, data, cmap=colours, norm=norm, shading="flat")
-        ax.figure.colorbar(mesh, ax=ax, label=_value_label(da, name, label, dof))
-        if xlog:
-            ax.set_xscale("log")
-        if ylog:
-            ax.set_yscale("log")
-        for j, i in zip(*np.nonzero(bad), strict=True):
-            ax.add_patch(Rectangle((xe[i], ye[j]), xe[i + 1] - xe[i], ye[j + 1] - ye[j], **hatch))
-        ax.set_xlim(xe[0], xe[-1])
-        ax.set_ylim(ye[0], ye[-1])
-        ax.set_xlabel(_coord_label(da, x))
-        ax.set_ylabel(_coord_label(da, y))
-    if bad.any():
-        ax.legend(
-            handles=[Patch(**hatch, label=f"failed ({int(bad.sum())} of {bad.size})")],
-            loc="upper right",
-            fontsize=8,
-        )
-    return ax
-
-
 def work_precision(
     points: Any,
     reference_error: float | None = None,
@@ -593,7 +407,9 @@ def work_precision(
     if isinstance(points, tuple) and len(points) == 2 and np.ndim(points[1]) == 0:
         points, reference_error = points
     if reference_error is None:
-        raise TypeError("work_precision needs reference_error= (or the (points, error) pair)")
+        raise ArgumentTypeError(
+            "work_precision needs reference_error= (or the (points, error) pair)"
+        )
     return plot_work_precision(
         points, reference_error=float(reference_error), title=title, axes=axes
     )

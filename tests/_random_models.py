@@ -4,6 +4,8 @@ by the chain and tree tests."""
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from _helpers import close
+
 
 def random_spatial(make, n, seed, *, gravity=False):
     """`make(axes=, rotations=, up=)` with random joint axes, joint-frame rotations and
@@ -30,13 +32,6 @@ def random_spatial(make, n, seed, *, gravity=False):
     extra = {"g": rng.uniform(5, 12)} if gravity else {}
     params = model.params(m=m, offset=offset, com=com, inertia=inertia, **extra)
     return model, params, rng
-
-
-def close(a, b, rtol=1e-12):
-    """`a` equals `b` to `rtol` relative to `max(|b|, 1)`."""
-    a, b = np.asarray(a), np.asarray(b)
-    scale = max(np.max(np.abs(b)), 1.0)
-    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
 
 
 def check_energies(fast_systems, definition, q, qd, params):

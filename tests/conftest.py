@@ -52,3 +52,20 @@ def arm_params(arm):
 def msd():
     """``(system, params)`` of the default mass–spring–damper."""
     return lagrax.models.mass_spring_damper()
+
+
+@pytest.fixture
+def chunk_calls(monkeypatch):
+    """The chunks a sweep computes (not loads from a checkpoint) from here on: a list
+    that a spy on the sweep driver's `solve_chunk` appends to once per chunk."""
+    from lagrax._sweep import driver
+
+    calls = []
+    real = driver.solve_chunk
+
+    def counting(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(driver, "solve_chunk", counting)
+    return calls

@@ -105,8 +105,19 @@ def test_check_state_is_one_compiled_call():
 def test_system_kinds_share_one_interface():
     system, params = lx.models.planar_2r()
     pendulum, _ = lx.models.cartesian_pendulum()
-    assert isinstance(system, lx.AbstractSystem)
-    assert isinstance(pendulum, lx.AbstractSystem)
+    pendulum_params = lx.models.cartesian_pendulum()[1]
+    for kind, p, q in (
+        (system, params, jnp.array([0.1, 0.2])),
+        (pendulum, pendulum_params, jnp.array([0.6, -0.8])),
+    ):
+        # the energy-balance hooks every kind implements agree with each other
+        qd = jnp.array([0.3, -0.2]) if kind is system else jnp.array([0.8, 0.6])
+        h, magnitude = kind.energy_and_magnitude(0.0, q, qd, p)
+        np.testing.assert_allclose(h, kind.jacobi_integral(0.0, q, qd, p), rtol=1e-12)
+        np.testing.assert_allclose(h, kind.energy(q, qd, p), rtol=1e-12)
+        assert magnitude >= abs(h)
+        assert kind.explicit_power(0.0, q, qd, p) is None
+        assert kind.input_power(0.0, q, qd, p, None) is None
     with pytest.raises(TypeError):
         lx.AbstractSystem()  # abstract: never instantiated
     q, qd, ok = system.initial_state(jnp.array([0.1, 0.2]), jnp.zeros(2), params)

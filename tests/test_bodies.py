@@ -13,13 +13,9 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import random_rotation
 from lagrax import bodies as B
 from lagrax.bodies import Param
-
-
-def random_rotation(rng):
-    a, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    return a * np.sign(np.linalg.det(a))
 
 
 # ------------------------------------------------------------------------ inertia tools

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import random_rotation
 from lagrax.chains import PlanarChain, SpatialChain
 from lagrax.newton_euler import rnea
 
@@ -26,11 +27,6 @@ BATCH = 6  # random parameter sets per n, each at its own random state
 
 
 # ----------------------------------------------------------------------------- helpers
-def random_rotation(rng):
-    a, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    return a * np.sign(np.linalg.det(a))
-
-
 def random_inertia(rng):
     """A physical inertia: principal moments obeying the triangle inequality, rotated."""
     i1, i2 = rng.uniform(0.02, 1.0, 2)

@@ -59,20 +59,6 @@ def ckpt(complete, tmp_path):
     return target
 
 
-@pytest.fixture
-def counted(monkeypatch):
-    """The number of chunks computed (not loaded) since the test began."""
-    calls = []
-    real = _driver.solve_chunk
-
-    def counting(*a, **k):
-        calls.append(1)
-        return real(*a, **k)
-
-    monkeypatch.setattr(_driver, "solve_chunk", counting)
-    return calls
-
-
 def assert_same(a, b):
     for name in ("q", "qd", "energy", "result", "num_steps", "t_end"):
         np.testing.assert_array_equal(a[name].values, b[name].values)
@@ -115,9 +101,9 @@ def test_crash_mid_sweep_then_resume_equals_uninterrupted(
         assert header["chunk"] == i and header["version"] == _checkpoint.FORMAT_VERSION
 
 
-def test_complete_checkpoint_computes_nothing(oscillator, batch, reference, ckpt, counted):
+def test_complete_checkpoint_computes_nothing(oscillator, batch, reference, ckpt, chunk_calls):
     assert_same(run(oscillator, batch, ckpt), reference)
-    assert counted == []
+    assert chunk_calls == []
 
 
 # --------------------------------------------------------------------------- damaged chunks
@@ -182,7 +168,7 @@ DAMAGE = {
 
 @pytest.mark.parametrize("damage, reason", DAMAGE.values(), ids=list(DAMAGE))
 def test_damaged_chunk_is_recomputed_never_loaded(
-    oscillator, batch, reference, ckpt, counted, damage, reason
+    oscillator, batch, reference, ckpt, chunk_calls, damage, reason
 ):
     target = chunk(ckpt, 1)
     damage(target)
@@ -190,26 +176,28 @@ def test_damaged_chunk_is_recomputed_never_loaded(
         ds = run(oscillator, batch, ckpt)
     messages = [str(w.message) for w in record if w.category is lx.CheckpointWarning]
     assert len(messages) == 1 and str(target) in messages[0]
-    assert len(counted) == 1  # only the damaged chunk
+    assert len(chunk_calls) == 1  # only the damaged chunk
     assert_same(ds, reference)
     _checkpoint.read_chunk(target)  # replaced by a good file
     assert_same(run(oscillator, batch, ckpt), reference)  # and quiet from now on
-    assert len(counted) == 1
+    assert len(chunk_calls) == 1
 
 
-def test_damaged_manifest_is_rewritten_chunks_decide(oscillator, batch, reference, ckpt, counted):
+def test_damaged_manifest_is_rewritten_chunks_decide(
+    oscillator, batch, reference, ckpt, chunk_calls
+):
     (ckpt / "manifest.json").write_text("{not json")
     with pytest.warns(lx.CheckpointWarning, match="manifest.json cannot be read"):
         ds = run(oscillator, batch, ckpt)
     assert_same(ds, reference)
-    assert counted == []
+    assert chunk_calls == []
     assert json.loads((ckpt / "manifest.json").read_text())["version"] == _checkpoint.FORMAT_VERSION
 
 
 # --------------------------------------------------------------------------- another sweep
 
 
-def test_deleted_manifest_and_changed_sweep_is_refused(oscillator, batch, ckpt, counted):
+def test_deleted_manifest_and_changed_sweep_is_refused(oscillator, batch, ckpt, chunk_calls):
     """The reported hole: without manifest.json, a sweep with another t1 reused every chunk."""
     (ckpt / "manifest.json").unlink()
     before = {p.name: p.read_bytes() for p in ckpt.iterdir()}
@@ -218,16 +206,16 @@ def test_deleted_manifest_and_changed_sweep_is_refused(oscillator, batch, ckpt, 
     message = str(info.value)
     assert str(ckpt) in message and "different sweep" in message
     assert "fingerprint" in message and "delete this one" in message
-    assert counted == []
+    assert chunk_calls == []
     assert {p.name: p.read_bytes() for p in ckpt.iterdir()} == before  # nothing touched
 
 
-def test_deleted_manifest_same_sweep_reuses_chunks(oscillator, batch, reference, ckpt, counted):
+def test_deleted_manifest_same_sweep_reuses_chunks(oscillator, batch, reference, ckpt, chunk_calls):
     (ckpt / "manifest.json").unlink()
     # chunk_size not given: recovered from the chunk files' headers
     ds = lx.sweep(oscillator[0], [1.0], [0.0], batch, t1=1.0, checkpoint=ckpt)
     assert_same(ds, reference)
-    assert counted == []
+    assert chunk_calls == []
     assert json.loads((ckpt / "manifest.json").read_text())["chunk_size"] == 2
 
 
@@ -240,36 +228,38 @@ def test_deleted_manifest_same_sweep_reuses_chunks(oscillator, batch, reference,
     ],
     ids=["t1", "rtol", "chunk_size"],
 )
-def test_changed_sweep_with_manifest_is_refused(oscillator, batch, ckpt, counted, change, words):
+def test_changed_sweep_with_manifest_is_refused(
+    oscillator, batch, ckpt, chunk_calls, change, words
+):
     with pytest.raises(lx.CheckpointError) as info:
         run(oscillator, batch, ckpt, **change)
     assert str(ckpt) in str(info.value)
     for word in words:
         assert word in str(info.value)
-    assert counted == []
+    assert chunk_calls == []
 
 
 def test_stray_chunk_of_another_sweep_is_recomputed(
-    oscillator, batch, reference, ckpt, counted, tmp_path
+    oscillator, batch, reference, ckpt, chunk_calls, tmp_path
 ):
     other = tmp_path / "other"
     run(oscillator, batch, other, t1=0.5)
     shutil.copyfile(chunk(other, 2), chunk(ckpt, 2))
-    counted.clear()
+    chunk_calls.clear()
     with pytest.warns(lx.CheckpointWarning, match="belongs to another sweep"):
         ds = run(oscillator, batch, ckpt)
     assert_same(ds, reference)
-    assert len(counted) == 1
+    assert len(chunk_calls) == 1
 
 
-def test_old_format_manifest_is_refused(oscillator, batch, ckpt, counted):
+def test_old_format_manifest_is_refused(oscillator, batch, ckpt, chunk_calls):
     manifest = ckpt / "manifest.json"
     info = json.loads(manifest.read_text())
     manifest.write_text(json.dumps(dict(info, version=1)))
     with pytest.raises(lx.CheckpointError, match="format 1") as err:
         run(oscillator, batch, ckpt)
     assert str(ckpt) in str(err.value) and "Delete the directory" in str(err.value)
-    assert counted == []
+    assert chunk_calls == []
 
 
 def test_reduction_and_final_maxima_resume_from_disk_unchanged(tmp_path, monkeypatch):
@@ -291,7 +281,7 @@ def test_reduction_and_final_maxima_resume_from_disk_unchanged(tmp_path, monkeyp
     assert len(first.data_vars) == 23 and "constraint_violation" in first  # 13 reduced
 
 
-def test_foreign_files_are_left_alone(oscillator, batch, reference, ckpt, counted):
+def test_foreign_files_are_left_alone(oscillator, batch, reference, ckpt, chunk_calls):
     extra = {
         "notes.txt": b"my notes",
         "data.npz": b"whatever",
@@ -302,7 +292,7 @@ def test_foreign_files_are_left_alone(oscillator, batch, reference, ckpt, counte
         (ckpt / name).write_bytes(data)
     (ckpt / "plots").mkdir()
     assert_same(run(oscillator, batch, ckpt), reference)
-    assert counted == []
+    assert chunk_calls == []
     for name, data in extra.items():
         assert (ckpt / name).read_bytes() == data
 
@@ -334,22 +324,22 @@ def read_only(monkeypatch):
 
 
 def test_read_only_directory_is_refused_before_any_work(
-    oscillator, batch, tmp_path, counted, read_only
+    oscillator, batch, tmp_path, chunk_calls, read_only
 ):
     ckpt = read_only(tmp_path / "ckpt")
     with pytest.raises(lx.CheckpointError) as info:
         run(oscillator, batch, ckpt)
     message = str(info.value)
     assert str(ckpt) in message and "cannot be written" in message
-    assert counted == []  # refused before the first chunk, not after it
+    assert chunk_calls == []  # refused before the first chunk, not after it
 
 
 def test_complete_checkpoint_in_read_only_directory_is_read(
-    oscillator, batch, reference, ckpt, counted, read_only
+    oscillator, batch, reference, ckpt, chunk_calls, read_only
 ):
     read_only(ckpt)
     assert_same(run(oscillator, batch, ckpt), reference)
-    assert counted == []
+    assert chunk_calls == []
 
 
 def test_checkpoint_that_is_a_file_is_refused(oscillator, batch, tmp_path):

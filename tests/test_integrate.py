@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import central_difference
 from lagrax._core.linalg import lu_factor_small, lu_solve_small
 
 Q0 = jnp.array([-np.pi / 2 + 1.4, 0.8])
@@ -109,7 +110,7 @@ def test_forward_mode_adjoint_gives_jacfwd(arm):
 
     jac = jax.jacfwd(final)(jnp.asarray(params["m2"]))
     eps = 1e-6
-    fd = (final(params["m2"] + eps) - final(params["m2"] - eps)) / (2 * eps)
+    fd = central_difference(final, params["m2"], eps)
     np.testing.assert_allclose(jac, fd, rtol=1e-5, atol=1e-7)
 
 

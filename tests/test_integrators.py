@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax.bench import _stability as st
-from lagrax.bench import _work_precision as wp
+from lagrax.bench import precision as wp
+from lagrax.bench import stability as st
 
 ARM, P = lx.models.planar_2r()
 Q0 = jnp.array([-math.pi / 2 + 0.6, 0.4])  # regular motion

@@ -15,7 +15,6 @@ import pytest
 
 import lagrax as lx
 from lagrax._sweep import chunk as _chunk
-from lagrax._sweep import driver as _driver
 
 Q0_2R = [-np.pi / 2 + 1.4, 0.8]
 
@@ -297,7 +296,7 @@ CHECKPOINTED = textwrap.dedent(
 
 
 @pytest.mark.slow
-def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
+def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, chunk_calls):
     system, params = arm
     batch = lx.grid(params, m2=np.linspace(0.5, 2, 6), l1=np.linspace(0.5, 1.5, 4))
     ckpt = tmp_path / "ckpt"
@@ -317,14 +316,7 @@ def test_kill_and_resume_equals_uninterrupted(arm, tmp_path, monkeypatch):
     done = sorted(p.name for p in ckpt.glob("chunk_*.npz"))
     assert 2 <= len(done) < 6 and not list(ckpt.glob("*.tmp"))
 
-    calls = []
-    real = _driver.solve_chunk
-
-    def counting(*a, **k):
-        calls.append(1)
-        return real(*a, **k)
-
-    monkeypatch.setattr(_driver, "solve_chunk", counting)
+    calls = chunk_calls
     kw = dict(t1=1.0, chunk_size=4)
     resumed = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, checkpoint=ckpt, **kw)
     assert len(calls) == 6 - len(done)  # nothing finished is recomputed

@@ -19,16 +19,12 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import rel_error
 from lagrax.chains import from_urdf
 from lagrax.models import urdf_path
 
 RTOL = 1e-12
 N_STATES = 4
-
-
-def _rel(a, b):
-    a, b = np.asarray(a), np.asarray(b)
-    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1.0))
 
 
 # ------------------------------------------------------------------ against Pinocchio
@@ -109,7 +105,7 @@ def test_models_match_pinocchio(robot):
             "damped": (damped[k], pin.aba(model, data, qp, vp, td_pin)[order]),
         }
         for key, (ours, theirs) in results.items():
-            worst[key] = max(worst.get(key, 0.0), _rel(ours, theirs))
+            worst[key] = max(worst.get(key, 0.0), rel_error(ours, theirs))
     assert max(worst.values()) <= RTOL, worst
 
 

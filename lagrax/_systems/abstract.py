@@ -41,15 +41,16 @@ class AbstractSystem(eqx.Module):
     [`accelerations`][lagrax.AbstractSystem.accelerations] (unchecked, for inside a solver loop),
     [`check_state`][lagrax.AbstractSystem.check_state].
 
+    **Abstract methods of a solution's energy balance** (each documented below):
+    [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral],
+    [`explicit_power`][lagrax.AbstractSystem.explicit_power],
+    [`input_power`][lagrax.AbstractSystem.input_power],
+    [`energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude]; and
+    [`components`][lagrax.AbstractSystem.components], for a failure diagnosis.
+
     **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
     [`observables`][lagrax.AbstractSystem.observables] (none),
-    [`components`][lagrax.AbstractSystem.components] (none),
-    [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none),
-    [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]
-    ([`energy`][lagrax.AbstractSystem.energy]),
-    [`explicit_power`][lagrax.AbstractSystem.explicit_power] (none),
-    [`input_power`][lagrax.AbstractSystem.input_power] (`q̇·τ`),
-    [`energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude] (`h` and `|h|`).
+    [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none).
     """
 
     n_dof: eqx.AbstractVar[int | None]
@@ -89,7 +90,41 @@ class AbstractSystem(eqx.Module):
         """Validate a state eagerly (outside `jit`), raising a `LagraxError` that names
         the problem and the values (at time `t` for a time-dependent system)."""
 
-    # ------------------------------------------------------------------ hooks
+    # ------------------------------------------------------------------ the energy balance
+    @abc.abstractmethod
+    def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """The energy reported along a solution (`Solution.energy`): the Jacobi integral
+        `h = q̇·∂L/∂q̇ − L` at time `t` (`T + V` when `T` is quadratic in `q̇`). Never
+        raises."""
+
+    @abc.abstractmethod
+    def explicit_power(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """`−∂L/∂t` at one state, the rate at which an explicit time dependence changes
+        [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None` for an
+        autonomous system, whose `h` only inputs and dissipation change. Never raises."""
+
+    @abc.abstractmethod
+    def input_power(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Any:
+        """`q̇·(τ + F − ∂D/∂q̇)` at one state: the rate at which the inputs, applied forces
+        and dissipation change [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None`
+        when there are none (`tau` is `None` and the system has no force or dissipation).
+        Never raises."""
+
+    @abc.abstractmethod
+    def energy_and_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
+        """`(h, m)` at one state: the Jacobi integral
+        ([`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]) and a magnitude of the energy
+        that does not vanish where `h` does (`|T| + |V|`), from which `Solution.energy_error` takes
+        its scale; both from one evaluation of the energies. Never raises."""
+
+    @abc.abstractmethod
+    def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
+        """The pieces the accelerations are made of at one state, by a readable name
+        (applied forces first, then the energies' derivatives, the mass matrix, …), for
+        a failure diagnosis to say which one is non-finite. Never raises on non-finite
+        values."""
+
+    # ------------------------------------------------------------------ hooks with defaults
     def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
         """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
 
@@ -98,45 +133,11 @@ class AbstractSystem(eqx.Module):
         """
         return q, qd, jnp.asarray(True)
 
-    def jacobi_integral(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """The energy reported along a solution (`Solution.energy`): the Jacobi integral
-        `h = q̇·∂L/∂q̇ − L` at time `t` (`T + V` when `T` is quadratic in `q̇`).
-        Default: [`energy`][lagrax.AbstractSystem.energy]. Never raises."""
-        return self.energy(q, qd, params)
-
-    def explicit_power(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """`−∂L/∂t` at one state, the rate at which an explicit time dependence changes
-        [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None` (the default) for an
-        autonomous system, whose `h` only inputs and dissipation change. Never raises."""
-        return None
-
-    def input_power(self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any) -> Any:
-        """`q̇·(τ + F − ∂D/∂q̇)` at one state: the rate at which the inputs, applied forces
-        and dissipation change [`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]; `None`
-        when there are none (`tau` is `None` and the system has no force or dissipation). Default:
-        `q̇·τ`. Never raises."""
-        return None if tau is None else jnp.dot(qd, tau)
-
-    def energy_and_magnitude(self, t: Any, q: Vector, qd: Vector, params: Params) -> Any:
-        """`(h, m)` at one state: the Jacobi integral
-        ([`jacobi_integral`][lagrax.AbstractSystem.jacobi_integral]) and a magnitude of the energy
-        that does not vanish where `h` does (`|T| + |V|`), from which `Solution.energy_error` takes
-        its scale; both from one evaluation of the energies. Default: `(h, |h|)`. Never raises."""
-        h = self.jacobi_integral(t, q, qd, params)
-        return h, jnp.abs(h)
-
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
     ) -> dict[str, Any]:
         """Extra quantities this kind reports at one state of a solution, by
         [`lagrax.Solution`][] field name (default none). Never raises."""
-        return {}
-
-    def components(self, t: Any, q: Vector, qd: Vector, params: Params) -> dict[str, Any]:
-        """The pieces the accelerations are made of at one state, by a readable name
-        (applied forces first, then the energies' derivatives, the mass matrix, …), for
-        a failure diagnosis to say which one is non-finite. Default: none. Never raises
-        on non-finite values."""
         return {}
 
     def failure_hint(self, q: Any, params: Params) -> str | None:

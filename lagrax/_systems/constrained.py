@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import call_user, finite, is_traced
+from .._core.checks import call_user
 from .._core.custom_types import (
     ConstraintJacobian,
     ConstraintValues,
@@ -20,44 +20,16 @@ from .._core.custom_types import (
     Vector,
     Velocities,
 )
-from .._core.errors import (
-    ArgumentTypeError,
-    ConfigurationError,
-    ConstraintError,
-    NonFiniteError,
-    ShapeError,
-)
-from .._core.linalg import PIVOT_RTOL, cholesky_solve, spd_inverse
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from . import constraint_checks as checks
 from . import derivatives as d
-from . import implicit
+from . import implicit, kkt, projection
 from .abstract import AbstractSystem
+from .kkt import solve_kkt
 from .lagrangian import LagrangianSystem
 
 ConstraintFn = Callable[[Vector, Params], ConstraintValues]
 VelocityConstraintFn = Callable[[Vector, Params], ConstraintJacobian]
-
-# Newton iterations to project a state onto φ(q) = 0 (quadratic convergence: a start
-# within the basin needs a handful).
-_PROJECTION_ITERS = 30
-
-
-def solve_kkt(mass: Matrix, jac: ConstraintJacobian, force: Vector, gamma: ConstraintValues):
-    r"""Solve `[[M, Jᵀ], [J, 0]] [x; −λ] = [f; γ]` for `(x, λ)` by the Schur complement.
-
-    `M x = f + Jᵀ λ` and `J x = γ` give `λ = S⁻¹(γ − J M⁻¹ f)` with the Schur
-    complement `S = J M⁻¹ Jᵀ` and `x = M⁻¹(f + Jᵀ λ)`: one Cholesky factorization of
-    `M` (shared by the `1 + m` right-hand sides) and one of `S`. `S` is
-    positive-definite exactly when `M` is and `J` has full row rank; otherwise (a
-    Cholesky pivot below `64 ε` relative to the largest diagonal entry) the result is
-    NaN, never a finite wrong answer.
-    """
-    cols = jnp.concatenate([force[:, None], jac.T], axis=1)
-    sol = jax.vmap(lambda b: cholesky_solve(mass, b), in_axes=1, out_axes=1)(cols)
-    x_free, m_inv_jt = sol[:, 0], sol[:, 1:]
-    schur = jac @ m_inv_jt
-    schur = 0.5 * (schur + schur.T)
-    lam = cholesky_solve(schur, gamma - jac @ x_free)
-    return x_free + m_inv_jt @ lam, lam
 
 
 class ConstrainedSystem(AbstractSystem):
@@ -332,12 +304,6 @@ class ConstrainedSystem(AbstractSystem):
         q, qd = self._state(q, qd)
         return self._kmat(q, params) @ qd
 
-    def constraint_jacobian(self, q: Coordinates, params: Params) -> ConstraintJacobian:
-        """`J = ∂φ/∂q` of the holonomic constraints, shape `(m₁, n)` (`n` JVPs of
-        `φ`)."""
-        (q,) = self._state(q)
-        return self._jacobian(q, params)
-
     def constraint_matrix(self, q: Coordinates, params: Params) -> ConstraintJacobian:
         """The stacked constraint matrix `K = [J; A]`, shape `(m₁ + m₂, n)`: the
         holonomic Jacobian `J = ∂φ/∂q`, then the velocity-constraint matrix `A(q)`.
@@ -386,7 +352,7 @@ class ConstrainedSystem(AbstractSystem):
         rank. Differentiated through the KKT system (`_kkt_with_rule`)."""
         if not implicit.rule_on():
             return self._kkt_raw(t, q, qd, params, tau)
-        return _kkt_with_rule(self, t, q, qd, params, tau)
+        return kkt.kkt_with_rule(self, t, q, qd, params, tau)
 
     def accelerations(self, t, q, qd, params, tau):
         """Constrained accelerations without raising (what `simulate` integrates)."""
@@ -398,7 +364,7 @@ class ConstrainedSystem(AbstractSystem):
         [`project`][lagrax.ConstrainedSystem.project]."""
         if not self.project_initial:
             return q, qd, jnp.asarray(True)
-        return self._project(q, qd, params)
+        return projection.project_state(self, q, qd, params)
 
     @property
     def final_maxima(self) -> tuple[str, ...]:
@@ -435,36 +401,7 @@ class ConstrainedSystem(AbstractSystem):
     def failure_hint(self, q, params):
         """The rank deficiency of `[J; A](q)`, if any (see
         [`check_state`][lagrax.ConstrainedSystem.check_state])."""
-        return self._rank_message(q, params)
-
-    def _checked_kkt(self, q, qd, params, tau, t, what: str):
-        q, qd, tau = self._state(q, qd, tau=tau)
-        if not is_traced(q, qd, tau, params, t):
-            finite(q, "q")
-            finite(qd, "qd")
-            if tau is not None:
-                finite(tau, "tau")
-            qdd, lam = self._kkt(t, q, qd, params, tau)
-            if not bool(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam))):
-                self.check_state(q, qd, params, project=False, t=t)  # raises: the cause
-                raise NonFiniteError(
-                    f"{what} of {self.name} is not finite at q={np.asarray(q)}, "
-                    f"qd={np.asarray(qd)} although M(q) is positive-definite and {self._kname} has "
-                    "full rank: check the force, dissipation, tau and the constraint "
-                    "function's derivatives there"
-                )
-            return qdd, lam
-        qdd, lam = self._kkt(t, q, qd, params, tau)
-        bad = ~(jnp.all(jnp.isfinite(qdd)) & jnp.all(jnp.isfinite(lam)))
-        return eqx.error_if(
-            (qdd, lam),
-            bad,
-            f"{what} of {self.name} is non-finite: q, qd, tau or params contain NaN/inf, "
-            f"M(q) is not positive-definite, or {self._kname} is "
-            "rank-deficient (redundant constraints or a singular configuration, so the "
-            f"KKT matrix [[M, K^T], [K, 0]] with K = {self._ksym} is singular). Outside "
-            "jit the message names which.",
-        )
+        return checks.rank_message(self, q, params)
 
     def forward_dynamics(
         self,
@@ -485,7 +422,7 @@ class ConstrainedSystem(AbstractSystem):
         `MassMatrixError` when `M(q)` is not positive-definite; `ShapeError`,
         `NonFiniteError`. Under `jit`, a run-time error by `equinox.error_if`.
         """
-        return self._checked_kkt(q, qd, params, tau, t, "forward_dynamics")[0]
+        return checks.checked_kkt(self, q, qd, params, tau, t, "forward_dynamics")[0]
 
     def multipliers(
         self,
@@ -502,7 +439,7 @@ class ConstrainedSystem(AbstractSystem):
         Computed with the Baumgarte terms, which vanish on the constraint manifold.
         Arguments and errors as [`forward_dynamics`][lagrax.ConstrainedSystem.forward_dynamics].
         """
-        return self._checked_kkt(q, qd, params, tau, t, "multipliers")[1]
+        return checks.checked_kkt(self, q, qd, params, tau, t, "multipliers")[1]
 
     def constraint_forces(
         self,
@@ -518,55 +455,10 @@ class ConstrainedSystem(AbstractSystem):
         Arguments and errors as [`forward_dynamics`][lagrax.ConstrainedSystem.forward_dynamics].
         """
         q, qd, tau = self._state(q, qd, tau=tau)
-        lam = self._checked_kkt(q, qd, params, tau, t, "constraint_forces")[1]
+        lam = checks.checked_kkt(self, q, qd, params, tau, t, "constraint_forces")[1]
         return self._kmat(q, params).T @ lam
 
     # ------------------------------------------------------------ projection
-    def _project(self, q, qd, params):
-        """Project `(q, q̇)` onto `φ = 0`, `J q̇ = 0`, `A q̇ = 0` without raising.
-
-        Returns `(q, q̇, ok)`; when `ok` is false, the returned state is the
-        input state unchanged (finite, so a solve from it still runs and is flagged).
-        """
-        q0, qd0 = q, qd
-        dtype = q.dtype
-        eps = float(jnp.finfo(dtype).eps)
-        zero = jnp.zeros_like(q)
-        # M(q0): a fixed SPD metric (the projection has no time: a time-dependent system's
-        # M(t, q) is taken at t = 0, which changes the metric, not the manifold)
-        t0 = jnp.zeros((), dtype)
-        metric = d.mass_matrix(self.system, q0, zero, params, t0)
-
-        def newton_step(a):
-            phi = self._phi(a, params)
-            jac = self._jacobian(a, params)
-            # minimal-norm step in the metric M(q0): Δq = −M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹ φ
-            return solve_kkt(metric, jac, zero, -phi)[0]
-
-        def body(_, carry):
-            a, _ = carry
-            step = newton_step(a)
-            return a + step, step
-
-        if self.constraints is None:  # velocity constraints only: q is admissible as is
-            q1, q_ok = q0, jnp.asarray(True)
-        else:
-            # a fixed number of iterations (a scan, so reverse-mode differentiable); after
-            # convergence the steps are round-off sized and change nothing
-            init = (q0, jnp.zeros_like(q0))
-            q1, step = jax.lax.fori_loop(0, _PROJECTION_ITERS, body, init)
-            scale = 1.0 + jnp.max(jnp.abs(q1))
-            q_ok = jnp.all(jnp.isfinite(q1)) & (jnp.max(jnp.abs(step)) <= eps**0.5 * scale)
-        # velocities: the M(q)-orthogonal projection onto K q̇ = 0, K = [J; A] (what an
-        # impulsive constraint would do: the admissible velocity of least kinetic-energy
-        # change)
-        q1_safe = jnp.where(q_ok, q1, q0)
-        mass = d.mass_matrix(self.system, q1_safe, zero, params, t0)
-        kmat = self._kmat(q1_safe, params)
-        qd1 = qd0 + solve_kkt(mass, kmat, zero, -(kmat @ qd0))[0]
-        ok = q_ok & jnp.all(jnp.isfinite(qd1))
-        return jnp.where(ok, q1, q0), jnp.where(ok, qd1, qd0), ok
-
     def project(self, q: Coordinates, qd: Velocities, params: Params) -> tuple[Vector, Vector]:
         r"""The nearest consistent state: `φ(q*) = 0`, `J(q*) q̇* = 0` and
         `A(q*) q̇* = 0`.
@@ -589,86 +481,9 @@ class ConstrainedSystem(AbstractSystem):
         `jit`, a
         run-time error by `equinox.error_if`.
         """
-        q, qd = self._state(q, qd)
-        if is_traced(q, qd, params):
-            q1, qd1, ok = self._project(q, qd, params)
-            return eqx.error_if(
-                (q1, qd1),
-                ~ok,
-                f"could not project the state of {self.name} onto its constraints "
-                "phi(q) = 0 (no convergence, or a rank-deficient constraint Jacobian); "
-                "call project outside jit for a diagnosis",
-            )
-        finite(q, "q")
-        finite(qd, "qd")
-        q1, qd1, ok = _project_jit(self, q, qd, params)
-        if not bool(ok):
-            raise ConstraintError(self._projection_message(q, params))
-        return q1, qd1
-
-    def _projection_message(self, q, params) -> str:
-        head = f"could not project the state of {self.name} onto its constraints"
-        rank = self._rank_message(q, params)
-        if rank is not None:
-            return f"{head}: at the initial q, {rank}"
-        phi = np.asarray(self._phi(q, params))
-        return (
-            f"{head}: Newton's method did not converge in {_PROJECTION_ITERS} iterations from "
-            f"q={np.asarray(q)} (|phi(q)| = {np.max(np.abs(phi)):.3g} there; phi = {phi}), "
-            "or met a configuration where J = dphi/dq is rank-deficient. The constraints "
-            "may have no solution near this q (check the lengths/parameters and the "
-            "constraint function) or the start is too far from one: start from an "
-            "(approximately) consistent configuration."
-        )
+        return projection.project(self, q, qd, params)
 
     # ------------------------------------------------------------ checks
-    def _rank_message(self, q, params) -> str | None:
-        """A description of a rank-deficient `K = [J; A]` at `q` (`None` if it has
-        full rank)."""
-        jac = np.asarray(self._kmat(jnp.asarray(q), params))
-        mass = np.asarray(self.system.mass_matrix(q, params))
-        m, n = jac.shape
-        sv = np.linalg.svd(jac, compute_uv=False) if jac.size else np.zeros(0)
-        schur = jac @ np.linalg.solve(mass, jac.T)
-        eigs = np.linalg.eigvalsh(0.5 * (schur + schur.T)) if m else np.zeros(0)
-        tol = PIVOT_RTOL * np.finfo(jac.dtype).eps
-        if m <= n and (m == 0 or eigs[0] > tol * max(np.max(np.abs(np.diag(schur))), 1e-300)):
-            return None
-        why = (
-            f"there are more constraints (m={m}) than coordinates (n={n})"
-            if m > n
-            else "the constraints are redundant (remove the dependent ones) or q is a "
-            "singular configuration of the mechanism (e.g. a linkage at a change point, "
-            "links aligned)"
-        )
-        if self.velocity_constraints is None:
-            return (
-                f"the constraint Jacobian J = dphi/dq of {self.name} is rank-deficient at "
-                f"q={np.asarray(q)} (shape {jac.shape}, singular values {sv}), so the KKT "
-                f"matrix [[M, J^T], [J, 0]] is singular: {why}"
-            )
-        m1 = int(self._phi(jnp.asarray(q), params).shape[0])
-        return (
-            f"{self._kname} of {self.name} is rank-deficient at q={np.asarray(q)} (shape "
-            f"{jac.shape}: {m1} holonomic and {m - m1} velocity rows; singular values "
-            f"{sv}), so the KKT matrix [[M, K^T], [K, 0]] is singular: {why}"
-        )
-
-    @property
-    def _ksym(self) -> str:
-        if self.velocity_constraints is None:
-            return "J"
-        return "A" if self.constraints is None else "[J; A]"
-
-    @property
-    def _kname(self) -> str:
-        """How messages name the constraint matrix `K`."""
-        if self.velocity_constraints is None:
-            return "the constraint Jacobian J = dphi/dq"
-        if self.constraints is None:
-            return "the velocity constraint matrix A(q)"
-        return "the constraint matrix K = [J; A] (J = dphi/dq, A the velocity constraints)"
-
     def check_state(
         self,
         q: Coordinates,
@@ -689,56 +504,4 @@ class ConstrainedSystem(AbstractSystem):
         **Raises:** `ConstraintError`, `ShapeError`, `NonFiniteError`,
         `ParameterError`, `MassMatrixError`.
         """
-        self.system.check_state(q, qd, params, t=t)
-        q, qd = self._state(q, qd)
-        phi = self._phi(q, params)
-        finite(phi, "the constraint values phi(q)")
-        if self.velocity_constraints is not None:
-            finite(self._amat(q, params), f"the velocity constraint matrix A(q) at q={q}")
-        if self.project_initial if project is None else project:
-            q, qd = self.project(q, qd, params)
-        message = self._rank_message(q, params)
-        if message is not None:
-            raise ConstraintError(message)
-
-
-@eqx.filter_jit
-def _project_jit(system: ConstrainedSystem, q, qd, params):
-    return system._project(q, qd, params)
-
-
-@eqx.filter_custom_jvp
-def _kkt_with_rule(system: ConstrainedSystem, t, q, qd, params, tau):
-    return system._kkt_raw(t, q, qd, params, tau)
-
-
-@_kkt_with_rule.def_jvp
-def _kkt_tangent(primals, tangents):
-    r"""The tangent of `(q̈, λ)` through the KKT system: with the residual
-    `R = (r(q̈) − τ − Kᵀλ, K q̈ − γ)` (`r` the system's inverse dynamics less its applied
-    forces), `[[M, −Kᵀ], [K, 0]] (δq̈, δλ) = −∂R/∂(t, q, q̇, p, τ) δ(t, q, q̇, p, τ)`, solved
-    as the primal is (`solve_kkt`) at the primal `(q̈, λ)`."""
-    system, t, q, qd, params, tau = primals
-    _, dt, dq, dqd, dparams, dtau = tangents
-    qdd, lam = system._kkt_raw(t, q, qd, params, tau)
-    inner = system.system
-    mass = d.mass_matrix(inner, q, qd, params, t)
-    kmat, _ = system._rows(q, qd, params)
-
-    def constrained_residual(s, a, b, p):
-        k_a, gamma = system._rows(a, b, p)
-        top = implicit.residual(inner, s, a, b, qdd, p) - k_a.T @ lam
-        return top, k_a @ qdd - gamma
-
-    dres = implicit.jvp_of_given(constrained_residual, (t, q, qd, params), (dt, dq, dqd, dparams))
-    top = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
-    bottom = jnp.zeros_like(lam)
-    if dres is not None:
-        top, bottom = top - dres[0], bottom - dres[1]
-    # linear in (top, bottom): every matrix below is formed from the primal values only
-    m_inv = spd_inverse(mass)
-    m_inv_kt = m_inv @ kmat.T.astype(m_inv.dtype)
-    s_inv = spd_inverse(0.5 * (kmat @ m_inv_kt + (kmat @ m_inv_kt).T))
-    free = m_inv @ top
-    dlam = s_inv @ (bottom - kmat @ free)
-    return (qdd, lam), (free + m_inv_kt @ dlam, dlam)
+        checks.check_state(self, q, qd, params, project, t)

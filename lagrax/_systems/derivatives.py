@@ -23,7 +23,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import call_energy, call_user, clamped_reads, energy_value, force_value
+from .._core.checks import call_energy, call_user, energy_value, force_value
+from .._core.clamped_reads import clamped_reads
+from .._core.errors import ArgumentTypeError
 from .._core.linalg import cholesky_solve, solve_spd_unrolled
 
 # Up to this many coordinates, the equations use scalar forward-over-forward derivatives.
@@ -75,13 +77,13 @@ class Energies(Protocol):
 
 def timed(e: Energies) -> bool:
     """Whether the energies take the time first: `T(t, q, q̇)`, `V(t, q)`, `D(t, q, q̇)`."""
-    return getattr(e, "time_dependent", False)
+    return e.time_dependent
 
 
 def time_of(t, q):
     """The time as a scalar array of `q`'s dtype (what a time-dependent energy receives)."""
     if t is None:
-        raise TypeError("internal error: a time-dependent system's kernel needs the time t")
+        raise ArgumentTypeError("internal error: a time-dependent system's kernel needs the time t")
     return jnp.asarray(t, q.dtype)
 
 

@@ -5,22 +5,13 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .._core.checks import (
-    binds,
-    call_user,
-    finite,
-    finite_params,
-    is_traced,
-    pivot_threshold,
-    positive_int,
-    time_signature_message,
-)
+from .._core.checks import call_user, is_traced
 from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
-from .._core.errors import ArgumentTypeError, ConfigurationError, MassMatrixError, NonFiniteError
 from . import derivatives as d
-from . import implicit, sensitivity
+from . import dynamics_derivatives as api
+from . import implicit
+from . import lagrangian_checks as checks
 from .abstract import AbstractSystem
 from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
 
@@ -144,48 +135,7 @@ class LagrangianSystem(AbstractSystem):
     coordinate_names: tuple[str, ...] | None = eqx.field(default=None, static=True)
 
     def __check_init__(self):
-        if isinstance(self.kinetic, AbstractSystem):
-            raise ArgumentTypeError(
-                f"LagrangianSystem got a system ({self.kinetic.name!r}) where its kinetic "
-                "energy function goes; pass the system itself where a system is expected"
-            )
-        for role, fn, signature in (
-            ("kinetic", self.kinetic, "T(q, qd, params) -> scalar"),
-            ("potential", self.potential, "V(q, params) -> scalar"),
-            ("dissipation", self.dissipation, "D(q, qd, params) -> scalar"),
-            ("force", self.force, "F(t, q, qd, params) -> (n,)"),
-        ):
-            if not (fn is None and role != "kinetic") and not callable(fn):
-                raise ArgumentTypeError(
-                    f"LagrangianSystem's {role} must be a function {signature}, got "
-                    f"{fn!r} ({type(fn).__name__})"
-                )
-        if self.n_dof is not None:
-            positive_int("n_dof", self.n_dof, "It is the number of generalized coordinates.")
-        if not isinstance(self.time_dependent, bool):
-            raise ArgumentTypeError(
-                f"time_dependent must be True or False, got {self.time_dependent!r}"
-            )
-        if self.time_dependent:
-            if self.equations is not None:
-                raise ConfigurationError(
-                    "a time-dependent system cannot use structure-aware equations (a "
-                    "chain's recursions assume energies without explicit time): pass "
-                    "equations=None"
-                )
-            for fn, label, n_args in (
-                (self.kinetic, d.KINETIC_T, 4),
-                (self.potential, d.POTENTIAL_T, 3),
-                (self.dissipation, d.DISSIPATION_T, 4),
-            ):
-                if fn is not None and binds(fn, n_args) is False:
-                    raise ArgumentTypeError(time_signature_message(label, n_args, fn, True))
-        names = self.coordinate_names
-        if names is not None and self.n_dof is not None and len(names) != self.n_dof:
-            raise ConfigurationError(
-                f"LagrangianSystem has n_dof={self.n_dof} but {len(names)} coordinate_names "
-                f"{names!r}: give one name per coordinate"
-            )
+        checks.check_init(self)
 
     @property
     def final_maxima(self) -> tuple[str, ...]:
@@ -406,22 +356,7 @@ class LagrangianSystem(AbstractSystem):
         """
         q, qd, tau = self._state(q, qd, tau=tau)
         if not is_traced(q, qd, tau, params, t):
-            # eager: precise messages with the offending values
-            finite(q, "q")
-            finite(qd, "qd")
-            if tau is not None:
-                finite(tau, "tau")
-            qdd = self.accelerations(t, q, qd, params, tau)
-            if not bool(jnp.all(jnp.isfinite(qdd))):
-                self.check_state(q, qd, params, t=t)  # raises if M(q) or the energies are bad
-                applied = d.applied(self, t, q, qd, params, tau)
-                raise NonFiniteError(
-                    f"forward_dynamics of {self.name} is not finite at q={np.asarray(q)}, "
-                    f"qd={np.asarray(qd)} although the mass matrix and energies are: the "
-                    f"applied force tau + force - dD/dqd = {np.asarray(applied)}; check the "
-                    "force, dissipation and tau, and the derivatives of T and V there"
-                )
-            return qdd
+            return checks.eager_forward_dynamics(self, t, q, qd, params, tau)
         # traced: one check on the output (NaN inputs and a non-PD mass matrix both make
         # it non-finite); checking the output keeps XLA from splitting the fused kernel.
         qdd = self.accelerations(t, q, qd, params, tau)
@@ -458,15 +393,6 @@ class LagrangianSystem(AbstractSystem):
         if self.dissipation is not None:
             out["dD/dqd (the damping force)"] = d.damping(self, q, qd, params, t)
         return out
-
-    def _mass_message(self, q, params_eigs) -> str:
-        return (
-            f"mass matrix M(q) = d2T/dqd2 of {self.name} is singular or not "
-            f"positive-definite at q={np.asarray(q)}"
-            + (f" (eigenvalues {params_eigs})" if params_eigs is not None else "")
-            + ": check that T is quadratic in qd with positive masses and inertias, or "
-            "change coordinates if q is a singular configuration of them"
-        )
 
     def inverse_dynamics(
         self,
@@ -528,12 +454,7 @@ class LagrangianSystem(AbstractSystem):
         out.dq, out.dqd, out.dtau        # ∂q̈/∂q, ∂q̈/∂q̇, M⁻¹
         ```
         """
-        q, qd, tau = self._state(q, qd, tau=tau)
-        eager = not is_traced(q, qd, tau, params, t)
-        out = _forward_derivatives(
-            self, t, q, qd, _arrays(params) if eager else params, tau, wrt_params
-        )
-        return self._finite_derivatives(out, q, qd, params, tau, t, "forward_dynamics")
+        return api.forward_dynamics_derivatives(self, q, qd, params, tau, t, wrt_params)
 
     def inverse_dynamics_derivatives(
         self,
@@ -560,29 +481,7 @@ class LagrangianSystem(AbstractSystem):
         **Raises:** `ShapeError` for mismatched shapes; `NonFiniteError` for NaN/inf
         inputs or results (under `jit` by `equinox.error_if`).
         """
-        q, qd, qdd = self._state(q, qd, qdd=qdd)
-        eager = not is_traced(q, qd, qdd, params, t)
-        out = _inverse_derivatives(
-            self, t, q, qd, qdd, _arrays(params) if eager else params, wrt_params
-        )
-        return self._finite_derivatives(out, q, qd, params, None, t, "inverse_dynamics")
-
-    def _finite_derivatives(self, out, q, qd, params, tau, t, what: str):
-        """`out` if every array in it is finite, else the error `forward_dynamics` would
-        raise there (eagerly), or a `NonFiniteError` (under `jit`, at run time)."""
-        ok = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(out)]))
-        message = (
-            f"{what}_derivatives of {self.name} are not finite: the state, tau or params "
-            "contain NaN/inf, or M(q) is singular or not positive-definite there"
-        )
-        if is_traced(q, qd, tau, params, t, out):
-            return eqx.error_if(out, ~ok, message + ". Outside jit the message names which.")
-        if not bool(ok):
-            finite(q, "q")
-            finite(qd, "qd")
-            self.check_state(q, qd, params, t=t)  # raises if M(q) or the energies are bad
-            raise NonFiniteError(message)
-        return out
+        return api.inverse_dynamics_derivatives(self, q, qd, qdd, params, t, wrt_params)
 
     def check_state(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> None:
         """Validate a state eagerly (outside `jit`) with the values in the messages.
@@ -595,26 +494,7 @@ class LagrangianSystem(AbstractSystem):
         **Raises:** `ShapeError`, `NonFiniteError`, `ParameterError`,
         `MassMatrixError`.
         """
-        q, qd = self._state(q, qd)
-        finite(q, "q")
-        finite(qd, "qd")
-        finite_params(params)
-        # one compiled call; Python floats as arrays, so a new value does not recompile
-        as_arrays = jax.tree_util.tree_map(
-            lambda x: np.asarray(x) if isinstance(x, float) else x, params
-        )
-        e, mass = _energy_and_mass(self, q, qd, as_arrays, np.asarray(t, q.dtype))
-        if not bool(jnp.isfinite(e)):
-            raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
-        mass = np.asarray(mass)
-        if not np.all(np.isfinite(mass)):
-            raise MassMatrixError(f"mass matrix is not finite at q={np.asarray(q)}: {mass}")
-        asym = np.max(np.abs(mass - mass.T))
-        if asym > 1e3 * np.finfo(mass.dtype).eps * max(np.max(np.abs(mass)), 1e-300):
-            raise MassMatrixError(f"mass matrix is not symmetric at q={np.asarray(q)}")
-        eigs = np.linalg.eigvalsh(mass)
-        if not eigs[0] > pivot_threshold(mass.dtype) * max(np.max(np.abs(eigs)), 0.0):
-            raise MassMatrixError(self._mass_message(q, eigs))
+        checks.check_state(self, q, qd, params, t)
 
     # ------------------------------------------------------------------ linearization
     def linearize(
@@ -680,67 +560,4 @@ class LagrangianSystem(AbstractSystem):
         jnp.linalg.eigvals(A)                              # a positive real pair: unstable
         ```
         """
-        q, qd = self._state(q_eq, qd_eq)
-        if tau_eq is None:
-            tau = jnp.zeros_like(q)
-        else:
-            (tau,) = self._state(q, tau=tau_eq)[1:]
-        dtype = jnp.result_type(q, qd, tau)
-        q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-        eager = not is_traced(q, qd, tau, params, t)
-        if eager:
-            finite(q, "q_eq")
-            finite(qd, "qd_eq")
-            finite(tau, "tau_eq")
-            self.check_state(q, qd, params, t=t)  # shapes, parameters, M positive-definite
-
-        a_mat, b_mat = _linearization(self, t, q, qd, params if not eager else _arrays(params), tau)
-        if eager:
-            finite(a_mat, "the linearization A")
-            finite(b_mat, "the linearization B")
-            return a_mat, b_mat
-        ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
-        a_mat = eqx.error_if(
-            a_mat,
-            ~ok,
-            f"linearize of {self.name} produced non-finite Jacobians: the state, tau_eq or "
-            "params contain NaN/inf, or M(q_eq) is singular. Outside jit the message names "
-            "which.",
-        )
-        return a_mat, b_mat
-
-
-@eqx.filter_jit
-def _energy_and_mass(system: LagrangianSystem, q, qd, params, t):
-    """`(T + V, M)` at one state: one compiled call for `check_state`."""
-    return system.energy(q, qd, params, t=t), system.mass_matrix(q, params, qd, t=t)
-
-
-def _arrays(params: Params) -> Params:
-    """Python floats in `params` as NumPy scalars, so that a compiled call does not
-    recompile for every new value (`filter_jit` keeps Python scalars static)."""
-    return jax.tree_util.tree_map(lambda x: np.asarray(x) if isinstance(x, float) else x, params)
-
-
-@eqx.filter_jit
-def _forward_derivatives(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
-    """`sensitivity.forward` as one compiled program (eager calls would otherwise
-    dispatch its thousands of operations one by one)."""
-    return sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, wrt_params)
-
-
-@eqx.filter_jit
-def _inverse_derivatives(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
-    """`sensitivity.inverse` as one compiled program."""
-    return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
-
-
-@eqx.filter_jit
-def _linearization(system: LagrangianSystem, t, q, qd, params, tau):
-    """`(A, B)` of the state equations at one state, as one compiled program."""
-    out = sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, False)
-    n = q.shape[0]
-    zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
-    a_mat = jnp.block([[zero, eye], [out.dq, out.dqd]])
-    b_mat = jnp.concatenate([zero, out.dtau], axis=0)
-    return a_mat, b_mat
+        return api.linearize(self, q_eq, qd_eq, params, tau_eq, t)

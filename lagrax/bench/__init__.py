@@ -8,22 +8,22 @@
   stability`.
 """
 
-from ._stability import AtlasRow as AtlasRow
-from ._stability import chaos as chaos
-from ._stability import long_horizon as long_horizon
-from ._stability import plot_chaos as plot_chaos
-from ._stability import plot_long_horizon as plot_long_horizon
-from ._stability import singular as singular
-from ._stability import spherical_pendulum as spherical_pendulum
-from ._stability import stiff as stiff
-from ._stability import stiff_arm as stiff_arm
-from ._stability import write_table as write_table
-from ._work_precision import DEFAULT_LADDERS as DEFAULT_LADDERS
-from ._work_precision import WorkPrecisionPoint as WorkPrecisionPoint
-from ._work_precision import plot_work_precision as plot_work_precision
-from ._work_precision import reference_solution as reference_solution
-from ._work_precision import work_precision as work_precision
-from ._work_precision import write_csv as write_csv
+from .precision import DEFAULT_LADDERS as DEFAULT_LADDERS
+from .precision import WorkPrecisionPoint as WorkPrecisionPoint
+from .precision import plot_work_precision as plot_work_precision
+from .precision import reference_solution as reference_solution
+from .precision import work_precision as work_precision
+from .precision import write_csv as write_csv
+from .stability import AtlasRow as AtlasRow
+from .stability import chaos as chaos
+from .stability import long_horizon as long_horizon
+from .stability import plot_chaos as plot_chaos
+from .stability import plot_long_horizon as plot_long_horizon
+from .stability import singular as singular
+from .stability import spherical_pendulum as spherical_pendulum
+from .stability import stiff as stiff
+from .stability import stiff_arm as stiff_arm
+from .stability import write_table as write_table
 
 __all__ = [
     "work_precision",

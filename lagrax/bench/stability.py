@@ -1,5 +1,6 @@
 """Stability atlas: scenes where integration methods fail, and how lagrax reports it."""
 
+import functools
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -12,7 +13,7 @@ import numpy as np
 from .._core.errors import LagraxError
 from .._solve.simulate import simulate
 from .._systems.lagrangian import LagrangianSystem
-from ..models import _planar_2r as arm
+from ..models import planar_2r
 
 CHAOTIC_START = (-math.pi / 2 + 1.4, 0.8)
 
@@ -55,7 +56,7 @@ def long_horizon(periods: float = 1e4, *, n_save: int = 2001):
     variational integrator keeps a bounded, oscillating energy error. Returns the atlas
     rows and the two solutions (for plotting).
     """
-    system, params = arm.planar_2r()
+    system, params = planar_2r()
     q0 = jnp.array([-math.pi / 2 + 0.6, 0.4])  # regular (quasi-periodic) motion
     qd0 = jnp.zeros(2)
     t1 = periods * 2.3444
@@ -89,12 +90,14 @@ def long_horizon(periods: float = 1e4, *, n_save: int = 2001):
 
 
 # ---------------------------------------------------------------- stiff joint
-def _stiff_kinetic(q, qd, p):
-    return arm.kinetic(q, qd, p)
+@functools.cache
+def _arm() -> LagrangianSystem:
+    """The 2R arm, whose kinetic and potential energies the stiff arm reuses."""
+    return planar_2r()[0]
 
 
 def _stiff_potential(q, p):
-    return arm.potential(q, p) + 0.5 * p["k"] * (q[1] - p["q2_rest"]) ** 2
+    return _arm().potential(q, p) + 0.5 * p["k"] * (q[1] - p["q2_rest"]) ** 2
 
 
 def _stiff_dissipation(q, qd, p):
@@ -104,13 +107,13 @@ def _stiff_dissipation(q, qd, p):
 def stiff_arm(stiffness_ratio: float = 1e6):
     """The 2R arm with a joint-2 spring/damper, `k = ratio · m g l` (gravity scale)."""
     system = LagrangianSystem(
-        _stiff_kinetic,
+        _arm().kinetic,
         _stiff_potential,
         dissipation=_stiff_dissipation,
         n_dof=2,
         name="2R arm with a stiff joint spring",
     )
-    _, params = arm.planar_2r()
+    _, params = planar_2r()
     k = stiffness_ratio * float(params["m2"] * params["g"] * params["l2"])
     params = {**params, "k": jnp.asarray(k), "c": jnp.asarray(0.03 * k), "q2_rest": 0.3}
     return system, params
@@ -153,7 +156,7 @@ def chaos(t1: float = 30.0, tolerances=(1e-6, 1e-8, 1e-10, 1e-12), threshold: fl
     joint angles differ by more than `threshold` rad. Returns rows and the divergence
     curves `{tol: (ts, |Δq|)}`.
     """
-    system, params = arm.planar_2r()
+    system, params = planar_2r()
     q0, qd0 = jnp.array(CHAOTIC_START), jnp.zeros(2)
     kw = dict(t1=t1, n_save=3001, max_steps=2_000_000)
     ref = simulate(system, q0, qd0, params, solver="dopri8", rtol=1e-13, atol=1e-13, **kw)

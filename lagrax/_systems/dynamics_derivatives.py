@@ -1,0 +1,104 @@
+"""The derivatives API of a `LagrangianSystem`: the forward and inverse dynamics with
+their derivatives (as Pinocchio's `computeABADerivatives` / `computeRNEADerivatives`)
+and the linearization of the state equations, each one compiled program around
+`sensitivity`'s kernels, with eager checks around it."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from .._core.checks import finite, is_traced
+from . import sensitivity
+from .lagrangian_checks import finite_derivatives, float_arrays
+from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
+
+if TYPE_CHECKING:
+    from .lagrangian import LagrangianSystem
+
+
+def forward_dynamics_derivatives(
+    system: LagrangianSystem, q, qd, params, tau, t, wrt_params: bool
+) -> ForwardDynamicsDerivatives:
+    """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
+    q, qd, tau = system._state(q, qd, tau=tau)
+    eager = not is_traced(q, qd, tau, params, t)
+    out = _forward_derivatives(
+        system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
+    )
+    return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
+
+
+def inverse_dynamics_derivatives(
+    system: LagrangianSystem, q, qd, qdd, params, t, wrt_params: bool
+) -> InverseDynamicsDerivatives:
+    """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
+    q, qd, qdd = system._state(q, qd, qdd=qdd)
+    eager = not is_traced(q, qd, qdd, params, t)
+    out = _inverse_derivatives(
+        system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
+    )
+    return finite_derivatives(system, out, q, qd, params, None, t, "inverse_dynamics")
+
+
+def linearize(
+    system: LagrangianSystem, q_eq, qd_eq, params, tau_eq, t
+) -> tuple[jax.Array, jax.Array]:
+    """`LagrangianSystem.linearize` (documented there): `(A, B)`."""
+    q, qd = system._state(q_eq, qd_eq)
+    if tau_eq is None:
+        tau = jnp.zeros_like(q)
+    else:
+        (tau,) = system._state(q, tau=tau_eq)[1:]
+    dtype = jnp.result_type(q, qd, tau)
+    q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
+    eager = not is_traced(q, qd, tau, params, t)
+    if eager:
+        finite(q, "q_eq")
+        finite(qd, "qd_eq")
+        finite(tau, "tau_eq")
+        system.check_state(q, qd, params, t=t)  # shapes, parameters, M positive-definite
+
+    a_mat, b_mat = _linearization(
+        system, t, q, qd, params if not eager else float_arrays(params), tau
+    )
+    if eager:
+        finite(a_mat, "the linearization A")
+        finite(b_mat, "the linearization B")
+        return a_mat, b_mat
+    ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
+    a_mat = eqx.error_if(
+        a_mat,
+        ~ok,
+        f"linearize of {system.name} produced non-finite Jacobians: the state, tau_eq or "
+        "params contain NaN/inf, or M(q_eq) is singular. Outside jit the message names "
+        "which.",
+    )
+    return a_mat, b_mat
+
+
+@eqx.filter_jit
+def _forward_derivatives(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
+    """`sensitivity.forward` as one compiled program (eager calls would otherwise
+    dispatch its thousands of operations one by one)."""
+    return sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, wrt_params)
+
+
+@eqx.filter_jit
+def _inverse_derivatives(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
+    """`sensitivity.inverse` as one compiled program."""
+    return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
+
+
+@eqx.filter_jit
+def _linearization(system: LagrangianSystem, t, q, qd, params, tau):
+    """`(A, B)` of the state equations at one state, as one compiled program."""
+    out = sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, False)
+    n = q.shape[0]
+    zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
+    a_mat = jnp.block([[zero, eye], [out.dq, out.dqd]])
+    b_mat = jnp.concatenate([zero, out.dtau], axis=0)
+    return a_mat, b_mat
