@@ -141,7 +141,7 @@ def pinocchio_table(ours, batch, repeats):
         system, params = systems()[f"URDF {name}"]
         qs, qds, qdds = random_states(system.n_dof, batch)
         inv = jax.jit(
-            jax.vmap(lambda a, b, c: system.inverse_dynamics_derivatives(a, b, c, params))
+            jax.vmap(lambda a, b, c, s=system, p=params: s.inverse_dynamics_derivatives(a, b, c, p))
         )
         ours_inv = fastest(inv, (qs, qds, qdds), repeats) / batch * 1e6
         ours_fwd = ours[f"URDF {name}"]["derivatives"]
@@ -167,7 +167,9 @@ def _losses(system, params, n_save=2):
 
 def simulate_table(repeats, sweep):
     print("\n## Through simulate (1 s, rtol = atol = 1e-8; ms, ratio to the forward solve)\n")
-    print("| system | forward solve | jax.grad | ratio | jax.jacfwd | ratio | vmap(grad) per member |")
+    print(
+        "| system | forward solve | jax.grad | ratio | jax.jacfwd | ratio | vmap(grad) per member |"
+    )
     print("|---|---|---|---|---|---|---|")
     cases = {
         "2R arm": lx.models.planar_2r(),
