@@ -309,7 +309,7 @@ def test_bad_events_are_refused():
         lx.simulate(BALL, [H], [0.0], params, t1=1.0, events=[GROUND, wrong])
     with pytest.raises(lx.ConfigurationError, match="variational"):
         lx.simulate(BALL, [H], [0.0], params, t1=1.0, events=GROUND, solver="variational", dt=0.01)
-    with pytest.raises(lx.ConfigurationError, match="adjoint"):
-        lx.simulate(BALL, [H], [0.0], params, t1=1.0, events=GROUND, adjoint=dfx.ForwardMode())
+    with pytest.raises(lx.ConfigurationError, match="adjoint"):  # (ForwardMode runs: lean loop)
+        lx.simulate(BALL, [H], [0.0], params, t1=1.0, events=GROUND, adjoint=dfx.BacksolveAdjoint())
     with pytest.raises(lx.ShapeError, match="real scalar"):
         lx.sweep(BALL, [H], [0.0], {"g": np.full(2, G)}, t1=1.0, events=vector, progress=False)
