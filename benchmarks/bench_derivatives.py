@@ -15,11 +15,14 @@ Four tables, each a ratio against a baseline measured in this run:
    `inverse_dynamics_derivatives` per state (batched).
 3. **Through `simulate`** (1 s, rtol = atol = 1e-8, two saves, loss `|q(t1)|²` with
    respect to `q0`): the forward solve, `jax.grad`, `jax.jacfwd` (forward mode) and
-   `jax.vmap(jax.grad)` over `--sweep` initial states, per member.
+   `jax.vmap(jax.grad)` over `--sweep` (2R arm) or `--sweep-urdf` initial states, per
+   member.
 4. **Compile times** (a fresh trace each, the persistent cache off for this process): the
    URDF arm's first `linearize`, its first forward `simulate` and its first gradient.
 
     python benchmarks/bench_derivatives.py [--batch 4096] [--repeats 20] [--sweep 4096]
+
+About 5–7 minutes on 2 cores.
 """
 
 import argparse
@@ -165,7 +168,7 @@ def _losses(system, params, n_save=2):
     return solve, loss
 
 
-def simulate_table(repeats, sweep):
+def simulate_table(repeats, sweep, sweep_urdf):
     print("\n## Through simulate (1 s, rtol = atol = 1e-8; ms, ratio to the forward solve)\n")
     print(
         "| system | forward solve | jax.grad | ratio | jax.jacfwd | ratio | vmap(grad) per member |"
@@ -177,20 +180,21 @@ def simulate_table(repeats, sweep):
     }
     for name, (system, params) in cases.items():
         n = system.n_dof
+        members = sweep if name == "2R arm" else sweep_urdf
         solve, loss = _losses(system, params)
         q0 = jnp.full(n, 0.3)
         forward = jax.jit(loss)
         grad = jax.jit(jax.grad(loss))
         jacfwd = jax.jit(jax.jacfwd(loss))
-        batch = jnp.asarray(np.random.default_rng(2).uniform(-0.5, 0.5, (sweep, n))) + q0
+        batch = jnp.asarray(np.random.default_rng(2).uniform(-0.5, 0.5, (members, n))) + q0
         vgrad = jax.jit(jax.vmap(jax.grad(loss)))
         t_f = fastest(forward, (q0,), repeats)
         t_g = fastest(grad, (q0,), repeats)
         t_j = fastest(jacfwd, (q0,), repeats)
-        t_v = fastest(vgrad, (batch,), max(1, repeats // 10)) / sweep
+        t_v = fastest(vgrad, (batch,), max(1, repeats // 10)) / members
         print(
             f"| {name} | {t_f * 1e3:.3f} | {t_g * 1e3:.3f} | {t_g / t_f:.1f}× | "
-            f"{t_j * 1e3:.3f} | {t_j / t_f:.1f}× | {t_v * 1e3:.3f} ({sweep:,} members) |",
+            f"{t_j * 1e3:.3f} | {t_j / t_f:.1f}× | {t_v * 1e3:.3f} ({members:,} members) |",
             flush=True,
         )
 
@@ -222,7 +226,8 @@ def main(argv=None):
     )
     ap.add_argument("--batch", type=int, default=4096, help="states per vmapped call")
     ap.add_argument("--repeats", type=int, default=20, help="timed calls (the fastest)")
-    ap.add_argument("--sweep", type=int, default=4096, help="members of vmap(grad(simulate))")
+    ap.add_argument("--sweep", type=int, default=4096, help="2R arm: members of vmap(grad)")
+    ap.add_argument("--sweep-urdf", type=int, default=256, help="URDF arm: members of vmap(grad)")
     ap.add_argument(
         "--only",
         choices=("all", "compile", "per-state", "simulate"),
@@ -237,7 +242,7 @@ def main(argv=None):
         ours = per_state_table(args.batch, args.repeats)
         pinocchio_table(ours, args.batch, args.repeats)
     if args.only in ("all", "simulate"):
-        simulate_table(args.repeats, args.sweep)
+        simulate_table(args.repeats, args.sweep, args.sweep_urdf)
 
 
 if __name__ == "__main__":
