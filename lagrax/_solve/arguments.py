@@ -11,7 +11,6 @@ import diffrax as dfx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax._src.interpreters import ad as _ad
 
 from .._core import checks
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
@@ -74,6 +73,15 @@ def options(t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager: bool):
     return t0, t1, rtol, atol, n_save, ts
 
 
+try:  # JAX's tracer types of jax.jvp and of linearize (jax.grad): private, so looked up softly
+    from jax._src.interpreters import ad as _ad
+
+    _JVP_TRACER = getattr(_ad, "JVPTracer", ())
+    _LINEARIZE_TRACER = getattr(_ad, "LinearizeTracer", ())
+except ImportError:  # pragma: no cover - a JAX that moved them: modes are not seen
+    _JVP_TRACER = _LINEARIZE_TRACER = ()
+
+
 def _modes(tracer) -> set[str]:
     """The autodiff modes among the transformations that traced `tracer` (each JAX
     tracer holds the one it wraps): `"forward"` for `jax.jvp` / `jax.jacfwd`,
@@ -81,9 +89,9 @@ def _modes(tracer) -> set[str]:
     transposes)."""
     found = set()
     while isinstance(tracer, jax.core.Tracer):
-        if isinstance(tracer, _ad.JVPTracer):
+        if isinstance(tracer, _JVP_TRACER):
             found.add("forward")
-        elif isinstance(tracer, _ad.LinearizeTracer):
+        elif isinstance(tracer, _LINEARIZE_TRACER):
             found.add("reverse")
         inner = None
         for attr in ("primal", "val"):  # JVP and linearize tracers; batch tracers
