@@ -35,3 +35,18 @@ def check_grad_against_central_difference(f, x, h=1e-5, rtol=1e-6):
     grad = jax.grad(f)(x)
     fd = central_difference(f, x, h)
     assert abs(float(grad) - float(fd)) <= rtol * max(1.0, abs(float(fd)))
+
+
+def pin_state(pin, model, tree, q, qd):
+    """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
+    `(cos q, sin q)` in Pinocchio's configuration, its tangent the angle)."""
+    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
+    for k, name in enumerate(tree.joint_names):
+        joint = model.joints[model.getJointId(name)]
+        if joint.nq == 2:
+            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
+        else:
+            qp[joint.idx_q] = q[k]
+        vp[joint.idx_v] = qd[k]
+        order.append(joint.idx_v)
+    return qp, vp, np.asarray(order)

@@ -17,7 +17,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrax as lx
-from _helpers import rel_error  # tests/_helpers.py
+from _helpers import pin_state, rel_error  # tests/_helpers.py
 from _random_models import random_spatial  # tests/_random_models.py
 from lagrax._systems import implicit
 
@@ -311,7 +311,7 @@ def test_derivatives_match_pinocchio(robot):
     )  # (τ's values as accelerations)
     worst = {}
     for k in range(q.shape[0]):
-        qp, vp, order = _pin_state(pin, model, tree, q[k], qd[k])
+        qp, vp, order = pin_state(pin, model, tree, q[k], qd[k])
         t_pin, a_pin = np.zeros(n), np.zeros(n)
         t_pin[order], a_pin[order] = tau[k], tau[k]
         pin.computeABADerivatives(model, data, qp, vp, t_pin)
@@ -330,18 +330,3 @@ def test_derivatives_match_pinocchio(robot):
         for key, (ours, theirs) in pairs.items():
             worst[key] = max(worst.get(key, 0.0), rel_error(ours, theirs))
     assert max(worst.values()) <= 1e-10, worst
-
-
-def _pin_state(pin, model, tree, q, qd):
-    """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
-    `(cos q, sin q)` in Pinocchio's configuration, its tangent the angle)."""
-    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
-    for k, name in enumerate(tree.joint_names):
-        joint = model.joints[model.getJointId(name)]
-        if joint.nq == 2:
-            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
-        else:
-            qp[joint.idx_q] = q[k]
-        vp[joint.idx_v] = qd[k]
-        order.append(joint.idx_v)
-    return qp, vp, np.asarray(order)

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import rel_error
+from _helpers import pin_state, rel_error
 from lagrax.chains import from_urdf
 from lagrax.models import urdf_path
 
@@ -56,21 +56,6 @@ def robot(request):
     return pin, tree, params, model, funcs
 
 
-def _pin_state(pin, model, tree, q, qd):
-    """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
-    ``(cos q, sin q)`` in Pinocchio's configuration)."""
-    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
-    for k, name in enumerate(tree.joint_names):
-        joint = model.joints[model.getJointId(name)]
-        if joint.nq == 2:
-            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
-        else:
-            qp[joint.idx_q] = q[k]
-        vp[joint.idx_v] = qd[k]
-        order.append(joint.idx_v)
-    return qp, vp, np.asarray(order)
-
-
 def test_models_match_pinocchio(robot):
     pin, tree, params, model, funcs = robot
     data = model.createData()
@@ -88,7 +73,7 @@ def test_models_match_pinocchio(robot):
     b = np.asarray(params["damping"])
     worst = {}
     for k in range(N_STATES):
-        qp, vp, order = _pin_state(pin, model, tree, q[k], qd[k])
+        qp, vp, order = pin_state(pin, model, tree, q[k], qd[k])
         m_pin = pin.crba(model, data, qp)
         m_pin = (np.triu(m_pin) + np.triu(m_pin, 1).T)[np.ix_(order, order)]
         a_pin = np.zeros(n)
