@@ -7,6 +7,12 @@ not a dozen. Under `jit` they use `jax.numpy`, and the checks of traced options 
 with the values returned (`equinox.error_if`, see `checks`).
 """
 
+import contextlib
+import dataclasses
+import functools
+import types
+import weakref
+
 import diffrax as dfx
 import jax
 import jax.numpy as jnp
@@ -130,3 +136,80 @@ def adjoint_for(adjoint, *values):
         f"{', over reverse mode' if both else ''}), which adjoint={adjoint!r} cannot do: "
         f"leave adjoint=None (lagrax then picks the mode), or pass {wanted}"
     )
+
+
+def differentiated_scalars(*values) -> int | None:
+    """How many scalars among `values` reverse mode differentiates (`jax.grad`,
+    `jax.vjp`), or `None` where forward mode traces any of them, or where a function
+    among `values` closes over a differentiated value (only the checkpointed loop, which
+    closure-converts its body, takes those)."""
+    count = 0
+    functions = []
+    for leaf in jax.tree_util.tree_leaves(values):
+        if isinstance(leaf, jax.core.Tracer):
+            modes = _modes(leaf)
+            if "forward" in modes:
+                return None
+            if "reverse" in modes:
+                count += int(np.prod(leaf.shape))
+        elif callable(leaf):
+            functions.append(leaf)
+    seen: set[int] = set()
+    for fn in functions:
+        for leaf in _closure_tracers(fn, 4, seen):
+            if _modes(leaf):
+                return None
+    return count
+
+
+def closes_over_tracers(*values) -> bool:
+    """Whether a function among `values` (a `tau` function, a system's energies) closes
+    over a traced value: then `simulate` is traced even where its arrays are concrete."""
+    seen: set[int] = set()
+    for value in values:
+        # a system's own functions: its fields (shallow, so that a tree's many arrays are
+        # not walked on every call)
+        fields = vars(value).values() if dataclasses.is_dataclass(value) else (value,)
+        for fn in fields:
+            if isinstance(fn, _FUNCTIONS) and fn not in _CLEAN:
+                for _ in _closure_tracers(fn, 4, seen):
+                    return True
+                with contextlib.suppress(TypeError):  # (not weakly referenceable)
+                    _CLEAN.add(fn)
+    return False
+
+
+_FUNCTIONS = (types.FunctionType, types.MethodType, functools.partial)
+# Functions found to close over no tracer (the usual case: defined outside any transform);
+# eager `simulate` calls reuse them, so each is walked once.
+_CLEAN: "weakref.WeakSet" = weakref.WeakSet()
+
+
+def _closure_tracers(fn, depth: int, seen: set[int]):
+    """The tracers a function closes over (its cells, a `functools.partial`'s arguments,
+    a bound method's owner), `depth` levels of functions down."""
+    if depth == 0 or id(fn) in seen:
+        return
+    seen.add(id(fn))
+    if isinstance(fn, functools.partial):
+        inner = [fn.func, fn.args, fn.keywords]
+    elif isinstance(fn, types.MethodType):
+        inner = [fn.__func__, fn.__self__]
+    elif isinstance(fn, types.FunctionType):
+        inner = [c.cell_contents for c in (fn.__closure__ or ()) if _filled(c)]
+    else:
+        inner = []
+    for value in inner:
+        for leaf in jax.tree_util.tree_leaves(value):
+            if isinstance(leaf, jax.core.Tracer):
+                yield leaf
+            elif callable(leaf):
+                yield from _closure_tracers(leaf, depth - 1, seen)
+
+
+def _filled(cell) -> bool:
+    try:
+        cell.cell_contents  # noqa: B018
+    except ValueError:  # an empty cell
+        return False
+    return True

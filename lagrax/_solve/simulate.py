@@ -29,7 +29,7 @@ from .._core.results import RESULTS, code_of, messages
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
 from ..integrators import Variational
-from . import arguments, integrate
+from . import arguments, integrate, transposed
 from . import events as _events  # (`events` is simulate's argument)
 from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
@@ -215,6 +215,17 @@ def _diffrax_saves(sol: dfx.Solution, requested_ts):
 _solve = eqx.filter_jit(solve)  # under a user's jit (traced inputs)
 
 
+def _solve_pair(pair) -> Solution:
+    return solve(*pair)
+
+
+@eqx.filter_jit
+def _solve_transposed(config: SolveConfig, inputs: SolveInputs) -> Solution:
+    """`solve` for `jax.grad` with few differentiated scalars: the loop in forward
+    mode, its Jacobian contracted in the backward pass (`transposed`)."""
+    return transposed.call(_solve_pair, (config, inputs))
+
+
 def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
     """In-graph validity of a solve's inputs: the initial state could be formed, finite
     parameters and state, finite energy, and finite accelerations at the start (which
@@ -326,8 +337,11 @@ def simulate(
     - `adjoint`: how to differentiate the solve. Default `None`: lagrax's own lean
       stepping loop (diffrax's steps without `diffeqsolve`'s per-step machinery; about
       2–3× faster for small mechanisms), differentiated the way it is asked to be:
-      reverse mode for `jax.grad` / `jax.vjp` (recursive checkpointing, as diffrax's
-      default), forward mode for `jax.jvp` / `jax.jacfwd` (plain `lax.while_loop`s, as
+      reverse mode for `jax.grad` / `jax.vjp` (by forward sensitivities where at most
+      `max(16, 4n)` input scalars are differentiated: the loop carries their tangents and
+      the backward pass contracts them; otherwise recursive checkpointing, as diffrax's
+      default, which also takes a function closing over a differentiated value),
+      forward mode for `jax.jvp` / `jax.jacfwd` (plain `lax.while_loop`s, as
       `diffrax.ForwardMode`; few inputs, many outputs), and `diffrax.DirectAdjoint` for
       forward over reverse (`jax.hessian`). lagrax sees the mode from the arguments it
       is given, so where the forward-mode transform is applied *outside* a `jax.jit`
@@ -378,6 +392,7 @@ def simulate(
     ```
     """
     eager = not checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
+    eager = eager and not arguments.closes_over_tracers(tau, system)
     q0, qd0, params, tau_fn, tau_const = arguments.arrays(system, q0, qd0, params, tau, eager)
     tdt = np.dtype(q0.dtype)
     t0, t1, rtol, atol, n_save, ts = arguments.options(
@@ -387,7 +402,12 @@ def simulate(
     solver, stepsize_controller, dt0, max_steps = stepping(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )
+    transposed_ok = False
     if not eager:  # jax.jvp / jax.jacfwd through simulate: forward mode
+        # (jax.grad by forward sensitivities: lagrax's adjoint, few differentiated scalars)
+        values = (q0, qd0, params, tau_const, t0, t1, ts, system, tau_fn)
+        k = arguments.differentiated_scalars(*values) if adjoint is None else None
+        transposed_ok = k is not None and 0 < k <= transposed.max_tangents(2 * q0.shape[-1])
         adjoint = arguments.adjoint_for(adjoint, q0, qd0, params, tau_const, t0, t1, ts)
     events = _events.as_events(events)
     if events is not None:
@@ -407,7 +427,11 @@ def simulate(
     )
     parts = (system, solver, tau_fn, stepsize_controller, saveat, adjoint)
     if not eager:
-        sol = _solve(SolveConfig(*parts, n_save, max_steps, events), SolveInputs(*fields))
+        if transposed_ok and saveat is None:  # its loop runs in forward mode
+            config = SolveConfig(*parts[:-1], dfx.ForwardMode(), n_save, max_steps, events)
+            sol = _solve_transposed(config, SolveInputs(*fields))
+        else:
+            sol = _solve(SolveConfig(*parts, n_save, max_steps, events), SolveInputs(*fields))
         if not throw:
             return sol
         # inside a user's jit: fail at run time, with the failure's own message

@@ -92,6 +92,16 @@ def residual(e: d.Energies, t, q, qd, qdd, params):
     return out
 
 
+def residual_small(e: d.Energies, t, q, qd, qdd, params):
+    """`residual` by scalar forward-over-forward derivatives (`derivatives.eom_small`)."""
+    rows, rhs = d.eom_small(e, q, qd, params, t)
+    n = q.shape[0]
+    out = jnp.stack([sum(rows[i][j] * qdd[j] for j in range(n)) - rhs[i] for i in range(n)])
+    if e.force is not None or e.dissipation is not None:
+        out = out - d.applied(e, t, q, qd, params, None)
+    return out
+
+
 def residual_jacobians(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params):
     """`(∂r/∂q, ∂r/∂q̇, M)` at `(t, q, q̇, q̈)`, each `(n, n)`.
 
@@ -108,13 +118,14 @@ def residual_jacobians(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params
             )
             jq, jqd = jq - aq, jqd - aqd
         return jq, jqd, mass
-    jq, jqd = jax.jacfwd(lambda a, b: residual(e, t, a, b, qdd, params), argnums=(0, 1))(q, qd)
     if d.use_scalar(q.shape[0], scalar):
+        jq, jqd = jax.jacfwd(lambda a, b: residual_small(e, t, a, b, qdd, params), argnums=(0, 1))(
+            q, qd
+        )
         rows, _ = d.eom_small(e, q, qd, params, t)
-        mass = jnp.stack([jnp.stack(row) for row in rows])
-    else:
-        mass = d.mass_matrix(e, q, qd, params, t)
-    return jq, jqd, mass
+        return jq, jqd, jnp.stack([jnp.stack(row) for row in rows])
+    jq, jqd = jax.jacfwd(lambda a, b: residual(e, t, a, b, qdd, params), argnums=(0, 1))(q, qd)
+    return jq, jqd, d.mass_matrix(e, q, qd, params, t)
 
 
 def jvp_of_given(fn: Callable, primals: tuple, tangents: tuple):
@@ -149,8 +160,18 @@ def _tangent(primals, tangents):
     e, scalar, t, q, qd, params, tau = primals
     _, _, dt, dq, dqd, dparams, dtau = tangents
     qdd = _raw(e, scalar, t, q, qd, params, tau)
-    jq, jqd, mass = residual_jacobians(e, scalar, t, q, qd, qdd, params)
     rhs = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
+    if e.equations is None and d.use_scalar(q.shape[0], scalar):
+        rows, _ = d.eom_small(e, q, qd, params, t)
+        rest = jvp_of_given(
+            lambda a, b, s, p: residual_small(e, s, a, b, qdd, p),
+            (q, qd, t, params),
+            (dq, dqd, dt, dparams),
+        )
+        if rest is not None:
+            rhs = rhs - rest
+        return qdd, jnp.stack(d.solve_spd_unrolled(rows, [rhs[i] for i in range(q.shape[0])]))
+    jq, jqd, mass = residual_jacobians(e, scalar, t, q, qd, qdd, params)
     if dq is not None:
         rhs = rhs - jq @ dq
     if dqd is not None:
