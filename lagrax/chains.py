@@ -51,6 +51,7 @@ from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
 from ._multibody.chains import planar_chain as planar_chain
 from ._multibody.chains import spatial_chain as spatial_chain
 from ._multibody.limits import limit_events as limit_events
+from ._multibody.mjcf import from_mjcf as from_mjcf
 from ._multibody.trees import AbstractTree as AbstractTree
 from ._multibody.trees import Tree as Tree
 from ._multibody.urdf import from_urdf as from_urdf
@@ -63,6 +64,7 @@ __all__ = [
     "AbstractTree",
     "Tree",
     "from_urdf",
+    "from_mjcf",
     "limit_events",
     "axis_angle_rotation",
     "BodyKind",
