@@ -111,9 +111,22 @@ def test_structure_names_limits_and_gravity():
     np.testing.assert_allclose(tree.up, -gravity / np.linalg.norm(gravity), rtol=1e-15)
     # the welded "sensor" body's mass is on "fore"
     assert float(params["m"][1]) == pytest.approx(0.8 + 0.2, rel=1e-15)
+    assert tree.effort_limits == (np.inf, np.inf, 5.0)  # actuatorfrcrange="-4 5"
     cart, _ = from_mjcf((HERE / "cartpole.xml").read_text())  # XML text
     np.testing.assert_allclose(cart.limits[0], (-1.0, 1.0))
     assert cart.limits[1] == (-np.inf, np.inf)
+
+
+def test_limits_impact_stops_the_joints_of_an_mjcf_model():
+    """The cart's rail range [-1, 1] (slide, ref 0.25: in qpos) stops it; the pole's
+    hinge is unlimited, so one event."""
+    tree, params = from_mjcf(HERE / "cartpole.xml", limits="impact", restitution=0.25)
+    np.testing.assert_allclose(params["restitution"], [0.25] * 3)
+    (rail,) = lx.chains.limit_events(tree)
+    q, qd = jnp.array([1.0, 0.2, 0.0]), jnp.array([1.5, -0.3, 0.1])
+    assert float(rail.condition(0.0, q, qd, params)) == 0.0
+    _, qd_after = rail.reset(0.0, q, qd, params)
+    assert float(qd_after[0]) == pytest.approx(-0.25 * 1.5, rel=1e-13)
 
 
 @pytest.mark.parametrize("name", ["arm7", "torso_two_arms"])
