@@ -44,6 +44,7 @@ from ._core.errors import ConfigurationError as ConfigurationError  # noqa: E402
 from ._core.errors import ConstraintError as ConstraintError  # noqa: E402
 from ._core.errors import LagraxError as LagraxError  # noqa: E402
 from ._core.errors import MassMatrixError as MassMatrixError  # noqa: E402
+from ._core.errors import MJCFError as MJCFError  # noqa: E402
 from ._core.errors import NonFiniteError as NonFiniteError  # noqa: E402
 from ._core.errors import ParameterError as ParameterError  # noqa: E402
 from ._core.errors import ShapeError as ShapeError  # noqa: E402
@@ -111,4 +112,5 @@ __all__ = [
     "ShapeError",
     "SimulationError",
     "URDFError",
+    "MJCFError",
 ]

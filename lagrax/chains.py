@@ -5,13 +5,18 @@ tree (a parent index per body: a torso with two arms, a hand). A spatial chain i
 parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] and `Tree` share
 [`AbstractTree`][lagrax.chains.AbstractTree] (kinematics, `frames`, `scene`, `system`);
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
-bodies) with its joint names, limits and damping:
+bodies) with its joint names, limits and damping; [`from_mjcf`][lagrax.chains.from_mjcf], a
+MuJoCo model through MuJoCo's own compiler; [`limit_events`][lagrax.chains.limit_events], the
+events that stop a robot's joints at their limits:
 
 ```python
 tree, params = lx.chains.from_urdf("arm.urdf")        # or root=..., tip=... for a chain
 system = tree.system()                                # Featherstone's recursions, O(n)
 system.coordinate_names                               # the URDF's joint names
 tau_ne = lx.newton_euler.rnea(tree, q, qd, qdd, params)   # the independent oracle
+tree, params = lx.chains.from_mjcf("robot.xml")       # q is MuJoCo's qpos
+tree, params = lx.chains.from_urdf("arm.urdf", limits="impact", restitution=0.5)
+sol = lx.simulate(tree.system(), q0, qd0, params, t1=3.0, events=lx.chains.limit_events(tree))
 ```
 
 Each chain builder returns `(system, params)` with `params` a dict of arrays (leading axis
@@ -50,6 +55,8 @@ from ._multibody.chains import SpatialChain as SpatialChain
 from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
 from ._multibody.chains import planar_chain as planar_chain
 from ._multibody.chains import spatial_chain as spatial_chain
+from ._multibody.limits import limit_events as limit_events
+from ._multibody.mjcf import from_mjcf as from_mjcf
 from ._multibody.trees import AbstractTree as AbstractTree
 from ._multibody.trees import Tree as Tree
 from ._multibody.urdf import from_urdf as from_urdf
@@ -62,6 +69,8 @@ __all__ = [
     "AbstractTree",
     "Tree",
     "from_urdf",
+    "from_mjcf",
+    "limit_events",
     "axis_angle_rotation",
     "BodyKind",
 ]

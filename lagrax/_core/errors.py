@@ -61,3 +61,11 @@ class URDFError(LagraxError, ValueError):
     """A URDF model cannot be read into a tree: malformed XML, a missing or unphysical
     `<inertial>`, a link with two parents or a loop, an unknown or unsupported joint
     type. The message names the link or joint and says what to fix."""
+
+
+class MJCFError(LagraxError, ValueError):
+    """An MJCF model (or another file MuJoCo reads) cannot be made a tree: MuJoCo refuses
+    the file, or it holds a construct lagrax does not model (a free or ball joint, a
+    tendon, an equality constraint, armature, a joint spring, friction loss, gravity
+    compensation, fluid forces). The message names the construct, its name and value,
+    and what to do."""

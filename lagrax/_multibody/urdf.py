@@ -20,6 +20,7 @@ import numpy as np
 from .._core.errors import ParameterError, URDFError
 from .common import float_dtype
 from .inertia import check_inertia
+from .limits import with_limits
 from .trees import Tree
 
 _MOVING = {"revolute": "R", "continuous": "R", "prismatic": "P"}
@@ -282,6 +283,8 @@ def from_urdf(
     g: float = 9.81,
     massless_links: bool = False,
     dtype: Any = None,
+    limits: str | None = None,
+    restitution: Any = 0.0,
 ) -> tuple[Tree, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
@@ -323,9 +326,17 @@ def from_urdf(
       (the mass matrix may then be singular). By default they are refused; links fixed to
       a moving link may always lack `<inertial>` (frames such as a tool flange).
     - `dtype`: of the params (default float64 with x64).
+    - `limits`: `None` (default): the `<limit>`s are kept in `tree.limits` and not
+      enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
+      restitution `restitution` (the params gain `"restitution"`, one per joint; pass
+      [`lagrax.chains.limit_events`][]`(tree)` to [`lagrax.simulate`][]'s `events=`,
+      and the hits are in `Solution.events`).
+    - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
+      (default `0`: the joint stops dead at its limit).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
-    system) and `{"m", "offset", "com", "inertia", "damping", "g"}`.
+    system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`
+    with `limits="impact"`).
 
     **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a
     missing or incomplete `<inertial>` on a moving link, a negative or zero mass, an
@@ -348,7 +359,8 @@ def from_urdf(
     keep = _keep(root, tip, links, parent_of, children)
     bodies, place, order = _place_bodies(root, keep, children)
     _merge_inertials(bodies, place, order, links, massless_links)
-    return _tree_and_params(bodies, up, g, dtype)
+    tree, params = _tree_and_params(bodies, up, g, dtype)
+    return with_limits(tree, params, limits, restitution)
 
 
 def _read(source: str | os.PathLike) -> str:

@@ -1,0 +1,228 @@
+r"""Joint limits as impacts: events that stop a tree's joints at their limits.
+
+A joint `i` with limits `[lo, hi]` is stopped by an [`Event`][lagrax.Event] whose
+condition `min(q_i − lo, hi − q_i)` crosses zero downwards when the joint reaches
+either limit. Its reset is the rigid impact of the joint against a stop: an impulse
+`Λ` in joint `i` alone (the stop can only push on its own joint), sized by Newton's
+law of restitution so that `q̇_i⁺ = −e q̇_i⁻`:
+
+    M Δq̇ = Λ e_i,   Δq̇ = −(1 + e) q̇_i⁻ M⁻¹e_i / (M⁻¹)_ii,
+
+which changes the other joints' rates too, by their coupling through `M`, and takes
+the kinetic energy `½ (1 − e²) (q̇_i⁻)² / (M⁻¹)_ii` (all of the energy of the joint's
+motion "into" the stop at `e = 0`, none at `e = 1`). The position is clipped onto the
+limit (the event's root is found to a few ulps of `t`; the clip makes it exact).
+
+Why events that the user passes, and not events that `simulate` finds on the system:
+`simulate`, `sweep` and `periodic_orbit` take events by one argument, whose order is
+the order of `Solution.events`; events hidden in the system would shift those indices,
+would have to be threaded through every entry point, and would tie the system's
+interface (which floating bases are changing) to the tree. A joint limit is an event
+like any other: [`limit_events`][lagrax.chains.limit_events] builds them, and they
+compose with the user's own (`events=[*limit_events(tree), my_event]`).
+"""
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.errors import ConfigurationError, ParameterError
+from .._solve.events import Event
+from .trees import AbstractTree, Tree
+
+LIMIT_MODELS = (None, "impact")
+"""The values of `from_urdf`'s and `from_mjcf`'s `limits=`."""
+
+
+def _restitution(value: Any, n: int, where: str) -> np.ndarray:
+    """`value` as `n` coefficients of restitution in `[0, 1]`, or a `ConfigurationError`."""
+    try:
+        arr = np.broadcast_to(np.asarray(value, float), (n,))
+    except (TypeError, ValueError):
+        raise ConfigurationError(
+            f"{where}: restitution must be a number in [0, 1] or {n} of them (one per joint), "
+            f"got {value!r}"
+        ) from None
+    bad = ~np.isfinite(arr) | (arr < 0) | (arr > 1)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise ConfigurationError(
+            f"{where}: restitution[{k}] = {float(arr[k]):g} is not in [0, 1] (0: the joint stops "
+            "dead at its limit; 1: it bounces back with its speed)"
+        )
+    return arr
+
+
+def with_limits(
+    tree: Tree, params: dict, limits: str | None, restitution: Any
+) -> tuple[Tree, dict]:
+    """`(tree, params)` of a robot file read with `limits=` (`None`: unchanged;
+    `"impact"`: `params["restitution"]`, one coefficient per joint)."""
+    if limits not in LIMIT_MODELS:
+        raise ConfigurationError(
+            f"limits must be None (limits kept in tree.limits, not enforced) or 'impact' "
+            f"(joints stop at their limits by impacts: lagrax.chains.limit_events), got "
+            f"{limits!r}"
+        )
+    if limits is None:
+        return tree, params
+    lims = np.asarray(tree.limits, float)
+    if not np.any(np.isfinite(lims)):
+        raise ConfigurationError(
+            "limits='impact', but no joint of the robot has a finite limit: there is "
+            "nothing to stop"
+        )
+    e = _restitution(restitution, tree.n, "limits='impact'")
+    return tree, {**params, "restitution": jnp.asarray(e, dtype=params["g"].dtype)}
+
+
+class _LimitCondition(eqx.Module):
+    """`min(q_i − lo, hi − q_i)`: positive inside the limits, zero at either."""
+
+    index: int = eqx.field(static=True)
+    lower: float = eqx.field(static=True)
+    upper: float = eqx.field(static=True)
+
+    def __call__(self, t, q, qd, params):
+        x = q[self.index]
+        if math.isinf(self.lower):
+            return self.upper - x
+        if math.isinf(self.upper):
+            return x - self.lower
+        return jnp.minimum(x - self.lower, self.upper - x)
+
+
+class _LimitImpact(eqx.Module):
+    """The state after joint `index` hits a stop with restitution `e` (the module
+    docstring's impulse law)."""
+
+    tree: AbstractTree
+    index: int = eqx.field(static=True)
+    lower: float = eqx.field(static=True)
+    upper: float = eqx.field(static=True)
+    restitution: float | None = eqx.field(static=True)
+
+    def __call__(self, t, q, qd, params):
+        i = self.index
+        if self.restitution is None:
+            if "restitution" not in params:
+                raise ParameterError(
+                    "limit_events(tree) without restitution= reads params['restitution'] "
+                    "(one coefficient per joint, set by from_urdf/from_mjcf with "
+                    "limits='impact'), and params has no 'restitution': pass "
+                    "restitution=... to limit_events, or load the robot with limits='impact'"
+                )
+            e = jnp.asarray(params["restitution"], qd.dtype)[i]
+        else:
+            e = jnp.asarray(self.restitution, qd.dtype)
+        mass = self.tree.system().mass_matrix(q, params)
+        x = jnp.linalg.solve(mass, jnp.zeros_like(qd).at[i].set(1.0))  # M⁻¹ e_i
+        impulse = -(1 + e) * qd[i] / x[i]
+        q_after = q.at[i].set(jnp.clip(q[i], self.lower, self.upper))
+        return q_after, qd + impulse * x
+
+
+def limit_events(
+    tree: AbstractTree,
+    *,
+    restitution: Any = None,
+    joints: Sequence[str] | None = None,
+    max_events: int = 100,
+) -> tuple[Event, ...]:
+    r"""Events that stop a tree's joints at their limits (`tree.limits`) by impacts.
+
+    One [`lagrax.Event`][] per limited joint (in the order of `joints`, default every
+    joint with a finite limit, in the tree's order), to pass to [`lagrax.simulate`][] or
+    [`lagrax.sweep`][] (`events=`); its hits are `Solution.events[k]` (times and
+    the state just before each impact). The condition `min(q_i − lo, hi − q_i)`
+    crosses zero downwards at either limit; the reset applies the impulse of a stop on
+    joint `i` alone that reverses its rate times the coefficient of restitution `e`:
+
+    $$
+    \dot q^+ = \dot q^- - (1 + e)\,\dot q_i^-\,\frac{M^{-1} e_i}{(M^{-1})_{ii}},
+    \qquad \dot q_i^+ = -e\,\dot q_i^-,
+    $$
+
+    so the other joints' rates change by their inertial coupling, and the kinetic energy
+    falls by `½ (1 − e²) (q̇_i⁻)² / (M⁻¹)_ii` at each hit; `q_i` is clipped onto the
+    limit. Effort and velocity limits are not enforced (`tree.effort_limits` are for
+    the user's `tau`).
+
+    A joint that gravity (or a torque) holds against its stop bounces ever more often:
+    the hits accumulate at a point (a Zeno cascade, `e > 0`) or recur at once (`e =
+    0`), and `simulate` ends the solve there with `RESULTS.event_cascade` (a
+    `SimulationError` with `throw=True`). Resting against a stop is not modelled.
+
+    **Arguments:**
+
+    - `tree`: a [`Tree`][lagrax.chains.Tree] (from [`lagrax.chains.from_urdf`][] or
+      [`lagrax.chains.from_mjcf`][]) or another [`AbstractTree`][lagrax.chains.AbstractTree]
+      with `limits`.
+    - `restitution`: the coefficient `e` in `[0, 1]`, a number or one per joint of the
+      tree. Default `None`: read at run time from `params["restitution"]` (set by
+      `from_urdf`/`from_mjcf` with `limits="impact"`), so a sweep may vary it and
+      `jax.grad` differentiates through it.
+    - `joints`: names of the joints to stop (default: every joint with a finite limit).
+    - `max_events`: the most hits recorded per joint (see [`lagrax.Event`][]).
+
+    **Returns:** a tuple of [`lagrax.Event`][], one per joint in `joints`.
+
+    **Raises:** `ConfigurationError` for a joint name the tree does not have, a joint
+    without a finite limit, a tree without limits, or a restitution outside `[0, 1]`;
+    `ParameterError` from `simulate` when `restitution=None` and `params` has no
+    `"restitution"`.
+
+    **Example:**
+
+    ```python
+    tree, params = lagrax.chains.from_urdf("arm.urdf", limits="impact", restitution=0.5)
+    events = lagrax.chains.limit_events(tree)
+    sol = lagrax.simulate(tree.system(), q0, qd0, params, t1=3.0, events=events)
+    sol.events[0].times[: sol.events[0].count]      # when the first limited joint hit
+    ```
+    """
+    limits = getattr(tree, "limits", None)
+    if limits is None:
+        raise ConfigurationError(
+            f"limit_events needs a tree with joint limits (tree.limits), got a "
+            f"{type(tree).__name__}"
+        )
+    names = tuple(getattr(tree, "joint_names", (f"joint{i}" for i in range(tree.n))))
+    finite = [i for i, (lo, hi) in enumerate(limits) if math.isfinite(lo) or math.isfinite(hi)]
+    if joints is None:
+        chosen = finite
+        if not chosen:
+            raise ConfigurationError(
+                "limit_events: no joint of the tree has a finite limit (tree.limits are all "
+                "(-inf, inf)): there is nothing to stop"
+            )
+    else:
+        if isinstance(joints, str):
+            joints = [joints]
+        chosen = []
+        for name in joints:
+            if name not in names:
+                raise ConfigurationError(
+                    f"limit_events: joints names {name!r}, which is not a joint of the tree "
+                    f"(joints: {list(names)})"
+                )
+            i = names.index(name)
+            if i not in finite:
+                raise ConfigurationError(
+                    f"limit_events: joint {name!r} has no finite limit (tree.limits[{i}] = "
+                    f"{limits[i]})"
+                )
+            chosen.append(i)
+    e = None if restitution is None else _restitution(restitution, tree.n, "limit_events")
+    events = []
+    for i in chosen:
+        lo, hi = (float(x) for x in limits[i])
+        reset = _LimitImpact(tree, i, lo, hi, None if e is None else float(e[i]))
+        events.append(
+            Event(_LimitCondition(i, lo, hi), direction=-1, reset=reset, max_events=max_events)
+        )
+    return tuple(events)

@@ -1,0 +1,379 @@
+"""MJCF import through MuJoCo's own compiler: a `mujoco.MjModel` as a
+[`Tree`][lagrax.chains.Tree] and its params.
+
+The tree is built from the compiled model's arrays (`body_parentid`, `body_pos`,
+`body_quat`, `body_mass`, `body_ipos`, `body_iquat`, `body_inertia`, `jnt_type`,
+`jnt_axis`, `jnt_pos`, `qpos0`, `dof_damping`, `jnt_limited`, `jnt_range`,
+`opt.gravity`), never from the XML: defaults classes, `<frame>`, `<include>`,
+`<compiler angle=... eulerseq=...>`, `fromto`, inertias from geometry and every other
+convenience of the format are resolved by MuJoCo exactly as it resolves them for its own
+simulation, and a file MuJoCo reads in another format (URDF) is read the same way.
+
+MuJoCo moves a body by its joints in order, each about (hinge) or along (slide) its axis
+in the body frame as moved by the joints before it, by `qpos − qpos0` (`qpos0`: the
+joint's `ref`). Joint `j` of body `b` becomes a body of the tree whose frame sits at the
+joint's anchor `jnt_pos`, with the body's orientation; the MuJoCo body frame is then that
+frame shifted by `−jnt_pos`, and the joint's `ref` is folded into the tree's fixed
+rotation (hinge: `S Rot(a, −ref)`) or offset (slide: `−ref a`), so that the tree's
+coordinates are MuJoCo's `qpos` unchanged. A body with several joints becomes a chain of
+massless tree bodies, the body's inertia on the last; a body without joints is merged into
+the body it is welded to (as a URDF fixed joint), and bodies welded to the world are
+dropped (their children are placed through them).
+"""
+
+import importlib
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._core.errors import MJCFError
+from .common import float_dtype
+from .limits import with_limits
+from .trees import Tree
+
+# mujoco.mjtJoint: free, ball, slide, hinge
+_FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
+
+
+def _mujoco():
+    """The `mujoco` module, or an `MJCFError` saying how to install it."""
+    try:
+        return importlib.import_module("mujoco")
+    except ImportError:
+        raise MJCFError(
+            "lagrax.chains.from_mjcf reads MJCF through MuJoCo's own compiler, and the "
+            "mujoco package is not installed: pip install mujoco (or lagrax[dev])"
+        ) from None
+
+
+def _quat_matrix(quat: Any) -> np.ndarray:
+    """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
+    w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues: the rotation by `angle` about the unit vector `axis`."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+
+
+@dataclass
+class _Body:
+    """A body of the tree: one MuJoCo joint, and the inertia of every MuJoCo body it
+    carries (sums about the tree body's origin, in its frame)."""
+
+    name: str
+    joint: str
+    kind: str
+    parent: int
+    rot: np.ndarray
+    offset: np.ndarray
+    axis: np.ndarray
+    damping: float
+    limits: tuple[float, float]
+    effort: float
+    mass: float = 0.0
+    moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+def _load(mujoco, source: Any):
+    """`source` as a compiled `mujoco.MjModel` (a model, XML text, or a file path)."""
+    if isinstance(source, mujoco.MjModel):
+        return source
+    if isinstance(source, str) and source.lstrip().startswith("<"):
+        what, load = "the MJCF text", lambda: mujoco.MjModel.from_xml_string(source)
+    else:
+        path = os.fspath(source)
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"no MJCF file at {path!r}")
+        what, load = f"{path!r}", lambda: mujoco.MjModel.from_xml_path(path)
+    try:
+        return load()
+    except ValueError as err:
+        raise MJCFError(f"MuJoCo cannot compile {what}: {err}".strip()) from None
+
+
+class _Names:
+    """Names of a model's objects (`kind` plus the index where unnamed)."""
+
+    def __init__(self, mujoco, model):
+        self._mujoco, self._model = mujoco, model
+
+    def __call__(self, obj: str, i: int) -> str:
+        kind = getattr(self._mujoco.mjtObj, f"mjOBJ_{obj.upper()}")
+        name = self._mujoco.mj_id2name(self._model, kind, i)
+        return name if name else f"{obj}{i}"
+
+
+def _unsupported(mujoco, model, names: _Names) -> list[str]:
+    """What lagrax does not model in `model`, each a sentence naming it and its value;
+    free and ball joints are refused in any case (they are not one coordinate)."""
+    for j, kind in enumerate(model.jnt_type):
+        where = f"joint {names('joint', j)!r} (body {names('body', model.jnt_bodyid[j])!r})"
+        if kind == _FREE:
+            raise MJCFError(
+                f"{where} is a free joint: floating bases are not supported for MJCF yet (a "
+                "lagrax tree is fixed to the world). Remove the <freejoint> to load the "
+                "model welded to the world"
+            )
+        if kind == _BALL:
+            raise MJCFError(
+                f"{where} is a ball joint, which lagrax trees do not have (a quaternion "
+                "coordinate): model it as three hinge joints in one body"
+            )
+    found: list[str] = []
+    disabled = int(model.opt.disableflags)
+    off = mujoco.mjtDisableBit
+
+    def first_nonzero(values, what: str, obj: str, flag=None) -> None:
+        """Adds `what` of the first `obj` (joint, dof: named by its joint, body) with a
+        nonzero value, unless `flag` disables it."""
+        values = np.asarray(values, float)
+        if values.size == 0:
+            return
+        values = values.reshape(len(values), -1)
+        if (flag is not None and disabled & int(flag)) or not np.any(values):
+            return
+        i = int(np.argmax(np.any(values != 0, axis=1)))
+        row = values[i]
+        shown = f"{row[0]:g}" if row.size == 1 else str(row.tolist())
+        who = f"joint {names('joint', int(model.dof_jntid[i]))!r}" if obj == "dof" else None
+        who = who or f"{obj} {names(obj, i)!r}"
+        found.append(f"{what} {shown} on {who}")
+
+    first_nonzero(model.dof_armature, "armature (rotor inertia added to M's diagonal)", "dof")
+    first_nonzero(model.jnt_stiffness, "joint stiffness (a spring)", "joint", off.mjDSBL_SPRING)
+    if hasattr(model, "jnt_stiffnesspoly"):
+        first_nonzero(
+            model.jnt_stiffnesspoly, "nonlinear joint stiffness", "joint", off.mjDSBL_SPRING
+        )
+    if hasattr(model, "dof_dampingpoly"):
+        first_nonzero(model.dof_dampingpoly, "nonlinear joint damping", "dof", off.mjDSBL_DAMPER)
+    first_nonzero(
+        model.dof_frictionloss, "friction loss (a constraint)", "dof", off.mjDSBL_FRICTIONLOSS
+    )
+    first_nonzero(model.body_gravcomp, "gravity compensation", "body")
+    if model.ntendon:
+        found.append(f"{model.ntendon} tendon(s), the first {names('tendon', 0)!r}")
+    if model.neq and not disabled & int(off.mjDSBL_EQUALITY):
+        found.append(
+            f"{model.neq} equality constraint(s), the first {names('equality', 0)!r} (a closed "
+            "loop or a coupling; lagrax.ConstrainedSystem can express one by hand)"
+        )
+    if model.opt.density > 0 or model.opt.viscosity > 0:
+        found.append(
+            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g})"
+        )
+    return found
+
+
+def from_mjcf(
+    source: Any,
+    *,
+    limits: str | None = None,
+    restitution: Any = 0.0,
+    ignore_unsupported: bool = False,
+    dtype: Any = None,
+) -> tuple[Tree, dict]:
+    r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
+    and its params, built from MuJoCo's compiled model.
+
+    The file is compiled by MuJoCo (`mujoco.MjModel.from_xml_path` /
+    `from_xml_string`) and the tree is read from the model's arrays, so every MJCF MuJoCo
+    reads is read as MuJoCo reads it (defaults, frames, `fromto`, inertias computed from
+    geoms, angles in degrees, URDF files). Each hinge joint becomes a revolute body of the
+    tree and each slide joint a prismatic one, in MuJoCo's order, so **`q` is MuJoCo's
+    `qpos` and `q̇` its `qvel`**, with the joint's `ref` (`qpos0`) folded into the
+    tree's fixed rotation or offset. A body with several joints becomes a chain of
+    massless tree bodies (its inertia on the last); a body with no joint is merged into
+    the body it is welded to (mass, centre of mass and inertia by the parallel-axis
+    theorem), and bodies welded to the world are dropped.
+
+    Read: `body_mass`, `body_ipos`, `body_iquat`, `body_inertia` (the principal
+    inertia rotated into the body frame), `dof_damping` (`params["damping"]`, MuJoCo's
+    viscous `−b q̇`), `jnt_limited` / `jnt_range` (`tree.limits`),
+    `jnt_actfrcrange` (`tree.effort_limits`, the larger bound's magnitude), gravity
+    `opt.gravity` (`up = −gravity / |gravity|`, `g = |gravity|`; `g = 0` where gravity
+    is disabled). Names are MuJoCo's (`joint3`, `body2` where unnamed); a body with
+    several joints gives tree bodies `body/joint` before its last.
+
+    Not read: geometry and contacts (lagrax has none), actuators (`tau` is the
+    generalized force: MuJoCo's `qfrc_applied`), sensors, `timestep` and the
+    integrator. Joint limits are MuJoCo constraints, inactive inside the range; with
+    `limits="impact"` lagrax stops a joint at them instead (below). The equations agree with
+    MuJoCo's `mj_fullM` and `mj_forward`'s `qacc` with contacts (and limits, outside
+    their range) disabled.
+
+    **Armature is refused** where nonzero: MuJoCo adds `dof_armature` (a rotor's
+    reflected inertia) to `M`'s diagonal, a term the tree's recursions do not have
+    yet. With `ignore_unsupported=True` it is dropped with a warning, and then
+    `M = mj_fullM − diag(dof_armature)`.
+
+    **Arguments:**
+
+    - `source`: a path to an MJCF (or URDF) file, the XML text itself (a string
+      starting with `<`), or a compiled `mujoco.MjModel`.
+    - `limits`: `None` (default): joint limits are kept in `tree.limits` and not
+      enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
+      restitution `restitution`, as for [`lagrax.chains.from_urdf`][] (the params gain
+      `"restitution"`; pass [`lagrax.chains.limit_events`][]`(tree)` to
+      [`lagrax.simulate`][]).
+    - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
+      (default `0`: the joint stops dead at its limit).
+    - `ignore_unsupported`: drop what lagrax does not model (armature, joint springs,
+      friction loss, gravity compensation, tendons, equality constraints, fluid forces)
+      with one `UserWarning` naming each, instead of refusing the model.
+    - `dtype`: of the params (default float64 with x64).
+
+    **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
+    `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`).
+
+    **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
+    message); for a free joint (floating bases are not supported for MJCF yet) or a
+    ball joint, naming the joint and its body; for a model with no hinge or slide joint;
+    and, unless `ignore_unsupported`, for nonzero armature, joint stiffness, friction
+    loss or gravity compensation, tendons, equality constraints or fluid forces, naming
+    the first one and its value. `MJCFError` also when the `mujoco` package is not
+    installed. `FileNotFoundError` for a missing file; `ConfigurationError` for a bad
+    `limits` or `restitution`.
+
+    **Example:**
+
+    ```python
+    tree, params = lagrax.chains.from_mjcf("cartpole.xml")
+    system = tree.system()
+    qdd = system.forward_dynamics(qpos, qvel, params, tau)   # MuJoCo's qacc, contacts off
+    ```
+    """
+    mujoco = _mujoco()
+    model = _load(mujoco, source)
+    names = _Names(mujoco, model)
+    found = _unsupported(mujoco, model, names)
+    if found and not ignore_unsupported:
+        raise MJCFError(
+            f"the model has {found[0]}, which lagrax does not model; pass "
+            "ignore_unsupported=True to load it without (with a warning)"
+            + (f"; also: {'; '.join(found[1:])}" if len(found) > 1 else "")
+        )
+    if found:
+        warnings.warn(
+            "from_mjcf ignores what lagrax does not model: " + "; ".join(found),
+            UserWarning,
+            stacklevel=2,
+        )
+    bodies = _bodies(model, names)
+    if not bodies:
+        raise MJCFError("the model has no hinge or slide joint: there is nothing to move")
+    tree, params = _tree_and_params(model, bodies, dtype)
+    return with_limits(tree, params, limits, restitution)
+
+
+def _bodies(model, names: _Names) -> list[_Body]:
+    """The tree's bodies, in MuJoCo's joint order, with every MuJoCo body's inertia
+    merged into the tree body that carries it."""
+    bodies: list[_Body] = []
+    # each MuJoCo body's frame in its tree body's frame (tree body −1: the world)
+    place = {0: (-1, np.eye(3), np.zeros(3))}
+    for b in range(1, model.nbody):
+        tb, rot, pos = place[int(model.body_parentid[b])]
+        pos = pos + rot @ model.body_pos[b]
+        rot = rot @ _quat_matrix(model.body_quat[b])
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        for j in range(first, first + count):
+            anchor = np.asarray(model.jnt_pos[j], float)
+            axis = np.asarray(model.jnt_axis[j], float)
+            axis = axis / np.linalg.norm(axis)
+            ref = float(model.qpos0[model.jnt_qposadr[j]])
+            hinge = int(model.jnt_type[j]) == _HINGE
+            offset = pos + rot @ (anchor if hinge else anchor - ref * axis)
+            fixed = rot @ _axis_angle(axis, -ref) if hinge else rot
+            limited = bool(model.jnt_limited[j])
+            low, high = (float(x) for x in model.jnt_range[j]) if limited else (-1.0, 1.0)
+            effort = math.inf
+            if bool(model.jnt_actfrclimited[j]):
+                effort = float(np.max(np.abs(model.jnt_actfrcrange[j]))) or math.inf
+            last = j == first + count - 1
+            body, joint = names("body", b), names("joint", j)
+            bodies.append(
+                _Body(
+                    body if last else f"{body}/{joint}",
+                    joint,
+                    "R" if hinge else "P",
+                    tb,
+                    fixed,
+                    offset,
+                    axis,
+                    float(model.dof_damping[model.jnt_dofadr[j]]),
+                    (low, high) if limited and low < high else (-math.inf, math.inf),
+                    effort,
+                )
+            )
+            tb, rot, pos = len(bodies) - 1, np.eye(3), -anchor
+        place[b] = (tb, rot, pos)
+        mass = float(model.body_mass[b])
+        if tb < 0 or mass <= 0:
+            continue  # welded to the world, or massless
+        c = pos + rot @ model.body_ipos[b]
+        r = rot @ _quat_matrix(model.body_iquat[b])
+        inertia = r @ np.diag(model.body_inertia[b]) @ r.T
+        target = bodies[tb]
+        target.mass += mass
+        target.moment = target.moment + mass * c
+        shift = mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        target.inertia_o = target.inertia_o + inertia + shift
+    return bodies
+
+
+def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict]:
+    """The [`Tree`][lagrax.chains.Tree] and its params from the merged bodies."""
+    masses = np.array([b.mass for b in bodies])
+    coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
+    inertias = np.stack(
+        [
+            b.inertia_o - b.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+            for b, c in zip(bodies, coms, strict=True)
+        ]
+    )
+    inertias = 0.5 * (inertias + np.swapaxes(inertias, 1, 2))
+    gravity = np.asarray(model.opt.gravity, float)
+    g = float(np.linalg.norm(gravity))
+    mujoco = _mujoco()
+    if int(model.opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+        g = 0.0
+    up = 0.0 - gravity / np.linalg.norm(gravity) if np.linalg.norm(gravity) > 0 else (0.0, 0.0, 1.0)
+    damping = np.array([b.damping for b in bodies])
+    if int(model.opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_DAMPER):
+        damping = np.zeros_like(damping)
+    tree = Tree(
+        "".join(b.kind for b in bodies),
+        [b.parent for b in bodies],
+        axes=[b.axis for b in bodies],
+        rotations=[b.rot for b in bodies],
+        up=up,
+        joint_names=[b.joint for b in bodies],
+        body_names=[b.name for b in bodies],
+        limits=[b.limits for b in bodies],
+        effort_limits=[b.effort for b in bodies],
+    )
+    params = tree.params(
+        m=masses,
+        offset=np.stack([b.offset for b in bodies]),
+        com=coms,
+        inertia=inertias,
+        damping=damping,
+        g=g,
+        dtype=float_dtype(dtype),
+    )
+    return tree, params

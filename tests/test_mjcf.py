@@ -1,0 +1,228 @@
+"""MJCF import (``lagrax.chains.from_mjcf``) against MuJoCo itself, and on models it refuses.
+
+- Three small models written for these tests (``tests/mjcf``: a 3-link hinge arm with
+  joint anchors off the body origins, rotated bodies, a joint ``ref``, a welded body and
+  tilted gravity; a cart-pole of slide and hinge joints in degrees with refs; a branched
+  tree with a two-joint body, a slide and bodies welded to the world and to a moving
+  body), a model that ships with the mujoco wheel (the 24-joint Shadow hand of MJX's
+  test data, armature dropped) and the project's two URDF robots read by MuJoCo: ``M``
+  against ``mj_fullM`` and ``q̈`` against ``mj_forward``'s ``qacc`` (contacts, limits and
+  actuators off, ``qfrc_applied = τ``) at random states, in MuJoCo's own coordinates.
+- A URDF read by MuJoCo equals the same URDF read by ``from_urdf``.
+- Constructs lagrax does not model raise ``MJCFError`` naming them.
+"""
+
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from _helpers import rel_error
+from lagrax.chains import from_mjcf, from_urdf
+from lagrax.models import urdf_path
+
+mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
+
+HERE = Path(__file__).parent / "mjcf"
+WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"  # models shipped with the wheel
+RTOL = 1e-12
+N_STATES = 3
+
+
+def _rel(a, b) -> float:
+    """`max |a − b| / max |b|`: relative to the matrix's own scale (a hand's `M` is
+    ~1e-4, so `rel_error`'s floor of 1 would make it an absolute test)."""
+    a, b = np.asarray(a), np.asarray(b)
+    return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
+
+
+def _model(name):
+    if name in ("arm7", "torso_two_arms"):
+        return mujoco.MjModel.from_xml_path(str(urdf_path(name)))
+    if name == "shadow_hand":
+        path = WHEEL / "shadow_hand" / "right_hand.xml"
+        if not path.exists():
+            pytest.skip("this mujoco wheel ships no MJX test data")
+        return mujoco.MjModel.from_xml_path(str(path))
+    return mujoco.MjModel.from_xml_path(str(HERE / f"{name}.xml"))
+
+
+@pytest.mark.parametrize(
+    "name", ["arm3", "cartpole", "branched", "shadow_hand", "arm7", "torso_two_arms"]
+)
+def test_mass_matrix_and_accelerations_match_mujoco(name):
+    model = _model(name)
+    if name == "shadow_hand":  # armature: refused, or dropped on request
+        with pytest.raises(lx.MJCFError, match="armature"):
+            from_mjcf(model)
+        with pytest.warns(UserWarning, match="armature"):
+            tree, params = from_mjcf(model, ignore_unsupported=True)
+    else:
+        tree, params = from_mjcf(model)
+    armature = np.array(model.dof_armature)
+    model.dof_armature[:] = 0.0
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_LIMIT | off.mjDSBL_ACTUATION
+    assert tree.n == model.nv == model.nq
+    system = tree.system()
+    mass = jax.jit(jax.vmap(lambda q: system.mass_matrix(q, params)))
+    forward = jax.jit(jax.vmap(lambda q, qd, tau: system.forward_dynamics(q, qd, params, tau)))
+    rng = np.random.default_rng(tree.n)
+    q = model.qpos0 + rng.uniform(-1.0, 1.0, (N_STATES, tree.n))
+    qd, tau = (rng.uniform(-2.0, 2.0, (N_STATES, tree.n)) for _ in range(2))
+    m_lx = np.asarray(mass(jnp.asarray(q)))
+    a_lx = np.asarray(forward(jnp.asarray(q), jnp.asarray(qd), jnp.asarray(tau)))
+    data = mujoco.MjData(model)
+    worst_m = worst_a = 0.0
+    for k in range(N_STATES):
+        data.qpos[:], data.qvel[:], data.qfrc_applied[:] = q[k], qd[k], tau[k]
+        mujoco.mj_forward(model, data)
+        m_mj = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, m_mj)
+        worst_m = max(worst_m, _rel(m_lx[k], m_mj))
+        worst_a = max(worst_a, rel_error(a_lx[k], data.qacc))
+        # with armature, MuJoCo's M is lagrax's plus diag(armature)
+        model.dof_armature[:] = armature
+        mujoco.mj_forward(model, data)
+        mujoco.mj_fullM(model, data, m_mj)
+        assert _rel(m_lx[k] + np.diag(armature), m_mj) < RTOL
+        model.dof_armature[:] = 0.0
+    print(f"{name}: M {worst_m:.1e}, qacc {worst_a:.1e} relative to MuJoCo")
+    assert worst_m < RTOL and worst_a < RTOL, (worst_m, worst_a)
+
+
+def test_a_body_with_two_joints_is_a_chain_of_tree_bodies():
+    """``branched.xml``'s "left" body has two hinges: a massless tree body for the first,
+    the body's inertia on the second (its dynamics are checked against MuJoCo above)."""
+    tree, params = from_mjcf(HERE / "branched.xml")
+    assert tree.joint_names == ("waist", "l_pitch", "l_roll", "l_elbow", "r_pitch", "r_extend")
+    assert tree.body_names[1:3] == ("left/l_pitch", "left")
+    assert tree.parents == (-1, 0, 1, 2, 0, 4) and tree.joint_types == "RRRRRP"
+    assert float(params["m"][1]) == 0.0 and float(params["m"][2]) > 0.0
+    # "stand" is welded to the world (dropped), "head" to the torso (merged)
+    assert float(params["m"][0]) == pytest.approx(3.0 + 0.7, rel=1e-14)
+
+
+def test_structure_names_limits_and_gravity():
+    tree, params = from_mjcf(HERE / "arm3.xml")
+    assert tree.joint_names == ("shoulder", "elbow", "wrist")
+    assert tree.body_names == ("upper", "fore", "hand")
+    np.testing.assert_allclose(tree.limits, [(-2, 2), (-1.5, 1.8), (-1, 1)])
+    np.testing.assert_allclose(params["damping"], [0.4, 0.0, 0.1])
+    gravity = np.array([0.5, -2.0, -9.5])
+    np.testing.assert_allclose(float(params["g"]), np.linalg.norm(gravity), rtol=1e-15)
+    np.testing.assert_allclose(tree.up, -gravity / np.linalg.norm(gravity), rtol=1e-15)
+    # the welded "sensor" body's mass is on "fore"
+    assert float(params["m"][1]) == pytest.approx(0.8 + 0.2, rel=1e-15)
+    assert tree.effort_limits == (np.inf, np.inf, 5.0)  # actuatorfrcrange="-4 5"
+    cart, _ = from_mjcf((HERE / "cartpole.xml").read_text())  # XML text
+    np.testing.assert_allclose(cart.limits[0], (-1.0, 1.0))
+    assert cart.limits[1] == (-np.inf, np.inf)
+
+
+def test_limits_impact_stops_the_joints_of_an_mjcf_model():
+    """The cart's rail range [-1, 1] (slide, ref 0.25: in qpos) stops it; the pole's
+    hinge is unlimited, so one event."""
+    tree, params = from_mjcf(HERE / "cartpole.xml", limits="impact", restitution=0.25)
+    np.testing.assert_allclose(params["restitution"], [0.25] * 3)
+    (rail,) = lx.chains.limit_events(tree)
+    q, qd = jnp.array([1.0, 0.2, 0.0]), jnp.array([1.5, -0.3, 0.1])
+    assert float(rail.condition(0.0, q, qd, params)) == 0.0
+    _, qd_after = rail.reset(0.0, q, qd, params)
+    assert float(qd_after[0]) == pytest.approx(-0.25 * 1.5, rel=1e-13)
+
+
+@pytest.mark.parametrize("name", ["arm7", "torso_two_arms"])
+def test_urdf_read_by_mujoco_equals_from_urdf(name):
+    """MuJoCo's URDF reader and lagrax's agree: same joints, limits, damping and
+    dynamics (MuJoCo diagonalizes each inertia: equal to rounding)."""
+    t_mj, p_mj = from_mjcf(urdf_path(name))
+    t_ur, p_ur = from_urdf(urdf_path(name))
+    assert t_mj.joint_names == t_ur.joint_names
+    assert t_mj.joint_types == t_ur.joint_types and t_mj.parents == t_ur.parents
+    np.testing.assert_allclose(t_mj.limits, t_ur.limits, rtol=1e-15)
+    np.testing.assert_allclose(p_mj["damping"], p_ur["damping"], rtol=1e-15)
+    rng = np.random.default_rng(7)
+    q, qd, tau = (jnp.asarray(rng.uniform(-1, 1, t_ur.n)) for _ in range(3))
+    s_mj, s_ur = t_mj.system(), t_ur.system()
+    assert _rel(s_mj.mass_matrix(q, p_mj), s_ur.mass_matrix(q, p_ur)) < RTOL
+    a_mj = s_mj.forward_dynamics(q, qd, p_mj, tau)
+    assert rel_error(a_mj, s_ur.forward_dynamics(q, qd, p_ur, tau)) < RTOL
+
+
+# ------------------------------------------------------------------ refused constructs
+def _xml(body: str, extra: str = "") -> str:
+    return f"<mujoco><worldbody>{body}</worldbody>{extra}</mujoco>"
+
+
+ARM = '<body name="b1"><joint name="j1" axis="0 1 0"/><geom size="0.1" mass="1"/></body>'
+BAD = {
+    "free joint": (
+        _xml('<body name="torso"><freejoint name="root"/><geom size="0.1"/></body>'),
+        ["free joint", "'root'", "floating bases"],
+    ),
+    "ball joint": (
+        _xml('<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'),
+        ["ball joint", "'hip'"],
+    ),
+    "armature": (
+        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" armature="0.25"')),
+        ["armature", "0.25", "'j1'", "ignore_unsupported"],
+    ),
+    "stiffness": (
+        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" stiffness="3"')),
+        ["stiffness", "'j1'"],
+    ),
+    "friction loss": (
+        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"')),
+        ["friction loss", "'j1'"],
+    ),
+    "tendon": (
+        _xml(ARM, '<tendon><fixed name="t1"><joint joint="j1" coef="1"/></fixed></tendon>'),
+        ["tendon", "'t1'"],
+    ),
+    "equality": (
+        _xml(
+            ARM + ARM.replace("b1", "b2").replace("j1", "j2"),
+            '<equality><joint name="couple" joint1="j1" joint2="j2"/></equality>',
+        ),
+        ["equality constraint", "'couple'"],
+    ),
+    "gravcomp": (_xml(ARM.replace('name="b1"', 'name="b1" gravcomp="1"')), ["gravity comp"]),
+    "no joint": (_xml('<body name="b"><geom size="0.1"/></body>'), ["no hinge or slide"]),
+    "mujoco refuses": (
+        "<mujoco><worldbody><body><joint type='twist'/></body></worldbody></mujoco>",
+        ["twist"],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_refused_constructs_are_named(case):
+    text, words = BAD[case]
+    with pytest.raises(lx.MJCFError) as info:
+        from_mjcf(text)
+    for word in words:
+        assert word in str(info.value), str(info.value)
+    assert isinstance(info.value, lx.LagraxError)
+
+
+def test_ignore_unsupported_drops_with_a_warning():
+    text = _xml(ARM, '<tendon><fixed name="t1"><joint joint="j1" coef="1"/></fixed></tendon>')
+    with pytest.warns(UserWarning, match="tendon"):
+        tree, _ = from_mjcf(text, ignore_unsupported=True)
+    assert tree.joint_names == ("j1",)
+    with pytest.raises(lx.MJCFError, match="free joint"):  # still: not one coordinate
+        from_mjcf(BAD["free joint"][0], ignore_unsupported=True)
+
+
+def test_missing_file_and_missing_mujoco(monkeypatch, tmp_path):
+    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+        from_mjcf(tmp_path / "nowhere.xml")
+    monkeypatch.setitem(sys.modules, "mujoco", None)
+    with pytest.raises(lx.MJCFError, match="pip install mujoco"):
+        from_mjcf(_xml(ARM))
