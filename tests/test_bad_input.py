@@ -256,6 +256,18 @@ CASES = [
         id="linearize-nan",
     ),
     pytest.param(
+        lambda: PEND.linearize(jnp.array([0.3]), jnp.array([0.0]), {**P, "m": -1.0}),
+        lx.MassMatrixError,
+        ["positive-definite"],
+        id="linearize-negative-mass",
+    ),
+    pytest.param(
+        lambda: PEND.linearize(jnp.array([0.3]), jnp.array([0.0]), {"m": 1.0, "l": 1.0}),
+        lx.ParameterError,
+        ["'g'"],
+        id="linearize-missing-parameter",
+    ),
+    pytest.param(
         lambda: PEND.inverse_dynamics(jnp.array([0.3]), jnp.array([0.0]), jnp.array([1j]), P),
         Typ,
         ["qdd", "complex"],

@@ -10,8 +10,10 @@ from typing import TYPE_CHECKING
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._core.checks import finite, is_traced
+from .._core.errors import LagraxError
 from . import sensitivity
 from .lagrangian_checks import finite_derivatives, float_arrays
 from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
@@ -60,15 +62,8 @@ def linearize(
         finite(q, "q_eq")
         finite(qd, "qd_eq")
         finite(tau, "tau_eq")
-        system.check_state(q, qd, params, t=t)  # shapes, parameters, M positive-definite
-
-    a_mat, b_mat = _linearization(
-        system, t, q, qd, params if not eager else float_arrays(params), tau
-    )
-    if eager:
-        finite(a_mat, "the linearization A")
-        finite(b_mat, "the linearization B")
-        return a_mat, b_mat
+        return _eager_linearization(system, t, q, qd, params, tau)
+    a_mat, b_mat = _linearization(system, t, q, qd, params, tau)
     ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
     a_mat = eqx.error_if(
         a_mat,
@@ -77,6 +72,25 @@ def linearize(
         "params contain NaN/inf, or M(q_eq) is singular. Outside jit the message names "
         "which.",
     )
+    return a_mat, b_mat
+
+
+def _eager_linearization(system: LagrangianSystem, t, q, qd, params, tau):
+    """`(A, B)` outside `jit`. The state is checked only when the linearization fails
+    (a trace error, or non-finite Jacobians: NaN parameters, `M(q_eq)` not
+    positive-definite), for `check_state`'s precise message: a first call then compiles
+    one program, not two."""
+    try:
+        a_mat, b_mat = _linearization(system, t, q, qd, float_arrays(params), tau)
+    except LagraxError:
+        raise
+    except Exception:
+        system.check_state(q, qd, params, t=t)  # shapes, parameters: names the problem
+        raise
+    if not (np.all(np.isfinite(a_mat)) and np.all(np.isfinite(b_mat))):
+        system.check_state(q, qd, params, t=t)  # parameters, M positive-definite
+        finite(a_mat, "the linearization A")
+        finite(b_mat, "the linearization B")
     return a_mat, b_mat
 
 
