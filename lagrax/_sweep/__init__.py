@@ -27,3 +27,4 @@ from .grid import grid as grid
 from .grid import samples as samples
 from .io import load_sweep as load_sweep
 from .io import save_sweep as save_sweep
+from .store import open_sweep as open_sweep
