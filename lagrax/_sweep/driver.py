@@ -7,6 +7,7 @@ checkpoint (`checkpoint.prepare`), the chunks (`_run`: `chunk.solve_chunk`, each
 `ChunkResult`, written to the checkpoint) and the Dataset (`dataset.dataset`).
 """
 
+import functools
 import math
 import os
 import warnings
@@ -30,6 +31,7 @@ from .._systems.abstract import AbstractSystem, host_state
 from .._systems.vector_field import LagrangianVectorField, split_tau
 from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from .chunk import ChunkSpec, Setup, solve_chunk
+from .cluster import client_option, run_on_cluster
 from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
@@ -65,6 +67,7 @@ def sweep(
     devices: Any = None,
     checkpoint: str | os.PathLike | None = None,
     store: str | os.PathLike | None = None,
+    client: Any = None,
     progress: bool | None = None,
     allow_unused: bool = False,
     events: Any = None,
@@ -136,6 +139,12 @@ def sweep(
       `checkpoint=` (fingerprint, a SHA-256 per chunk written after its data, resume,
       a damaged chunk recomputed with a warning, another sweep's store or an
       unwritable path refused before any work); give one of `store` and `checkpoint`.
+    - `client`: a `dask.distributed.Client` (needs `lagrax[cluster]`): the chunks run
+      as tasks on its workers (each compiles the chunk program once, on its own
+      device), and come back to this process as they finish, to be written into the
+      `store` (or `checkpoint`) or assembled in memory. A lost worker loses nothing:
+      Dask runs its tasks again elsewhere, and a chunk is written once, by its index, so
+      the result equals an uninterrupted local run. Not with `devices=`.
     - `progress`: show a progress bar (tqdm; members/s). Default: on in a terminal or
       notebook, off otherwise.
     - `events`: a `lagrax.Event` or a sequence of them, as for
@@ -178,7 +187,7 @@ def sweep(
       or `schedule` name, a device count JAX does not have), or a swept parameter that
       nothing reads (see `allow_unused`).
     - `ArgumentTypeError`: an option or argument of the wrong kind (a string where a
-      number goes, a non-numeric parameter, ...).
+      number goes, a non-numeric parameter, a `client` that is not a Dask client, ...).
     - `ShapeError`: batched `params` without members, with scalar leaves or leading
       axes that disagree; states of the wrong shape.
     - `CheckpointError`: `checkpoint` (or `store`) is a file, cannot be written
@@ -239,6 +248,8 @@ def sweep(
     lanes = lanes_option(n_lanes, chunk_size, info.count)
     ckpt = Path(checkpoint) if checkpoint is not None else None
     sink = _store_option(store, checkpoint)
+    client = client_option(client, devices)
+    runner = _run if client is None else functools.partial(run_on_cluster, client)
     if chunk_size is None and ckpt is not None:
         chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
     if chunk_size is None and sink is not None:
@@ -256,14 +267,14 @@ def sweep(
     run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
     if sink is not None:  # the store is the checkpoint; the result stays on disk
         done = sink.prepare(fp, cut.chunk_size, members, n_chunks, dof)
-        _run(spec, members, dict.fromkeys(done), lambda c, r: sink.write(c, r, kept), progress)
+        runner(spec, members, dict.fromkeys(done), lambda c, r: sink.write(c, r, kept), progress)
         return sink.finish(run)
     loaded: dict[int, ChunkResult | None] = {}
     save = None
     if ckpt is not None:
         loaded.update(prepare(ckpt, fp, cut.chunk_size, members.size, n_chunks))
         save = _chunk_file_writer(ckpt, fp, cut.chunk_size, members.size)
-    chunks = _run(spec, members, loaded, save, progress, collect=True)
+    chunks = runner(spec, members, loaded, save, progress, collect=True)
     return dataset(chunks, members, kept, dof=dof, attrs=run)
 
 
