@@ -59,6 +59,7 @@ from ._solve.solution import Solution as Solution  # noqa: E402
 from ._sweep import Grid as Grid  # noqa: E402
 from ._sweep import grid as grid  # noqa: E402
 from ._sweep import load_sweep as load_sweep  # noqa: E402
+from ._sweep import open_sweep as open_sweep  # noqa: E402
 from ._sweep import samples as samples  # noqa: E402
 from ._sweep import save_sweep as save_sweep  # noqa: E402
 from ._sweep import sweep as sweep  # noqa: E402
@@ -90,6 +91,7 @@ __all__ = [
     "Grid",
     "save_sweep",
     "load_sweep",
+    "open_sweep",
     "METHODS",
     "integrators",
     "bench",

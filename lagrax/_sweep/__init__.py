@@ -11,6 +11,8 @@ One concept a module:
 - `result`: `ChunkResult`, what a chunk gives, the unit of checkpoints and of the
   Dataset;
 - `checkpoint`: fingerprints, verified chunk files, the checkpoint directory;
+- `store`: a zarr store as the result and its checkpoint (`SweepStore`, `open_sweep`);
+- `cluster`: chunks as tasks on a Dask cluster (`client=`);
 - `dataset`: the `xarray.Dataset` from the chunks' results;
 - `devices` (mesh, transfers), `defaults` (chunk size and lanes for the device),
   `progress`, `io` (`save_sweep`, `load_sweep`) and `unused` (swept parameters
@@ -27,3 +29,4 @@ from .grid import grid as grid
 from .grid import samples as samples
 from .io import load_sweep as load_sweep
 from .io import save_sweep as save_sweep
+from .store import open_sweep as open_sweep

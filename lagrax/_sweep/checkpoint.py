@@ -233,18 +233,20 @@ def _warn(message: str) -> None:
     warnings.warn(message, CheckpointWarning, stacklevel=4)
 
 
-def _probe_writable(directory: Path) -> None:
-    """Create and remove a file in `directory`, or raise `CheckpointError`."""
+def _probe_writable(directory: Path, what: str = "checkpoint") -> None:
+    """Create and remove a file in `directory` (a checkpoint directory, or with
+    `what="store"` a sweep's zarr store), or raise `CheckpointError`."""
     try:
         directory.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=directory, prefix=".lagrax-probe.", suffix=".tmp")
         os.close(fd)
         os.unlink(tmp)
     except OSError as err:
+        kind = "checkpoint directory" if what == "checkpoint" else "sweep store"
         raise CheckpointError(
-            f"the checkpoint directory {directory} cannot be written ({type(err).__name__}: "
-            f"{err.strerror or err}); a sweep with checkpoint= writes each finished chunk "
-            "there. Pass a writable directory, fix its permissions, or drop checkpoint=."
+            f"the {kind} {directory} cannot be written ({type(err).__name__}: "
+            f"{err.strerror or err}); a sweep with {what}= writes each finished chunk "
+            f"there. Pass a writable path, fix its permissions, or drop {what}=."
         ) from err
 
 

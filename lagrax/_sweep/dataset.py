@@ -40,22 +40,42 @@ def dataset(
     import xarray as xr
 
     cat = concatenate(chunks)
-    ok = (cat.result == _OK) | (cat.result == _EVENT)
-    data = _kept_variables(cat, members, kept, ok)
-    data.update(_outcomes(cat, members, ok))
-    _name_for_plots(data, final=kept.mode == "final")
+    data = variables(cat, kept, list(members.dims), _shaper(members))
     # the system's coordinate names (a tree's joint names) label the dof axis
-    coords: dict[str, Any] = {"dof": dof}
+    coords: dict[str, Any] = {"dof": dof, **labels(members, kept)}
+    ok = data["ok"][1].reshape(-1)
+    stats = attrs_of(cat.result, ok, cat.busy_lane_steps, cat.lane_steps, members.size, attrs)
+    return xr.Dataset(data, coords=coords, attrs=stats)
+
+
+def variables(
+    cat: ChunkResult, kept: Kept, dims: list[str], shaped: Any, *, status: bool = True
+) -> dict[str, Any]:
+    """The Dataset's variables of members `cat` (dimensions `dims`, each array put
+    into their shape by `shaped`): what was kept and the outcomes, with long names for
+    plots. A sweep store (`store.SweepStore`) writes them chunk by chunk with one flat
+    `"member"` dimension and no `status` (`status=False`: it is derived from `result`
+    when the store is opened)."""
+    ok = (cat.result == _OK) | (cat.result == _EVENT)
+    data = _kept_variables(cat, dims, shaped, kept, ok)
+    data.update(_outcomes(cat, dims, shaped, ok, status))
+    _name_for_plots(data, final=kept.mode == "final")
+    return data
+
+
+def labels(members: Members, kept: Kept) -> dict[str, Any]:
+    """The coordinates of a sweep's Dataset beside `dof`: the kept times and the
+    members' labels (`_member_labels`)."""
+    coords: dict[str, Any] = {}
     if kept.path:
         coords["time"] = ("time", kept.ts, {"units": "s"})
     coords.update(_member_labels(members))
-    return xr.Dataset(data, coords=coords, attrs=_attrs(cat, members.size, ok, attrs))
+    return coords
 
 
-def _kept_variables(cat: ChunkResult, members: Members, kept: Kept, ok) -> dict[str, Any]:
+def _kept_variables(cat: ChunkResult, dims: list[str], shaped, kept: Kept, ok) -> dict[str, Any]:
     """`q`, `qd` and `energy` at the end (`keep="final"`, `inf` for a failed member) or
     at the saves; or the outputs of `reduce`, each named by its pytree path."""
-    dims, shaped = list(members.dims), _shaper(members)
     data: dict[str, Any] = {}
     if kept.mode == "final":
         at_t1 = ok[:, None]
@@ -75,10 +95,9 @@ def _kept_variables(cat: ChunkResult, members: Members, kept: Kept, ok) -> dict[
     return data
 
 
-def _outcomes(cat: ChunkResult, members: Members, ok) -> dict[str, Any]:
-    """The energy error and change, the result and its message, the final maxima, the
-    events and the step counters, per member."""
-    dims, shaped = list(members.dims), _shaper(members)
+def _outcomes(cat: ChunkResult, dims: list[str], shaped, ok, status: bool) -> dict[str, Any]:
+    """The energy error and change, the result and its message (with `status`), the
+    final maxima, the events and the step counters, per member."""
     data: dict[str, Any] = {}
     # as Solution.energy_error: the balance residual h − h0 − W over the scale
     # max(|h0|, |T| + |V|) (see postprocess.energy_balance), and the change of h itself
@@ -89,7 +108,8 @@ def _outcomes(cat: ChunkResult, members: Members, ok) -> dict[str, Any]:
     data["energy_change"] = (dims, shaped(np.where(ok, change, np.inf)))
     data["ok"] = (dims, shaped(ok))
     data["result"] = (dims, shaped(cat.result))
-    data["status"] = (dims, shaped(_statuses(cat.result)))
+    if status:
+        data["status"] = (dims, shaped(statuses(cat.result)))
     for k, value in cat.final_maxima.items():  # e.g. max |φ(q)| at the end
         data[k] = (dims, shaped(value))
     if cat.event_count is not None:  # per member and event (simulate's Solution.events)
@@ -137,19 +157,23 @@ def _member_labels(members: Members) -> dict[str, Any]:
         if k in grid.states:
             which, i = grid.states[k]
             attrs["long_name"] = f"initial {'q' if which == 'q0' else 'q̇'}[{i}]"
-        coords[k] = (k if grid.product else "member", v, attrs)
+        # an array-valued parameter's draws, (members, *shape): one more dimension per
+        # axis of the leaf, e.g. ("member", "m_dim_0") for the masses of a 7-link arm
+        extra = [f"{k}_dim_{i}" for i in range(v.ndim - 1)]
+        coords[k] = ((k if grid.product else "member", *extra), v, attrs)
     return coords
 
 
-def _attrs(cat: ChunkResult, n_members: int, ok, run: Mapping[str, Any]) -> dict[str, Any]:
-    """The Dataset's `attrs`: the member and failure counts, how the sweep ran (`run`)
-    and the share of lane-steps that were idle."""
+def attrs_of(result, ok, busy_lane_steps, lane_steps, n_members: int, run: Mapping[str, Any]):
+    """The Dataset's `attrs`: the member and failure counts (from every member's
+    `result` and `ok`), how the sweep ran (`run`) and the share of lane-steps that were
+    idle (from the chunks' lane-step counters)."""
     text = messages()
     failed = ~ok
     counts = {}
-    for r in np.unique(cat.result[failed]):
-        counts[_short(text[r])] = int(np.sum(cat.result == r))
-    busy, total = int(cat.busy_lane_steps.sum()), int(cat.lane_steps.sum())
+    for r in np.unique(result[failed]):
+        counts[_short(text[r])] = int(np.sum(result == r))
+    busy, total = int(np.sum(busy_lane_steps)), int(np.sum(lane_steps))
     return dict(
         n_members=int(n_members),
         n_failed=int(failed.sum()),
@@ -159,7 +183,7 @@ def _attrs(cat: ChunkResult, n_members: int, ok, run: Mapping[str, Any]) -> dict
     )
 
 
-def _statuses(result: np.ndarray) -> np.ndarray:
+def statuses(result: np.ndarray) -> np.ndarray:
     """Each member's status: `"ok"`, or its result's message (first line)."""
     text = messages()
     return np.asarray(

@@ -7,6 +7,7 @@ checkpoint (`checkpoint.prepare`), the chunks (`_run`: `chunk.solve_chunk`, each
 `ChunkResult`, written to the checkpoint) and the Dataset (`dataset.dataset`).
 """
 
+import functools
 import math
 import os
 import warnings
@@ -30,6 +31,7 @@ from .._systems.abstract import AbstractSystem, host_state
 from .._systems.vector_field import LagrangianVectorField, split_tau
 from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from .chunk import ChunkSpec, Setup, solve_chunk
+from .cluster import client_option, run_on_cluster
 from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
@@ -37,6 +39,7 @@ from .grid import Grid, Members
 from .options import Kept, lanes_option, sweep_options, what_to_keep
 from .progress import progress_bar, progress_default
 from .result import ChunkResult
+from .store import SweepStore
 from .unused import read_params
 
 
@@ -63,6 +66,8 @@ def sweep(
     schedule: str = "queue",
     devices: Any = None,
     checkpoint: str | os.PathLike | None = None,
+    store: str | os.PathLike | None = None,
+    client: Any = None,
     progress: bool | None = None,
     allow_unused: bool = False,
     events: Any = None,
@@ -127,6 +132,19 @@ def sweep(
       format) is never loaded: a `lagrax.CheckpointWarning` names it and why, and
       its members are computed again. A directory of a different sweep definition
       (by its `manifest.json`, or without one by its chunk files) is refused.
+    - `store`: a zarr store path (e.g. `"study.zarr"`; needs `lagrax[zarr]`): the
+      result is written there chunk by chunk as each finishes, and returned opened
+      lazily (dask-backed; see `open_sweep`), so memory is bounded by a chunk, not by
+      the sweep. The store is also the sweep's checkpoint, with the guarantees of
+      `checkpoint=` (fingerprint, a SHA-256 per chunk written after its data, resume,
+      a damaged chunk recomputed with a warning, another sweep's store or an
+      unwritable path refused before any work); give one of `store` and `checkpoint`.
+    - `client`: a `dask.distributed.Client` (needs `lagrax[cluster]`): the chunks run
+      as tasks on its workers (each compiles the chunk program once, on its own
+      device), and come back to this process as they finish, to be written into the
+      `store` (or `checkpoint`) or assembled in memory. A lost worker loses nothing:
+      Dask runs its tasks again elsewhere, and a chunk is written once, by its index, so
+      the result equals an uninterrupted local run. Not with `devices=`.
     - `progress`: show a progress bar (tqdm; members/s). Default: on in a terminal or
       notebook, off otherwise.
     - `events`: a `lagrax.Event` or a sequence of them, as for
@@ -169,11 +187,12 @@ def sweep(
       or `schedule` name, a device count JAX does not have), or a swept parameter that
       nothing reads (see `allow_unused`).
     - `ArgumentTypeError`: an option or argument of the wrong kind (a string where a
-      number goes, a non-numeric parameter, ...).
+      number goes, a non-numeric parameter, a `client` that is not a Dask client, ...).
     - `ShapeError`: batched `params` without members, with scalar leaves or leading
       axes that disagree; states of the wrong shape.
-    - `CheckpointError`: `checkpoint` is a file, cannot be written (raised before any
-      chunk is computed), or holds another sweep's results or an older format's.
+    - `CheckpointError`: `checkpoint` (or `store`) is a file, cannot be written
+      (raised before any chunk is computed), or holds another sweep's results or
+      another format's (a store: also a directory that is not a lagrax sweep store).
 
     **Example:**
 
@@ -228,20 +247,64 @@ def sweep(
     info = device_info(device_list(devices))
     lanes = lanes_option(n_lanes, chunk_size, info.count)
     ckpt = Path(checkpoint) if checkpoint is not None else None
+    sink = _store_option(store, checkpoint)
+    client = client_option(client, devices)
+    runner = _run if client is None else functools.partial(run_on_cluster, client)
     if chunk_size is None and ckpt is not None:
         chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
+    if chunk_size is None and sink is not None:
+        chunk_size = sink.stored_chunk_size()
     cut = _cut(info, members, kept, chunk_size, lanes)
     setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
     times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
     spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
     # --- checkpoint: what defines the results (the fingerprint), and what is on disk
     settings = _settings(t0, t1, kept, dt0_, members, keep, tau_const)
-    fp = None if ckpt is None else fingerprint(setup, [members.params_of(), q0s, qd0s], settings)
+    defined = [members.params_of(), q0s, qd0s]
+    fp = "" if ckpt is None and sink is None else fingerprint(setup, defined, settings)
     n_chunks = -(-members.size // cut.chunk_size)
-    loaded = {} if ckpt is None else prepare(ckpt, fp, cut.chunk_size, members.size, n_chunks)
-    chunks = _run(spec, members, loaded, (ckpt, fp), progress)
+    dof = _dof_labels(system, q0s.shape[1])
     run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
-    return dataset(chunks, members, kept, dof=_dof_labels(system, q0s.shape[1]), attrs=run)
+    if sink is not None:  # the store is the checkpoint; the result stays on disk
+        done = sink.prepare(fp, cut.chunk_size, members, n_chunks, dof)
+        runner(spec, members, dict.fromkeys(done), lambda c, r: sink.write(c, r, kept), progress)
+        return sink.finish(run)
+    loaded: dict[int, ChunkResult | None] = {}
+    save = None
+    if ckpt is not None:
+        loaded.update(prepare(ckpt, fp, cut.chunk_size, members.size, n_chunks))
+        save = _chunk_file_writer(ckpt, fp, cut.chunk_size, members.size)
+    chunks = runner(spec, members, loaded, save, progress, collect=True)
+    return dataset(chunks, members, kept, dof=dof, attrs=run)
+
+
+def _store_option(store, checkpoint) -> SweepStore | None:
+    """The sweep's zarr store (`store=`), checked: a path, and not given with
+    `checkpoint=` (the store is the checkpoint)."""
+    if store is None:
+        return None
+    if not isinstance(store, str | os.PathLike):
+        raise ArgumentTypeError(
+            f"store must be a zarr store path (str or os.PathLike) or None; got "
+            f"{type(store).__name__}: {store!r}"
+        )
+    if checkpoint is not None:
+        raise ConfigurationError(
+            f"pass store={str(store)!r} or checkpoint={str(checkpoint)!r}, not both: a sweep "
+            "store is its own checkpoint (the same call resumes from it)"
+        )
+    return SweepStore(store)
+
+
+def _chunk_file_writer(directory: Path, fp: str, size: int, n_members: int):
+    """A chunk's writer into a checkpoint directory (`checkpoint.write_chunk`)."""
+
+    def save(c: int, chunk: ChunkResult) -> None:
+        a, b = c * size, min((c + 1) * size, n_members)
+        identity = dict(fingerprint=fp, chunk_size=size, chunk=c, start=a, stop=b)
+        write_chunk(chunk_path(directory, c), chunk, **identity)
+
+    return save
 
 
 def _settings(t0, t1, kept: Kept, dt0, members: Members, keep, tau_const) -> dict[str, Any]:
@@ -317,11 +380,24 @@ def _cut(
     )
 
 
-def _run(spec: ChunkSpec, members: Members, loaded: dict, checkpoint: tuple, progress):
-    """Every chunk's `ChunkResult`, in order: loaded from the checkpoint, or solved
-    (`solve_chunk`) and written there (`checkpoint` is `(directory, fingerprint)`; the
-    directory `None` for no checkpoint), with a progress bar of members."""
-    directory, fp = checkpoint
+def _run(
+    spec: ChunkSpec,
+    members: Members,
+    loaded: Mapping[int, ChunkResult | None],
+    save: Callable[[int, ChunkResult], None] | None,
+    progress,
+    *,
+    collect: bool = False,
+) -> list[ChunkResult]:
+    """Solve the chunks not in `loaded` (`solve_chunk`), passing each to `save` as it
+    finishes (the checkpoint directory's or the sweep store's writer; `None` for
+    neither), with a progress bar of members.
+
+    `loaded` holds the chunks done before: a checkpoint directory's read back, or
+    `None` for those a store holds. **Returns:** with `collect`, every chunk's
+    `ChunkResult` in order (loaded or solved); else `[]` (a store's result stays on
+    disk)."""
+    loaded = dict(loaded)
     size, n_members = spec.size, members.size
     if progress is None:
         progress = progress_default()
@@ -330,15 +406,17 @@ def _run(spec: ChunkSpec, members: Members, loaded: dict, checkpoint: tuple, pro
     try:
         for c in range(-(-n_members // size)):
             a, b = c * size, min((c + 1) * size, n_members)
+            done = c in loaded
             chunk = loaded.pop(c, None)
-            if chunk is None:
+            if not done:
                 chunk = solve_chunk(
                     spec, members.params_of(a, b), members.q0s[a:b], members.qd0s[a:b]
                 )
-                if directory is not None:
-                    identity = dict(fingerprint=fp, chunk_size=size, chunk=c, start=a, stop=b)
-                    write_chunk(chunk_path(directory, c), chunk, **identity)
-            results.append(chunk)
+                if save is not None:
+                    save(c, chunk)
+            if collect:
+                assert chunk is not None  # a directory's chunks are loaded
+                results.append(chunk)
             bar.update(b - a)
     finally:
         bar.close()

@@ -55,14 +55,9 @@ class Grid:
             )
         self.base = base
         self.axes = {}
-        for name, values in axes.items():
-            v = np.asarray(values)
-            if v.ndim != 1 or v.size == 0:
-                raise ShapeError(
-                    f"swept values of {name!r} must be a non-empty 1-D array, got shape {v.shape}"
-                )
-            self.axes[name] = v
         fixed = base if isinstance(base, Mapping) else base._asdict()
+        for name, values in axes.items():
+            self.axes[name] = _swept(name, values, fixed, product)
         self.states: dict[str, tuple[str, int]] = {}
         for name in self.axes:
             match = _STATE.match(name)
@@ -88,7 +83,7 @@ class Grid:
             self.dims = tuple(self.axes)
             self.shape = tuple(v.size for v in self.axes.values())
         else:
-            sizes = {k: v.size for k, v in self.axes.items()}
+            sizes = {k: v.shape[0] for k, v in self.axes.items()}
             if len(set(sizes.values())) != 1:
                 raise ShapeError(f"samples() needs values of one length per name, got {sizes}")
             self.dims = ("member",)
@@ -147,6 +142,42 @@ class Grid:
         return out["q0"], out["qd0"]
 
 
+def _swept(name: str, values: Any, fixed: Mapping[str, Any], product: bool) -> np.ndarray:
+    """The swept values of `name` as an array, checked against the fixed leaf they
+    replace: for `grid`, 1-D (one value per point of its axis); for `samples`, one
+    entry per member along the leading axis, each of the leaf's shape (an
+    array-valued parameter such as a 7-link arm's masses is swept as `(members, 7)`).
+
+    **Raises:** `ShapeError` naming the leaf and both shapes."""
+    v = np.asarray(values)
+    leaf = np.shape(fixed[name]) if name in fixed else None
+    if v.ndim == 0 or v.shape[0] == 0:
+        raise ShapeError(
+            f"swept values of {name!r} must be a non-empty array with one entry per "
+            f"{'point of its axis' if product else 'member'}, got shape {v.shape}"
+        )
+    if product:
+        if v.ndim != 1 or (leaf is not None and leaf != ()):
+            raise ShapeError(
+                f"grid() sweeps scalar parameters along 1-D axes: {name!r} got values of "
+                f"shape {v.shape} for a parameter of shape {leaf}. Sweep an array-valued "
+                "parameter with samples(params, name=values of shape (members, *shape))."
+            )
+        return v
+    if leaf is not None and v.shape[1:] != leaf:
+        raise ShapeError(
+            f"swept values of {name!r} have shape {v.shape}: each member's entry has shape "
+            f"{v.shape[1:]}, but the parameter {name!r} has shape {leaf}. Pass "
+            f"{(v.shape[0], *leaf)} (members first, then the parameter's own shape)."
+        )
+    if leaf is None and v.ndim != 1:
+        raise ShapeError(
+            f"swept values of {name!r} must be 1-D (one value per member): it is not a "
+            f"parameter of the fixed ones, so it has no shape to match; got shape {v.shape}"
+        )
+    return v
+
+
 def grid(base: Any = None, /, *, units: Mapping[str, str] | None = None, **axes: Any) -> Grid:
     """The Cartesian product of named 1-D ranges of parameters and initial-state
     components, over fixed parameters `base`.
@@ -188,6 +219,16 @@ def samples(base: Any = None, /, *, units: Mapping[str, str] | None = None, **va
     1000-member Monte-Carlo sweep; the result has one `"member"` dimension with `m2` and
     `r2` as coordinates along it. Names `q0_i` / `qd0_i` draw initial-state components,
     and `units` gives units, as for `grid`.
+
+    An array-valued parameter is drawn as an array whose leading axis is the members' and
+    whose other axes are the parameter's own: for a URDF arm with link masses `m` of
+    shape `(7,)`, `samples(params, m=params["m"] * rng.uniform(0.8, 1.2, (1000, 7)))`
+    varies every link mass by ±20 %. The result labels it with extra dimensions,
+    `m (member, m_dim_0)`.
+
+    **Raises:** `ShapeError` for values without members, values of a parameter whose
+    per-member shape is not the parameter's (naming both), or draws of different
+    lengths; otherwise as `grid`.
     """
     return Grid(base, values, product=False, units=units)
 

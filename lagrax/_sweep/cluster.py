@@ -1,0 +1,114 @@
+"""A sweep's chunks as tasks on a Dask cluster (`sweep(..., client=...)`).
+
+The client process plans the sweep and checks its checkpoint or store as without a
+cluster; the chunks not done are submitted as tasks (`solve_chunk` on a worker). The
+chunk program's definition (`ChunkSpec`: the system, solver, lanes, times) is scattered
+to every worker once, so that every task on a worker receives the same object, and the
+compiled program that `solve_chunk` caches for it is compiled once per worker and
+reused. Each finished chunk comes back to the client, which writes it (into the store,
+the checkpoint directory, or the in-memory result) as it arrives: the only writer, so a
+task that Dask runs again after losing its worker changes nothing (a chunk is written
+once, by its index).
+"""
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import jax.tree_util as jtu
+import numpy as np
+
+from .._core.errors import ArgumentTypeError, ConfigurationError
+from .chunk import ChunkSpec, solve_chunk
+from .grid import Members
+from .progress import progress_bar, progress_default
+from .result import ChunkResult
+
+
+def client_option(client: Any, devices: Any) -> Any:
+    """`client=` checked: a `dask.distributed.Client` (the `cluster` extra installed),
+    and no `devices=` beside it (each worker runs its chunks on its own devices)."""
+    if client is None:
+        return None
+    try:
+        from distributed import Client
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ConfigurationError(
+            "client= needs dask.distributed: pip install 'lagrax[cluster]'"
+        ) from err
+    if not isinstance(client, Client):
+        raise ArgumentTypeError(
+            "client must be a dask.distributed.Client (e.g. Client(LocalCluster()) or a "
+            f"dask-jobqueue cluster's client) or None; got {type(client).__name__}: {client!r}"
+        )
+    if devices is not None:
+        raise ConfigurationError(
+            f"devices={devices!r} cannot be combined with client=: each Dask worker runs its "
+            "chunks on its own devices (start one worker per device instead)"
+        )
+    return client
+
+
+def _solve(spec: ChunkSpec, params: Any, q0s: np.ndarray, qd0s: np.ndarray) -> ChunkResult:
+    """One chunk, on a worker (the task)."""
+    return solve_chunk(spec, params, q0s, qd0s)
+
+
+def run_on_cluster(
+    client: Any,
+    spec: ChunkSpec,
+    members: Members,
+    loaded: Mapping[int, ChunkResult | None],
+    save: Callable[[int, ChunkResult], None] | None,
+    progress: bool | None,
+    *,
+    collect: bool = False,
+) -> list[ChunkResult]:
+    """As the driver's `_run`, the chunks not in `loaded` solved as tasks on `client`'s
+    workers; each is passed to `save` as it completes (in any order), with a progress
+    bar of members. **Returns:** with `collect`, every chunk's `ChunkResult` in order."""
+    from distributed import as_completed
+
+    size, n_members = spec.size, members.size
+    n_chunks = -(-n_members // size)
+    # one device per worker: the chunk is not sharded (a worker's own mesh is its device)
+    spec = dataclasses.replace(spec, mesh=None)
+    if progress is None:
+        progress = progress_default()
+    bar = progress_bar(progress)(total=n_members, unit="member", disable=not progress, desc="sweep")
+    results: dict[int, ChunkResult] = {}
+    index: dict[Any, int] = {}
+    try:
+        for c, chunk in loaded.items():
+            if chunk is not None:
+                results[c] = chunk
+            bar.update(min((c + 1) * size, n_members) - c * size)
+        todo = [c for c in range(n_chunks) if c not in loaded]
+        if todo:
+            [remote_spec] = client.scatter([spec], broadcast=True, hash=False)
+            for c in todo:
+                a, b = c * size, min((c + 1) * size, n_members)
+                params = jtu.tree_map(np.asarray, members.params_of(a, b))
+                future = client.submit(
+                    _solve,
+                    remote_spec,
+                    params,
+                    np.asarray(members.q0s[a:b]),
+                    np.asarray(members.qd0s[a:b]),
+                    pure=False,
+                )
+                index[future] = c
+            for future in as_completed(list(index)):
+                c = index.pop(future)
+                chunk = future.result()
+                if save is not None:
+                    save(c, chunk)
+                if collect:
+                    results[c] = chunk
+                future.release()
+                bar.update(min((c + 1) * size, n_members) - c * size)
+    finally:
+        for future in index:
+            future.cancel()
+        bar.close()
+    return [results[c] for c in range(n_chunks)] if collect else []
