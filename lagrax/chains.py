@@ -50,6 +50,8 @@ from ._multibody.chains import SpatialChain as SpatialChain
 from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
 from ._multibody.chains import planar_chain as planar_chain
 from ._multibody.chains import spatial_chain as spatial_chain
+from ._multibody.floating import FloatingBaseSystem as FloatingBaseSystem
+from ._multibody.floating import FloatingTree as FloatingTree
 from ._multibody.trees import AbstractTree as AbstractTree
 from ._multibody.trees import Tree as Tree
 from ._multibody.urdf import from_urdf as from_urdf
@@ -61,6 +63,8 @@ __all__ = [
     "spatial_chain",
     "AbstractTree",
     "Tree",
+    "FloatingTree",
+    "FloatingBaseSystem",
     "from_urdf",
     "axis_angle_rotation",
     "BodyKind",

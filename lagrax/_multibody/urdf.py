@@ -282,6 +282,7 @@ def from_urdf(
     g: float = 9.81,
     massless_links: bool = False,
     dtype: Any = None,
+    floating_base: bool = False,
 ) -> tuple[Tree, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
@@ -323,6 +324,13 @@ def from_urdf(
       (the mass matrix may then be singular). By default they are refused; links fixed to
       a moving link may always lack `<inertial>` (frames such as a tool flange).
     - `dtype`: of the params (default float64 with x64).
+    - `floating_base`: `True` for a robot that is not bolted to the world (a quadruped,
+      a humanoid): the root link, with every link fixed to it, becomes a free-floating
+      base and the result a [`FloatingTree`][lagrax.chains.FloatingTree] whose state is
+      Pinocchio's free-flyer `q = (x, y, z, qx, qy, qz, qw, joints…)`,
+      `v = (base linear, base angular velocity in the base frame, joint rates…)`; its
+      params gain `base_m`, `base_com`, `base_inertia`. The root link must then have a
+      positive mass.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}`.
@@ -348,7 +356,12 @@ def from_urdf(
     keep = _keep(root, tip, links, parent_of, children)
     bodies, place, order = _place_bodies(root, keep, children)
     _merge_inertials(bodies, place, order, links, massless_links)
-    return _tree_and_params(bodies, up, g, dtype)
+    tree, params = _tree_and_params(bodies, up, g, dtype)
+    if floating_base:
+        from .floating import base_from_urdf
+
+        return base_from_urdf(tree, params, place, order, links, root, _inertial)  # type: ignore[return-value]
+    return tree, params
 
 
 def _read(source: str | os.PathLike) -> str:
