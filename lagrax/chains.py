@@ -55,6 +55,8 @@ from ._multibody.chains import SpatialChain as SpatialChain
 from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
 from ._multibody.chains import planar_chain as planar_chain
 from ._multibody.chains import spatial_chain as spatial_chain
+from ._multibody.floating import FloatingBaseSystem as FloatingBaseSystem
+from ._multibody.floating import FloatingTree as FloatingTree
 from ._multibody.limits import limit_events as limit_events
 from ._multibody.mjcf import from_mjcf as from_mjcf
 from ._multibody.trees import AbstractTree as AbstractTree
@@ -68,6 +70,8 @@ __all__ = [
     "spatial_chain",
     "AbstractTree",
     "Tree",
+    "FloatingTree",
+    "FloatingBaseSystem",
     "from_urdf",
     "from_mjcf",
     "limit_events",

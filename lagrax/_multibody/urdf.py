@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.errors import ParameterError, URDFError
+from .._core.errors import ConfigurationError, ParameterError, URDFError
 from .common import float_dtype
 from .inertia import check_inertia
 from .limits import with_limits
@@ -285,6 +285,7 @@ def from_urdf(
     dtype: Any = None,
     limits: str | None = None,
     restitution: Any = 0.0,
+    floating_base: bool = False,
 ) -> tuple[Tree, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
@@ -333,6 +334,13 @@ def from_urdf(
       and the hits are in `Solution.events`).
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
+    - `floating_base`: `True` for a robot that is not bolted to the world (a quadruped,
+      a humanoid): the root link, with every link fixed to it, becomes a free-floating
+      base and the result a [`FloatingTree`][lagrax.chains.FloatingTree] whose state is
+      Pinocchio's free-flyer `q = (x, y, z, qx, qy, qz, qw, joints…)`,
+      `v = (base linear, base angular velocity in the base frame, joint rates…)`; its
+      params gain `base_m`, `base_com`, `base_inertia`. The root link must then have a
+      positive mass.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`
@@ -360,6 +368,15 @@ def from_urdf(
     bodies, place, order = _place_bodies(root, keep, children)
     _merge_inertials(bodies, place, order, links, massless_links)
     tree, params = _tree_and_params(bodies, up, g, dtype)
+    if floating_base:
+        if limits is not None:
+            raise ConfigurationError(
+                f"from_urdf: limits={limits!r} is not supported with floating_base=True yet "
+                "(the limit events index the joints of a fixed-base tree)"
+            )
+        from .floating import base_from_urdf
+
+        return base_from_urdf(tree, params, place, order, links, root, _inertial)  # type: ignore[return-value]
     return with_limits(tree, params, limits, restitution)
 
 

@@ -38,9 +38,10 @@ def arrays(system: AbstractSystem, q0, qd0, params, tau, eager: bool):
             f"as its first argument, got {type(system).__name__}: {system!r}"
         )
     n, name = system.n_dof, system.name
-    q0 = checks.coords(q0, "q", n, name, host=eager)
+    q0 = checks.coords(q0, "q", system.n_configuration, name, host=eager)
     qd0 = checks.coords(qd0, "qd", n, name, host=eager)
-    checks.same_shape("qd", qd0, q0)
+    if system.n_configuration == n:  # (else each has its own size: q̇ = N(q) v)
+        checks.same_shape("qd", qd0, q0)
     dtype = np.result_type(q0, qd0) if eager else jnp.result_type(q0, qd0)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
     tdt = np.dtype(dtype)
@@ -54,7 +55,7 @@ def arrays(system: AbstractSystem, q0, qd0, params, tau, eager: bool):
         ),
         params,
     )
-    tau_fn, tau_const = split_tau(system, tau, q0, host=eager)
+    tau_fn, tau_const = split_tau(system, tau, qd0, host=eager)  # (one force per velocity)
     return q0, qd0, params, tau_fn, tau_const
 
 

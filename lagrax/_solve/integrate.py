@@ -33,6 +33,9 @@ import jax.tree_util as jtu
 import numpy as np
 
 from .._core.results import RESULTS, code_of
+from .._systems.abstract import AbstractSystem
+
+_DEFAULT_PROJECTION = AbstractSystem.project_configuration
 
 DEFAULT_DT0 = 0.01
 
@@ -160,6 +163,7 @@ def init_state(term, solver, controller, t0, t1, y0, dt0, args) -> StepState:
 def advance(term, solver, controller, state: StepState, args, t1, max_steps: int):
     """One attempted step from `state`, with the step counts and the result updated.
 
+    The new state is projected onto the system's configuration manifold (`project`).
     The result becomes the solver's or controller's failure, `non_finite_state` as soon
     as an accepted state is not finite, or `max_steps_reached` when the budget is spent
     before `t1`.
@@ -179,6 +183,7 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
         state.controller_state,
         t1,
     )
+    y = project(term, y)
     steps = state.num_steps + 1
     result = RESULTS.where(all_finite(y), res, RESULTS.non_finite_state)
     out_of_steps = (steps >= max_steps) & (tprev < t1) & (result == RESULTS.successful)
@@ -195,6 +200,22 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
         result,
     )
     return new, keep, dense
+
+
+def project(term, y):
+    """The state `(q, v)` with `q` put back onto its manifold by the system's
+    [`project_configuration`][lagrax.AbstractSystem.project_configuration] (a floating
+    base: its quaternion normalized), after every accepted step; `y` unchanged for a
+    term that is not a system's vector field, or a system whose projection is the
+    identity (the default)."""
+    field = term
+    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
+        field = field.term
+    system = getattr(getattr(field, "vector_field", None), "system", None)
+    if system is None or type(system).project_configuration is _DEFAULT_PROJECTION:
+        return y
+    q, qd = y
+    return system.project_configuration(q), qd
 
 
 def interpolate(solver, dense, ta, tb, t):

@@ -149,7 +149,8 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     the inputs (about 15 saves per period of them give ~1e-10), and the inputs must be
     smooth between saves (a switch inside a save interval costs accuracy).
 
-    `Ṗ` is a JVP of `P` along `(1, q̇, q̈)`, with `q̈` from the vector field. `P̈`, the
+    `Ṗ` is a JVP of `P` along `(1, q̇, q̈)`, with `q̇ = N(q) v` and `q̈ = v̇` from the
+    vector field ([`configuration_rate`][lagrax.AbstractSystem.configuration_rate]). `P̈`, the
     derivative of `Ṗ` along the motion, is a central difference of `Ṗ` along the flow
     with the step `ε = ε_mach^{1/3}` times the local save spacing (relative error about
     `ε_mach^{2/3}`, ~4e-11 in float64, where the term it enters is already `O(Δ³)`): two
@@ -168,16 +169,16 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     q_s = jnp.where(reached[:, None], q, q[first])
     qd_s = jnp.where(reached[:, None], qd, qd[first])
 
-    def rate(t, a, b):  # P, its derivative along the motion Ṗ, and q̈, at one state
-        qdd = field(t, (a, b), (params, tau_const))[1]
+    def rate(t, a, b):  # P, its derivative along the motion Ṗ, q̇ = N(q) v and v̇
+        qrate, qdd = field(t, (a, b), (params, tau_const))
         p, dp = jax.jvp(
             lambda c, x, y: power_of(system, field, params, tau_const, c, x, y),
             (t, a, b),
-            (jnp.ones_like(t), b, qdd),
+            (jnp.ones_like(t), qrate, qdd),
         )
-        return p, dp, qdd
+        return p, dp, qrate, qdd
 
-    p, dp, qdd = jax.vmap(rate)(ts_s, q_s, qd_s)
+    p, dp, qrate, qdd = jax.vmap(rate)(ts_s, q_s, qd_s)
     h = jnp.diff(ts_s)
     # P̈ = dṖ/dt along the motion: a central difference of Ṗ along the flow,
     # (t, q, q̇) ± ε (1, q̇, q̈), with ε = ε_mach^(1/3) times the local save spacing (the
@@ -187,9 +188,9 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
     eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
     step_t = jnp.concatenate([eps, -eps])
-    _, dp_pm, _ = jax.vmap(rate)(
+    _, dp_pm, _, _ = jax.vmap(rate)(
         jnp.concatenate([ts_s, ts_s]) + step_t,
-        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qd_s, qd_s]),
+        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qrate, qrate]),
         jnp.concatenate([qd_s, qd_s]) + step_t[:, None] * jnp.concatenate([qdd, qdd]),
     )
     n = ts_s.shape[0]

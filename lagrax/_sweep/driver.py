@@ -230,9 +230,9 @@ def sweep(
     members = Members.of(params, q0, qd0)
     q0s, qd0s, dtype = members.q0s, members.qd0s, members.q0s.dtype
     # one member through the eager checks of a single trajectory: shapes, params, tau
-    q_probe, _ = host_state(system, q0s[0], qd0s[0])
+    _, qd_probe = host_state(system, q0s[0], qd0s[0])
     tdt = jnp.asarray(0.0, dtype).dtype
-    tau_fn, tau_const = split_tau(system, tau, q_probe)
+    tau_fn, tau_const = split_tau(system, tau, qd_probe)  # (one force per velocity)
     if not allow_unused:
         _refuse_unused(system, tau_fn, tau_const, members)
     final = isinstance(keep, str) and keep == "final"

@@ -48,6 +48,15 @@ class AbstractSystem(eqx.Module):
     [`energy_and_magnitude`][lagrax.AbstractSystem.energy_and_magnitude]; and
     [`components`][lagrax.AbstractSystem.components], for a failure diagnosis.
 
+    **The configuration manifold, with defaults for ordinary systems** (each documented
+    below): [`n_configuration`][lagrax.AbstractSystem.n_configuration] (the size of `q`;
+    default `n_dof`), [`configuration_rate`][lagrax.AbstractSystem.configuration_rate]
+    (`q̇ = N(q) v`; default `v`) and
+    [`project_configuration`][lagrax.AbstractSystem.project_configuration] (back onto the
+    manifold; default the identity). A floating base, whose quaternion's rate is not its
+    angular velocity, overrides these; `simulate`, `sweep`, events and the energy balance
+    only ever go through them.
+
     **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
     [`observables`][lagrax.AbstractSystem.observables] (none),
     [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none).
@@ -124,6 +133,35 @@ class AbstractSystem(eqx.Module):
         a failure diagnosis to say which one is non-finite. Never raises on non-finite
         values."""
 
+    # ------------------------------------------------------------------ configuration manifold
+    @property
+    def n_configuration(self) -> int | None:
+        """The size of the configuration `q` (`None` if not fixed). The velocity `v`
+        (called `qd` throughout) has `n_dof` entries; by default the two sizes agree
+        (`q̇ = v`). A floating base has `7 + n` coordinates (position, unit quaternion,
+        joints) and `6 + n` velocities."""
+        return self.n_dof
+
+    def configuration_rate(self, q: Vector, v: Vector) -> Vector:
+        r"""`q̇ = N(q) v`: the rate of the configuration given the velocity, what a solver
+        integrates for `q` (the state `(q, v)` evolves as `(N(q) v, v̇)`).
+
+        The default is `v` itself (`N = 1`: the velocities are the coordinates' time
+        derivatives). A system whose configuration lives on a manifold overrides it: for
+        a floating base `ṗ = R v_b` and `q̇_quat = ½ q_quat ⊗ (ω_b, 0)`. Never raises.
+
+        **Arguments:** `q` (size `n_configuration`), `v` (size `n_dof`).
+        **Returns:** `q̇`, shaped like `q`.
+        """
+        return v
+
+    def project_configuration(self, q: Vector) -> Vector:
+        """`q` put back onto its manifold (a floating base: the quaternion divided by its
+        norm). `simulate` applies it after every accepted step, so that round-off and
+        truncation do not drift off the manifold; the default is the identity. Never
+        raises."""
+        return q
+
     # ------------------------------------------------------------------ hooks with defaults
     def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
         """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
@@ -170,6 +208,8 @@ def host_state(system: AbstractSystem, q: Coordinates, qd: Velocities):
     Module by building a `BoundMethod` Module around it, which walks the system's
     pytree (~50 µs for a 7-link chain)."""
     n, name = system.n_dof, system.name
-    q, qd = coords(q, "q", n, name, host=True), coords(qd, "qd", n, name, host=True)
-    same_shape("qd", qd, q)
+    q = coords(q, "q", system.n_configuration, name, host=True)
+    qd = coords(qd, "qd", n, name, host=True)
+    if system.n_configuration == n:
+        same_shape("qd", qd, q)
     return q, qd

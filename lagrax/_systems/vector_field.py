@@ -18,8 +18,9 @@ TauFn = Callable[[Any, Array, Array], Array]
 
 
 class LagrangianVectorField(eqx.Module):
-    """`f(t, (q, q̇), (params, tau_const)) = (q̇, q̈)` for any
-    [`AbstractSystem`][lagrax.AbstractSystem]."""
+    """`f(t, (q, v), (params, tau_const)) = (N(q) v, v̇)` for any
+    [`AbstractSystem`][lagrax.AbstractSystem]: `(q̇, q̈)` for an ordinary one, whose
+    [`configuration_rate`][lagrax.AbstractSystem.configuration_rate] is `v` itself."""
 
     system: AbstractSystem
     tau_fn: TauFn | None = None
@@ -28,7 +29,7 @@ class LagrangianVectorField(eqx.Module):
         """The input generalized force at `(t, q, q̇)` (`None` when there is none)."""
         tau = tau_const
         if self.tau_fn is not None:
-            tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", q).astype(q.dtype)
+            tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", qd).astype(qd.dtype)
             if tau_const is not None:
                 tau = tau + tau_const
         return tau
@@ -65,8 +66,9 @@ def split_tau(system: AbstractSystem, tau: Any, q: Array, *, host: bool = False)
 def _evaluate(field: LagrangianVectorField, t, y, args):
     q, qd = y
     params, tau_const = args
-    qdd = field.system.accelerations(t, q, qd, params, field.tau(t, q, qd, tau_const))
-    return qd, qdd
+    system = field.system
+    qdd = system.accelerations(t, q, qd, params, field.tau(t, q, qd, tau_const))
+    return system.configuration_rate(q, qd), qdd
 
 
 def lagrangian_field_of(terms) -> LagrangianVectorField:

@@ -1,0 +1,245 @@
+"""Floating bases (``from_urdf(..., floating_base=True)``, ``lagrax.chains.FloatingTree``).
+
+- Dynamics against Pinocchio's free-flyer model (``pin.JointModelFreeFlyer``): ``M`` (CRBA),
+  the bias (``nonLinearEffects``), ``rnea`` and ``aba`` at random states, in Pinocchio's
+  own coordinates (``q = (x, y, z, qx, qy, qz, qw, joints)``, ``v`` in the base frame), on
+  the bundled URDF robots and on solo12 from example-robot-data when it is installed.
+- ``q̇ = N(q) v`` against Pinocchio's ``integrate`` (a central difference along ``v``),
+  the centre of mass and the centroidal momentum against Pinocchio's.
+- Invariants: a dropped robot's centre of mass falls at ``g`` whatever its joints do; a
+  free-floating satellite with a 7-joint arm in zero gravity conserves its linear and
+  angular momentum through ``simulate``, whose quaternion stays on the unit sphere.
+"""
+
+import glob
+import sys
+import xml.etree.ElementTree as ET
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from _helpers import pin_state, rel_error
+from lagrax.models import urdf_path
+
+pin = pytest.importorskip(
+    "pinocchio", reason="Pinocchio (pip install pin) is the reference for floating-base dynamics"
+)
+
+
+def _solo12() -> str | None:
+    """solo12's URDF from example-robot-data (its cmeel prefix), if installed."""
+    pattern = "lib/python*/site-packages/cmeel.prefix/share/example-robot-data/robots"
+    found = glob.glob(f"{sys.prefix}/{pattern}/solo_description/robots/solo12.urdf")
+    return found[0] if found else None
+
+
+def _torso_without_lift() -> str:
+    """torso_two_arms with its massless `world` link and `lift` joint removed: the pelvis
+    is the floating base (a base needs a mass)."""
+    root = ET.fromstring(urdf_path("torso_two_arms").read_text())
+    for el in list(root):
+        if el.get("name") in ("world", "lift"):
+            root.remove(el)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _robot(name: str):
+    if name == "solo12":
+        path = _solo12()
+        if path is None:
+            pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
+        with open(path, encoding="utf-8") as f:
+            xml = f.read()
+    elif name == "torso_two_arms":
+        xml = _torso_without_lift()
+    else:
+        xml = urdf_path(name).read_text()
+    robot, params = lx.chains.from_urdf(xml, floating_base=True)
+    params = dict(params, damping=jnp.zeros_like(params["damping"]))  # Pinocchio: none
+    model = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
+    return robot, params, model
+
+
+def _random_state(rng, n):
+    quat = rng.normal(size=4)
+    quat /= np.linalg.norm(quat)
+    q = np.concatenate([rng.normal(size=3), quat, rng.uniform(-1.5, 1.5, n)])
+    return q, rng.normal(size=6 + n)
+
+
+def _pin(model, robot, q, v):
+    """lagrax's `(q, v)` as Pinocchio's, and the order of lagrax's velocities in
+    Pinocchio's (the base's six first in both)."""
+    qp, vp, order = pin_state(pin, model, robot.tree, q[7:], v[6:])
+    qp[:7], vp[:6] = q[:7], v[:6]
+    return qp, vp, np.concatenate([np.arange(6), order])
+
+
+@pytest.mark.parametrize("name", ["arm7", "torso_two_arms", "solo12"])
+def test_dynamics_match_pinocchio_free_flyer(name):
+    robot, params, model = _robot(name)
+    data = model.createData()
+    system = robot.system()
+    assert system.n_configuration == 7 + robot.n  # (Pinocchio: 2 per continuous joint)
+    assert model.nv == system.n_dof == 6 + robot.n
+    rng = np.random.default_rng(7)
+    errors = []
+    for _ in range(3):
+        q, v = _random_state(rng, robot.n)
+        tau, vdot = rng.normal(size=6 + robot.n), rng.normal(size=6 + robot.n)
+        qp, vp, idx = _pin(model, robot, q, v)
+        tau_p, vdot_p = np.zeros(model.nv), np.zeros(model.nv)
+        tau_p[idx], vdot_p[idx] = tau, vdot
+        m_p = pin.crba(model, data, qp)
+        m_p = np.triu(m_p) + np.triu(m_p, 1).T
+        errors.append(
+            (
+                rel_error(system.mass_matrix(q, params), m_p[np.ix_(idx, idx)]),
+                rel_error(
+                    system.bias(q, v, params), pin.nonLinearEffects(model, data, qp, vp)[idx]
+                ),
+                rel_error(
+                    system.inverse_dynamics(q, v, vdot, params),
+                    pin.rnea(model, data, qp, vp, vdot_p)[idx],
+                ),
+                rel_error(
+                    system.forward_dynamics(q, v, params, tau),
+                    pin.aba(model, data, qp, vp, tau_p)[idx],
+                ),
+            )
+        )
+    assert np.max(errors) <= 1e-12, errors
+
+
+def test_configuration_rate_is_pinocchios_integrate():
+    """`q̇ = N(q) v` is the derivative of Pinocchio's `integrate(q, ε v)` at `ε = 0`."""
+    robot, params, model = _robot("arm7")
+    system = robot.system()
+    q, v = _random_state(np.random.default_rng(3), robot.n)
+    qp, vp, _ = _pin(model, robot, q, v)
+    eps = 1e-6
+    rate_p = (pin.integrate(model, qp, eps * vp) - pin.integrate(model, qp, -eps * vp)) / (2 * eps)
+    rate = np.asarray(system.configuration_rate(jnp.asarray(q), jnp.asarray(v)))
+    assert rel_error(rate[:7], rate_p[:7]) < 1e-8
+    assert rel_error(rate[7:], v[6:]) == 0.0
+    off = jnp.asarray(q).at[3].add(0.1)  # off the unit sphere
+    projected = system.project_configuration(off)
+    assert abs(float(jnp.linalg.norm(projected[3:7])) - 1.0) < 1e-15
+
+
+def test_momentum_and_com_match_pinocchio():
+    robot, params, model = _robot("torso_two_arms")
+    data = model.createData()
+    system = robot.system()
+    q, v = _random_state(np.random.default_rng(5), robot.n)
+    qp, vp, _ = _pin(model, robot, q, v)
+    com = np.asarray(system.center_of_mass(q, params))
+    assert rel_error(com, pin.centerOfMass(model, data, qp)) < 1e-13
+    h = np.asarray(system.momentum(q, v, params))  # (L about the world origin, p)
+    h_g = pin.computeCentroidalMomentum(model, data, qp, vp)  # (p, L about the CoM)
+    assert rel_error(h[3:], h_g.linear) < 1e-13
+    assert rel_error(h[:3] - np.cross(com, h[3:]), h_g.angular) < 1e-13
+    kinetic = pin.computeKineticEnergy(model, data, qp, vp)
+    potential = pin.computePotentialEnergy(model, data, qp)
+    assert rel_error(system.energy(q, v, params), kinetic + potential) < 1e-13
+
+
+def test_dropped_robot_centre_of_mass_falls_at_g():
+    """With no external force but gravity, `m c̈ = m g` exactly, whatever the joint
+    torques, damping and motion: `c̈ = d/dt (p / m)` along `(q̇, v̇) = (N(q) v, aba)`."""
+    robot, params, _ = _robot("arm7")
+    params = dict(params, damping=jnp.full(robot.n, 0.3))  # internal forces: no effect on c̈
+    system = robot.system()
+    mass = float(params["base_m"] + jnp.sum(params["m"]))
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q, v = (jnp.asarray(x) for x in _random_state(rng, robot.n))
+        tau = jnp.concatenate([jnp.zeros(6), jnp.asarray(rng.normal(size=robot.n))])
+        vdot = system.forward_dynamics(q, v, params, tau)
+        qrate = system.configuration_rate(q, v)
+        _, pdot = jax.jvp(lambda a, b: system.momentum(a, b, params)[3:], (q, v), (qrate, vdot))
+        g = float(params["g"])
+        assert rel_error(pdot / mass, jnp.array([0.0, 0.0, -g])) < 1e-12
+
+
+def _satellite():
+    """A 100 kg satellite with a 7-joint arm (2 kg links), in zero gravity."""
+    arm = lx.chains.Tree(
+        "RRRRRRR", parents=range(-1, 6), axes=[(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
+    )
+    robot = lx.chains.FloatingTree(arm, base_name="satellite")
+    params = robot.params(
+        base_m=100.0,
+        base_inertia=np.diag([10.0, 12.0, 14.0]),
+        base_com=(0.01, -0.02, 0.03),
+        m=2.0,
+        offset=[(0.5, 0, 0.2)] + [(0, 0, 0.3)] * 6,
+        com=(0.02, 0.01, 0.15),
+        g=0.0,
+    )
+    return robot, params
+
+
+def test_free_floating_satellite_conserves_momentum():
+    """Over 20 s (Dopri8, tolerances 1e-12) the spatial momentum stays constant to 1e-10
+    relative, the energy to 1e-10, and the quaternion stays on the unit sphere."""
+    robot, params = _satellite()
+    system = robot.system()
+    rng = np.random.default_rng(1)
+    q0, v0 = _random_state(rng, robot.n)
+    v0[:6] *= 0.3
+    sol = lx.simulate(
+        system, q0, v0, params, t1=20.0, solver="dopri8", rtol=1e-12, atol=1e-12, n_save=41
+    )
+    assert sol.q.shape == (41, 14) and sol.qd.shape == (41, 13)
+    h = jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd)
+    drift = np.max(np.abs(np.asarray(h - h[:1]))) / np.linalg.norm(np.asarray(h[0]))
+    assert drift < 1e-10, drift
+    assert np.max(np.abs(sol.energy_error)) < 1e-10
+    assert sol.constraint_violation is not None
+    assert np.max(np.abs(sol.constraint_violation)) < 1e-12  # |q_quat| − 1 at the saves
+    assert abs(float(jnp.linalg.norm(sol.q_end[3:7])) - 1.0) < 1e-14  # projected each step
+
+
+def test_configuration_interface_defaults():
+    """An ordinary system's configuration is its own: `q̇ = v`, `n_q = n_v`, no projection."""
+    system, _ = lx.models.planar_2r()
+    q, v = jnp.array([0.3, 0.4]), jnp.array([1.0, -2.0])
+    assert system.n_configuration == system.n_dof
+    assert system.configuration_rate(q, v) is v
+    assert system.project_configuration(q) is q
+
+
+def test_floating_base_errors():
+    robot, params = _satellite()
+    system = robot.system()
+    with pytest.raises(lx.ShapeError, match="14"):
+        system.forward_dynamics(jnp.zeros(13), jnp.zeros(13), params)
+    with pytest.raises(lx.ShapeError, match="13"):
+        system.forward_dynamics(jnp.r_[jnp.zeros(6), 1.0, jnp.zeros(7)], jnp.zeros(14), params)
+    with pytest.raises(lx.URDFError, match="world"):  # a massless root cannot float
+        lx.chains.from_urdf(urdf_path("torso_two_arms"), floating_base=True)
+    with pytest.raises(lx.ParameterError, match="base_m"):
+        robot.params(base_m=0.0)
+
+
+def test_dropped_robot_falls_at_g_through_simulate():
+    """Dropped with its joints moving, the centre of mass follows `c0 + ċ0 t − ½ g t² up`
+    (to 1e-12 m over 0.5 s, Dopri8 at tolerances 1e-13) while the joints swing."""
+    robot, params, _ = _robot("arm7")
+    system = robot.system()
+    q0 = jnp.concatenate([jnp.array([0.0, 0.0, 1.0, 0.1, 0.2, 0.0, 1.0]), jnp.full(robot.n, 0.4)])
+    v0 = jnp.concatenate([jnp.zeros(6), jnp.ones(robot.n)])
+    sol = lx.simulate(
+        system, q0, v0, params, t1=0.5, n_save=6, solver="dopri8", rtol=1e-13, atol=1e-13
+    )
+    com = jax.vmap(lambda q: system.center_of_mass(q, params))(sol.q)
+    mass = params["base_m"] + jnp.sum(params["m"])
+    com_rate = system.momentum(sol.q[0], v0, params)[3:] / mass
+    t = sol.ts[:, None]
+    fall = com[:1] + t * com_rate[None] - 0.5 * params["g"] * t**2 * jnp.array([[0.0, 0, 1]])
+    assert float(jnp.max(jnp.abs(com - fall))) < 1e-12
+    assert float(jnp.max(jnp.abs(sol.q[-1, 7:] - sol.q[0, 7:]))) > 1e-2  # the joints moved
