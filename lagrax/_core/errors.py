@@ -61,3 +61,10 @@ class URDFError(LagraxError, ValueError):
     """A URDF model cannot be read into a tree: malformed XML, a missing or unphysical
     `<inertial>`, a link with two parents or a loop, an unknown or unsupported joint
     type. The message names the link or joint and says what to fix."""
+
+
+class URDFWarning(UserWarning):
+    """A URDF model was loaded, but something in it is doubtful: an `<inertia>` whose
+    principal moments violate the triangle inequality `I1 + I2 ≥ I3` (no rigid body has
+    them; the dynamics stay defined). The message names the link and the amount;
+    `from_urdf(..., strict_inertia=True)` refuses such a file instead."""
