@@ -50,6 +50,7 @@ from ._core.errors import ParameterError as ParameterError  # noqa: E402
 from ._core.errors import ShapeError as ShapeError  # noqa: E402
 from ._core.errors import SimulationError as SimulationError  # noqa: E402
 from ._core.errors import URDFError as URDFError  # noqa: E402
+from ._core.errors import URDFWarning as URDFWarning  # noqa: E402
 from ._core.results import RESULTS as RESULTS  # noqa: E402
 from ._solve.events import Event as Event  # noqa: E402
 from ._solve.events import EventRecord as EventRecord  # noqa: E402
@@ -115,4 +116,5 @@ __all__ = [
     "SimulationError",
     "URDFError",
     "MJCFError",
+    "URDFWarning",
 ]

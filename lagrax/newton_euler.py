@@ -142,6 +142,8 @@ def rnea(
     inward sums run over all of body `i`'s children `c`:
     `f_i = F_i + Σ_c ⁱR_c f_c`, `n_i = N_i + c_i × F_i + Σ_c (ⁱR_c n_c + ⁱp_c × ⁱR_c f_c)`.
     (Joint damping, a Rayleigh dissipation of the system, is not part of `τ` here.)
+    A tree with mimic joints runs the recursion over all its joints at `θ = J q + b`,
+    `θ̇ = J q̇`, `θ̈ = J q̈` and returns `Jᵀ τ_θ` (the principle of virtual work).
 
     For a [`PlanarChain`][lagrax.chains.PlanarChain] the same recursion runs in the plane with
     scalar angular rates and moments (`z` components) in the fixed frame: joint `i + 1`'s
@@ -190,7 +192,13 @@ def _(chain: PlanarChain, q, qd, qdd, params):
 
 @_rnea.register
 def _(chain: AbstractTree, q, qd, qdd, params):
-    return _rnea_spatial(chain, *_checked(chain, q, qd, qdd), params)
+    q, qd, qdd = _checked(chain, q, qd, qdd)
+    if not chain.mimic:
+        return _rnea_spatial(chain, q, qd, qdd, params)
+    # mimic joints: every joint's torque at θ = J q + b, θ̇ = J q̇, θ̈ = J q̈, then Jᵀ τ_θ
+    theta = (chain.joint_angles(q), chain.joint_rates(qd), chain.joint_rates(qdd))
+    tau = _rnea_spatial(chain, *theta, params)
+    return jnp.asarray(chain.coupling_matrix(), tau.dtype).T @ tau
 
 
 def _rnea_planar(n, q, qd, qdd, p):
@@ -237,7 +245,7 @@ def _rnea_spatial(chain, q, qd, qdd, p):
     dtype = q.dtype
     m, com, inertia, offset = (jnp.asarray(p[k]) for k in ("m", "com", "inertia", "offset"))
     g = jnp.asarray(p["g"])
-    n = chain.n
+    n = chain.n_bodies
     axes = [jnp.asarray(np.asarray(a), dtype) for a in chain.axes]
     fixed = [jnp.asarray(np.asarray(s), dtype) for s in chain.rotations]
     # ⁱ⁻¹R_i and ⁱ⁻¹p_i (position of origin i in frame i-1)

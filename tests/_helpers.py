@@ -39,14 +39,31 @@ def check_grad_against_central_difference(f, x, h=1e-5, rtol=1e-6):
 
 def pin_state(pin, model, tree, q, qd):
     """lagrax's coordinates as Pinocchio's (joints matched by name; a continuous joint is
-    `(cos q, sin q)` in Pinocchio's configuration, its tangent the angle)."""
-    qp, vp, order = pin.neutral(model), np.zeros(model.nv), []
-    for k, name in enumerate(tree.joint_names):
+    `(cos q, sin q)` in Pinocchio's configuration, its tangent the angle). A mimic joint
+    of lagrax's tree is an independent joint of Pinocchio's model (built without mimic
+    support) set to `a q_master + b`. Returns Pinocchio's `(q, v)` and the index in
+    Pinocchio's `v` of each of lagrax's coordinates."""
+    qp, vp = pin.neutral(model), np.zeros(model.nv)
+    index, a, b = tree.coupling()
+    for body, name in enumerate(tree.joint_names):
         joint = model.joints[model.getJointId(name)]
+        angle = a[body] * q[index[body]] + b[body]
         if joint.nq == 2:
-            qp[joint.idx_q : joint.idx_q + 2] = np.cos(q[k]), np.sin(q[k])
+            qp[joint.idx_q : joint.idx_q + 2] = np.cos(angle), np.sin(angle)
         else:
-            qp[joint.idx_q] = q[k]
-        vp[joint.idx_v] = qd[k]
-        order.append(joint.idx_v)
+            qp[joint.idx_q] = angle
+        vp[joint.idx_v] = a[body] * qd[index[body]]
+    order = [model.joints[model.getJointId(tree.joint_names[i])].idx_v for i in tree.coordinates]
     return qp, vp, np.asarray(order)
+
+
+def pin_coupling(pin, model, tree):
+    """`J = ∂v_pin/∂q̇`, shape `(model.nv, tree.n)`: Pinocchio's velocity of every joint
+    from lagrax's coordinate rates (a permutation without mimic joints; a mimic joint's
+    row holds its multiplier in its master's column). Pinocchio's equations of the
+    independent joints, reduced by it (`Jᵀ M J`, `Jᵀ τ`), are lagrax's."""
+    out = np.zeros((model.nv, tree.n))
+    index, a, _ = tree.coupling()
+    for body, name in enumerate(tree.joint_names):
+        out[model.joints[model.getJointId(name)].idx_v, index[body]] = a[body]
+    return out

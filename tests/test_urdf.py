@@ -8,9 +8,15 @@
   lagrax merges them at import: equal ``M`` checks the merge.
 - A fixed joint's merge (mass, centre of mass, inertia by the parallel-axis theorem with
   both rotations) against a hand computation.
+- Massless links load where the dynamics stay defined (against Pinocchio), and a joint that
+  moves no mass is refused by name; inertias that violate the triangle inequality warn.
+- Mimic joints against Pinocchio's model of the independent joints reduced by hand
+  (``Jᵀ M J``, ``Jᵀ τ``) and against its own mimic joints; locked joints against
+  ``pin.buildReducedModel``.
 - Bad URDFs raise ``URDFError`` naming the link or joint.
 """
 
+import dataclasses
 import math
 
 import jax
@@ -19,7 +25,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import pin_state, rel_error
+from _helpers import pin_coupling, pin_state, rel_error
 from lagrax.chains import from_urdf
 from lagrax.models import urdf_path
 
@@ -161,6 +167,13 @@ def _joint(name, kind, parent, child, xyz="0 0 0", rpy="0 0 0", axis="0 0 1"):
     )
 
 
+def _mimic_joint(name, kind, parent, child, master, multiplier=1.0, offset=0.0, **place):
+    return _joint(name, kind, parent, child, **place).replace(
+        "</joint>",
+        f'<mimic joint="{master}" multiplier="{multiplier}" offset="{offset}"/></joint>',
+    )
+
+
 def _robot(*parts):
     return '<robot name="r"><link name="base"/>' + "".join(parts) + "</robot>"
 
@@ -224,14 +237,29 @@ BAD = {
         _robot(_joint("j", "revolute", "base", "a"), '<link name="a"/>'),
         "'a'",
     ),
-    "zero mass": (_robot(_joint("j", "revolute", "base", "a"), _link("a", 0.0)), "'a'"),
-    "negative mass": (_robot(_joint("j", "revolute", "base", "a"), _link("a", -1.0)), "'a'"),
-    "triangle inequality": (
-        _robot(
-            _joint("j", "revolute", "base", "a"), _link("a", 1.0, inertia=(0.1, 0, 0, 0.1, 0, 0.3))
-        ),
-        "'a'",
+    "zero mass": (
+        _robot(_joint("j", "revolute", "base", "a"), _link("a", 0.0, inertia=(0.0,) * 6)),
+        "'j'",
     ),
+    "massless leaf": (
+        _robot(
+            _joint("j1", "revolute", "base", "a"),
+            GOOD_A,
+            _joint("j2", "revolute", "a", "tool", xyz="0 0 0.2", axis="0 1 0"),
+            '<link name="tool"/>',
+        ),
+        "'j2'",
+    ),
+    "coincident axes through a massless link": (
+        _robot(
+            _joint("j1", "revolute", "base", "a"),
+            '<link name="a"/>',
+            _joint("j2", "revolute", "a", "b"),
+            _link("b", 1.0, xyz="0.3 0 0"),
+        ),
+        "'j2'",
+    ),
+    "negative mass": (_robot(_joint("j", "revolute", "base", "a"), _link("a", -1.0)), "'a'"),
     "not positive-semidefinite": (
         _robot(
             _joint("j", "revolute", "base", "a"),
@@ -270,24 +298,50 @@ BAD = {
         "'j'",
     ),
     "no moving joint": (_robot(_joint("j", "fixed", "base", "a"), GOOD_A), "'base'"),
-    "mimic": (
+    "mimic of a fixed joint": (
+        _robot(
+            _joint("weld", "fixed", "base", "plate"),
+            _link("plate", 1.0),
+            _mimic_joint("j2", "revolute", "plate", "a", "weld"),
+            GOOD_A,
+        ),
+        "'weld'",
+    ),
+    "mimic loop": (
+        _robot(
+            _mimic_joint("j1", "revolute", "base", "a", "j2"),
+            GOOD_A,
+            _mimic_joint("j2", "revolute", "a", "b", "j1"),
+            _link("b", 1.0),
+        ),
+        "loop",
+    ),
+    "mimic master dropped by tip": (
         _robot(
             _joint("j1", "revolute", "base", "a"),
             GOOD_A,
-            '<joint name="j2" type="revolute"><parent link="a"/><child link="b"/>'
-            '<mimic joint="j1"/></joint>',
+            _joint("j2", "revolute", "a", "b"),
             _link("b", 1.0),
+            _mimic_joint("j3", "revolute", "a", "c", "j2"),
+            _link("c", 1.0),
         ),
         "'j2'",
+        {"tip": "c"},
     ),
+    "xacro macros": (
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:macro name="arm"><link name="a"/></xacro:macro></robot>',
+        "xacro:macro name='arm'",
+    ),
+    "no link": ('<robot name="r"></robot>', "no <link>"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BAD))
 def test_bad_urdf_raises_naming_the_culprit(case):
-    text, culprit = BAD[case]
+    text, culprit, *options = BAD[case]
     with pytest.raises(lx.URDFError) as info:
-        from_urdf(text)
+        from_urdf(text, **(options[0] if options else {}))
     assert culprit in str(info.value), str(info.value)
     assert isinstance(info.value, lx.LagraxError)
 
@@ -318,6 +372,212 @@ def test_massless_frames_and_missing_meshes_are_fine():
     massless = _robot(_joint("j", "revolute", "base", "a"), '<link name="a"/>')
     _, params = from_urdf(massless, massless_links=True)
     np.testing.assert_allclose(params["m"], [0.0])
+
+
+def test_triangle_inequality_warns_or_refuses():
+    """An inertia violating ``I1 + I2 ≥ I3`` (Allegro's and Romeo's, by CAD rounding) loads
+    as given with a ``URDFWarning`` naming the link; ``strict_inertia=True`` refuses it."""
+    text = _robot(
+        _joint("j", "revolute", "base", "a"), _link("a", 1.0, inertia=(0.1, 0, 0, 0.1, 0, 0.3))
+    )
+    with pytest.warns(lx.URDFWarning, match=r"link 'a'.*triangle.*short by 33\.33%"):
+        _, params = from_urdf(text)
+    np.testing.assert_allclose(np.diag(params["inertia"][0]), [0.1, 0.1, 0.3])
+    with pytest.raises(lx.URDFError, match="'a'.*triangle"):
+        from_urdf(text, strict_inertia=True)
+
+
+def _pin_model(pin, text, **options):
+    """Pinocchio's model of a URDF string (urdfdom wants limits on revolute and prismatic
+    joints: wide ones added)."""
+    limit = '<limit lower="-10" upper="10" effort="100" velocity="10"/>'
+    for kind in ("revolute", "prismatic"):
+        text = text.replace(f'type="{kind}">', f'type="{kind}">{limit}')
+    return pin.buildModelFromXML(text, **options)
+
+
+def _check_against_pinocchio(pin, tree, params, model, reduce=True, seed=0, damping=False):
+    """M, bias and forward dynamics (with the URDF's damping when ``damping``) against
+    Pinocchio's model of the independent joints, reduced by the mimic map (``reduce``),
+    or against a model with the same coordinates (Pinocchio's own mimic joints)."""
+    system = tree.system()
+    if not damping:
+        params = {**params, "damping": jnp.zeros(tree.n_bodies)}
+    data = model.createData()
+    jac = pin_coupling(pin, model, tree) if reduce else np.eye(tree.n)
+    rng = np.random.default_rng(seed)
+    q, qd, tau = (rng.uniform(-1.0, 1.0, (3, tree.n)) for _ in range(3))
+
+    def one(q, qd, tau):
+        bias = system.inverse_dynamics(q, qd, jnp.zeros_like(q), params)
+        return system.mass_matrix(q, params), bias, system.forward_dynamics(q, qd, params, tau)
+
+    mass, bias, forward = jax.jit(jax.vmap(one))(q, qd, tau)
+    worst = {}
+    for k in range(3):
+        if reduce:
+            qp, vp, _ = pin_state(pin, model, tree, q[k], qd[k])
+        else:
+            qp, vp = q[k], qd[k]
+        m_pin = pin.crba(model, data, qp)
+        m_ref = jac.T @ (np.triu(m_pin) + np.triu(m_pin, 1).T) @ jac
+        b_ref = jac.T @ pin.rnea(model, data, qp, vp, np.zeros(model.nv))
+        b_damp = jac.T @ (np.asarray(params["damping"]) * (jac @ qd[k])) if damping else 0.0
+        a_ref = np.linalg.solve(m_ref, tau[k] - b_ref - b_damp)
+        pairs = {
+            "M": (mass[k], m_ref),
+            "bias": (bias[k], b_ref + b_damp),
+            "forward": (forward[k], a_ref),
+        }
+        for key, (ours, ref) in pairs.items():
+            worst[key] = max(worst.get(key, 0.0), rel_error(ours, ref))
+    assert max(worst.values()) <= RTOL, worst
+
+
+def test_massless_links_load_where_the_dynamics_are_defined():
+    """A two-axis joint through a massless link, a massless tool frame on a fixed joint
+    and a link with inertia but no mass: accepted by default, and equal to Pinocchio."""
+    pin = pytest.importorskip("pinocchio")
+    text = _robot(
+        _joint("yaw", "revolute", "base", "gimbal", xyz="0 0 0.4"),
+        '<link name="gimbal"/>',
+        _joint("pitch", "revolute", "gimbal", "arm", axis="0 1 0"),
+        _link("arm", 2.0, xyz="0.3 0 0"),
+        _joint("flange", "fixed", "arm", "tool", xyz="0.6 0 0"),
+        _link("tool", 0.0, inertia=(0.0,) * 6),
+        _joint("wrist", "continuous", "arm", "disc", xyz="0.6 0 0", axis="1 0 0"),
+        _link("disc", 0.0, inertia=(0.01, 0, 0, 0.005, 0, 0.005)),
+    )
+    tree, params = from_urdf(text)
+    assert tree.joint_names == ("yaw", "pitch", "wrist")
+    np.testing.assert_allclose(params["m"], [0.0, 2.0, 0.0])
+    _check_against_pinocchio(pin, tree, params, _pin_model(pin, text))
+
+
+# ------------------------------------------------------------------ mimic and locked joints
+MIMIC = _robot(
+    _joint("shoulder", "revolute", "base", "a", xyz="0 0 0.5"),
+    _link("a", 1.5, xyz="0.1 0 0.2", inertia=(0.05, 0.001, 0, 0.06, 0.002, 0.04)),
+    _joint("elbow", "revolute", "a", "b", xyz="0.4 0 0", axis="0 1 0"),
+    _link("b", 1.0, xyz="0.2 0 0"),
+    _mimic_joint("wrist", "revolute", "b", "c", "elbow", -1.5, 0.2, xyz="0.4 0 0", axis="0 1 0"),
+    _link("c", 0.5, xyz="0.1 0.02 0", inertia=(0.01, 0, 0, 0.02, 0, 0.02)),
+    _joint("slide", "prismatic", "a", "d", xyz="0 0.2 0", axis="1 0 0"),
+    _link("d", 0.3, xyz="0 0 -0.05"),
+    _mimic_joint("finger", "prismatic", "d", "e", "slide", -1.0, 0.0, axis="1 0 0"),
+    _link("e", 0.2, xyz="0 0.05 0"),
+)
+for _name, _b in (("elbow", 0.7), ("wrist", 0.3)):  # damping: the wrist's brakes the elbow
+    _tag = f'<joint name="{_name}" type="revolute">'
+    MIMIC = MIMIC.replace(_tag, f'{_tag}<dynamics damping="{_b}"/>')
+
+
+def test_mimic_joints_are_reduced_into_the_tree():
+    """A revolute joint following another with multiplier −1.5 and offset 0.2 and a
+    prismatic finger following a slide: the mimic joints are bodies, not coordinates; the
+    equations (damping included: the wrist's brakes the elbow) are Pinocchio's of the
+    independent joints reduced by the mimic map, and its own mimic model's."""
+    pin = pytest.importorskip("pinocchio")
+    tree, params = from_urdf(MIMIC)
+    assert tree.n == 3 and tree.n_bodies == 5
+    assert tree.system().coordinate_names == ("shoulder", "elbow", "slide")
+    assert tree.mimic == ((2, 1, -1.5, 0.2), (4, 3, -1.0, 0.0))
+    _check_against_pinocchio(pin, tree, params, _pin_model(pin, MIMIC), damping=True)
+    _check_against_pinocchio(pin, tree, params, _pin_model(pin, MIMIC, mimic=True), reduce=False)
+
+
+def test_mimic_tree_paths_agree():
+    """A tree with mimic joints: the reduced recursions equal the energies' autodiff (the
+    pose maps through the mimic map), the Newton–Euler oracle, and their derivatives
+    (``jax.jacfwd`` of the forward dynamics) equal the autodiff path's."""
+    tree, params = from_urdf(MIMIC)
+    system = tree.system()
+    plain = dataclasses.replace(system, equations=None)
+    rng = np.random.default_rng(3)
+    q, qd, qdd, tau = (jnp.asarray(rng.uniform(-1, 1, tree.n)) for _ in range(4))
+    pairs = [
+        (system.mass_matrix(q, params), plain.mass_matrix(q, params)),
+        (system.inverse_dynamics(q, qd, qdd, params), plain.inverse_dynamics(q, qd, qdd, params)),
+        (system.forward_dynamics(q, qd, params, tau), plain.forward_dynamics(q, qd, params, tau)),
+        (system.energy(q, qd, params), plain.energy(q, qd, params)),
+        (
+            lx.newton_euler.rnea(tree, q, qd, qdd, params),
+            system.inverse_dynamics(q, qd, qdd, {**params, "damping": jnp.zeros(5)}),
+        ),
+    ]
+    jac = jax.jacfwd(system.forward_dynamics, argnums=(0, 1))(q, qd, params, tau)
+    ref = jax.jacfwd(plain.forward_dynamics, argnums=(0, 1))(q, qd, params, tau)
+    pairs += list(zip(jac, ref, strict=True))
+    assert max(rel_error(a, b) for a, b in pairs) <= 1e-11
+
+
+def test_mimic_of_a_mimic_follows_the_chain():
+    """``c`` mimics ``b`` (×2, +0.1), which mimics ``a`` (×−0.5, +0.3): ``θ_c = 2 (−0.5
+    q_a + 0.3) + 0.1 = −q_a + 0.7``. A master missing from the file warns and leaves an
+    independent joint, as in Pinocchio without mimic support."""
+    text = _robot(
+        _joint("a", "revolute", "base", "la"),
+        _link("la", 1.0),
+        _mimic_joint("b", "revolute", "la", "lb", "a", -0.5, 0.3, axis="0 1 0"),
+        _link("lb", 1.0, xyz="0.2 0 0"),
+        _mimic_joint("c", "revolute", "lb", "lc", "b", 2.0, 0.1, axis="0 1 0"),
+        _link("lc", 1.0, xyz="0.2 0 0"),
+    )
+    tree, _ = from_urdf(text)
+    assert tree.mimic == ((1, 0, -0.5, 0.3), (2, 0, -1.0, 0.7))
+    np.testing.assert_allclose(tree.joint_angles(jnp.asarray([0.4])), [0.4, 0.1, 0.3])
+    dangling = text.replace('<mimic joint="a"', '<mimic joint="nowhere"')
+    with pytest.warns(lx.URDFWarning, match="joint 'b' mimics joint 'nowhere'"):
+        tree, _ = from_urdf(dangling)
+    assert tree.coordinate_names() == ("a", "b") and tree.mimic == ((2, 1, 2.0, 0.1),)
+
+
+def test_locked_joints_match_pinocchio_reduced_model():
+    """``locked=`` fixes a prismatic and a revolute joint at values, as
+    ``pin.buildReducedModel`` does."""
+    pin = pytest.importorskip("pinocchio")
+    path = urdf_path("torso_two_arms")
+    locks = {"lift": 0.12, "left_elbow": -0.7}
+    tree, params = from_urdf(path, locked=locks)
+    assert tree.n == 6 and "lift" not in tree.joint_names
+    full = pin.buildModelFromXML(path.read_text())
+    ids = [full.getJointId(name) for name in locks]
+    q_ref = pin.neutral(full)
+    for name, value in locks.items():
+        q_ref[full.joints[full.getJointId(name)].idx_q] = value
+    model = pin.buildReducedModel(full, ids, q_ref)
+    _check_against_pinocchio(pin, tree, params, model)
+
+
+def test_locking_a_master_locks_its_mimics():
+    pin = pytest.importorskip("pinocchio")
+    tree, params = from_urdf(MIMIC, locked={"elbow": 0.4})
+    assert tree.joint_names == ("shoulder", "slide", "finger") and len(tree.mimic) == 1
+    full = _pin_model(pin, MIMIC)
+    ids = [full.getJointId(name) for name in ("elbow", "wrist")]
+    q_ref = pin.neutral(full)
+    q_ref[full.joints[ids[0]].idx_q], q_ref[full.joints[ids[1]].idx_q] = 0.4, -1.5 * 0.4 + 0.2
+    _check_against_pinocchio(pin, tree, params, pin.buildReducedModel(full, ids, q_ref))
+
+
+@pytest.mark.parametrize(
+    ("locked", "message"),
+    [
+        ({"nowhere": 0.0}, "'nowhere' is not a joint"),
+        ({"wrist": 0.0}, "'wrist' mimics joint 'elbow'; lock its master"),
+        ({"elbow": math.nan}, "'elbow' needs a finite value"),
+    ],
+)
+def test_bad_locked_joints(locked, message):
+    with pytest.raises(lx.URDFError, match=message):
+        from_urdf(MIMIC, locked=locked)
+
+
+def test_tree_mimic_entries_are_checked():
+    with pytest.raises(lx.ConfigurationError, match="itself a mimic"):
+        lx.chains.Tree("RRR", (-1, 0, 1), mimic=[(1, 0, 1.0, 0.0), (2, 1, 1.0, 0.0)])
+    with pytest.raises(lx.ConfigurationError, match="two different bodies"):
+        lx.chains.Tree("RR", (-1, 0), mimic={1: (1, 1.0, 0.0)})
 
 
 def test_sweep_labels_dof_by_joint_name():

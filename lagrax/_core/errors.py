@@ -69,3 +69,10 @@ class MJCFError(LagraxError, ValueError):
     tendon, an equality constraint, armature, a joint spring, friction loss, gravity
     compensation, fluid forces). The message names the construct, its name and value,
     and what to do."""
+
+
+class URDFWarning(UserWarning):
+    """A URDF model was loaded, but something in it is doubtful: an `<inertia>` whose
+    principal moments violate the triangle inequality `I1 + I2 ≥ I3` (no rigid body has
+    them; the dynamics stay defined). The message names the link and the amount;
+    `from_urdf(..., strict_inertia=True)` refuses such a file instead."""

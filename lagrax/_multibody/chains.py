@@ -344,6 +344,11 @@ class SpatialChain(AbstractTree):
         """`(−1, 0, …, n − 2)`: link `i` hangs from link `i − 1`."""
         return tuple(range(-1, self.n - 1))
 
+    @property
+    def mimic(self) -> tuple[tuple[int, int, float, float], ...]:
+        """`()`: every joint of a spatial chain is a coordinate."""
+        return ()
+
     def params(
         self,
         *,

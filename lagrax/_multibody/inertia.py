@@ -211,6 +211,7 @@ def check_inertia(
     name: str = "inertia",
     semidefinite: bool = False,
     rtol: float | None = None,
+    triangle: bool = True,
 ) -> Float[Array, "..."]:
     """Check that `inertia` is a physical inertia tensor, and return it.
 
@@ -237,6 +238,10 @@ def check_inertia(
     - `name`: what to call it in messages.
     - `semidefinite`: accept zero principal moments.
     - `rtol`: relative tolerance (default `1000 ε` of the dtype).
+    - `triangle`: check the triangle inequality (default); `False` checks symmetry and
+      (semi)definiteness only: the spatial inertia of a body of positive mass is then still
+      positive-semidefinite, so its equations of motion stay defined (a URDF whose
+      `<inertia>` slightly violates it, see [`lagrax.chains.from_urdf`][]).
 
     **Returns:** `inertia` as an array.
 
@@ -254,7 +259,7 @@ def check_inertia(
         )
     tol = _tolerance(arr.dtype, rtol)
     if isinstance(arr, _jax_core.Tracer):
-        return _check_traced(arr, planar, semidefinite, tol, name)
+        return _check_traced(arr, planar, semidefinite, tol, name, triangle)
     values = np.asarray(arr)
     if not np.all(np.isfinite(values)):
         raise ParameterError(f"{name} is not finite: {values}")
@@ -271,11 +276,13 @@ def check_inertia(
         return arr
     for k, mat in enumerate(values.reshape(-1, 3, 3)):
         where = f"[{k}]" if values.ndim == 3 else ""
-        _check_one(mat, f"{name}{where}", semidefinite, tol)
+        _check_one(mat, f"{name}{where}", semidefinite, tol, triangle)
     return arr
 
 
-def _check_one(mat: np.ndarray, label: str, semidefinite: bool, tol: float) -> None:
+def _check_one(
+    mat: np.ndarray, label: str, semidefinite: bool, tol: float, triangle: bool = True
+) -> None:
     scale = float(np.max(np.abs(mat)))
     asym = float(np.max(np.abs(mat - mat.T)))
     if asym > tol * max(scale, np.finfo(mat.dtype).tiny):
@@ -296,7 +303,7 @@ def _check_one(mat: np.ndarray, label: str, semidefinite: bool, tol: float) -> N
             + ("" if semidefinite else " (pass semidefinite=True for a slender rod)")
         )
     i1, i2, i3 = (float(x) for x in moments)
-    if i1 + i2 < i3 - tol * top:
+    if triangle and i1 + i2 < i3 - tol * top:
         raise ParameterError(
             f"{label} violates the triangle inequality of principal moments: "
             f"I1 + I2 = {i1:.6g} + {i2:.6g} = {i1 + i2:.6g} < I3 = {i3:.6g} (moments "
@@ -305,7 +312,9 @@ def _check_one(mat: np.ndarray, label: str, semidefinite: bool, tol: float) -> N
         )
 
 
-def _check_traced(arr, planar: bool, semidefinite: bool, tol: float, name: str):
+def _check_traced(
+    arr, planar: bool, semidefinite: bool, tol: float, name: str, triangle: bool = True
+):
     if planar:
         bad = jnp.any(arr < 0) if semidefinite else jnp.any(arr <= 0)
         return eqx.error_if(arr, bad, f"{name}: a planar inertia is not positive")
@@ -320,7 +329,7 @@ def _check_traced(arr, planar: bool, semidefinite: bool, tol: float, name: str):
         ~jnp.all(jnp.isfinite(mats))
         | jnp.any(asym > tol * scale)
         | jnp.any(not_pd | ((top <= 0) & (not semidefinite)))
-        | jnp.any(moments[:, 0] + moments[:, 1] < moments[:, 2] - tol * top)
+        | (triangle & jnp.any(moments[:, 0] + moments[:, 1] < moments[:, 2] - tol * top))
     )
     return eqx.error_if(
         arr,

@@ -70,7 +70,7 @@ def with_limits(
         )
     if limits is None:
         return tree, params
-    lims = np.asarray(tree.limits, float)
+    lims = np.asarray([tree.limits[b] for b in getattr(tree, "coordinates", range(tree.n))], float)
     if not np.any(np.isfinite(lims)):
         raise ConfigurationError(
             "limits='impact', but no joint of the robot has a finite limit: there is "
@@ -192,6 +192,11 @@ def limit_events(
             f"{type(tree).__name__}"
         )
     names = tuple(getattr(tree, "joint_names", (f"joint{i}" for i in range(tree.n))))
+    # per coordinate: a mimic joint is no coordinate (it follows its master, whose limits
+    # stop both), so the limits and names of the coordinates' own bodies
+    bodies = getattr(tree, "coordinates", tuple(range(tree.n)))
+    limits = [limits[b] for b in bodies]
+    names = tuple(names[b] for b in bodies)
     finite = [i for i, (lo, hi) in enumerate(limits) if math.isfinite(lo) or math.isfinite(hi)]
     if joints is None:
         chosen = finite

@@ -13,6 +13,7 @@ import numpy as np
 
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
+from .._core.linalg import cholesky_solve
 from .._systems.derivatives import AbstractEquations
 from . import recursions as a
 from .derivative_recursions import rnea_derivatives
@@ -137,7 +138,7 @@ def spatial_energies(
     one-kernel program, where scalar code for every link would cost about a second of
     compilation for a 7-link arm.
     """
-    n, dtype = chain.n, q.dtype
+    n, dtype = chain.n_bodies, q.dtype
     _check(n, q)
     big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain.joint_constants())
     axes = jnp.asarray(np.asarray(chain.axes, float), dtype)
@@ -169,7 +170,7 @@ def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = 
     `z_i = R_i axis_i` through the joint origins `o_i`, `S_i = (z_i, o_i × z_i)`
     (revolute) or `(0, z_i)` (prismatic), and link inertias at the origin,
     `R_i Ī_i R_iᵀ` about the centre of mass `o_i + R_i com_i`."""
-    n = chain.n
+    n = chain.n_bodies
     _check(n, q)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, scan, q.dtype, chain.parents)
@@ -241,3 +242,68 @@ class ChainEquations(AbstractEquations):
             chain, links(qd.astype(q.dtype)), links(qdd.astype(q.dtype))
         )
         return dq, dqd, mass
+
+
+class CoupledEquations(AbstractEquations):
+    """The equations of a tree with mimic joints (see [`Tree`][lagrax.chains.Tree]): the
+    recursions of all its bodies at the joint angles `θ = J q + b`, `θ̇ = J q̇`,
+    `θ̈ = J q̈` (`J` constant), reduced to the coordinates by the virtual work of the
+    mimic map: `M = Jᵀ M_θ J`, `τ = Jᵀ τ_θ` (a mimic joint's torque, times its
+    multiplier, adds to its master's), `∂τ/∂q = Jᵀ (∂τ_θ/∂θ) J` and likewise in
+    `q̇`. `q̈` by a Cholesky solve of the reduced `M` (NaN where it is not positive),
+    since the articulated-body algorithm needs independent joints."""
+
+    chain: "AbstractTree"  # structure only (static fields)
+
+    scan: bool | None = eqx.field(default=None, static=True)
+
+    def _full(self) -> ChainEquations:
+        return ChainEquations(self.chain, self.scan)
+
+    def _j(self, dtype) -> jnp.ndarray:
+        return jnp.asarray(self.chain.coupling_matrix(), dtype)
+
+    def _reduce(self, tau_theta, dtype) -> jnp.ndarray:
+        return self._j(dtype).T @ tau_theta
+
+    def _congruent(self, mat, dtype) -> jnp.ndarray:
+        j = self._j(dtype)
+        return j.T @ mat @ j
+
+    def _angles(self, q, qd):
+        return self.chain.joint_angles(q), self.chain.joint_rates(qd.astype(q.dtype))
+
+    def mass_matrix(self, q, params: Params) -> jnp.ndarray:
+        _check(self.chain.n, q)
+        mass = self._full().mass_matrix(self.chain.joint_angles(q), params)
+        return self._congruent(mass, q.dtype)
+
+    def mass_and_bias(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        _check(self.chain.n, q)
+        mass, bias = self._full().mass_and_bias(*self._angles(q, qd), params)
+        return self._congruent(mass, q.dtype), self._reduce(bias, q.dtype)
+
+    def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
+        """`q̈` solving `M q̈ + C q̇ + G = force` by Cholesky (NaN where `M` is not
+        positive-definite)."""
+        mass, bias = self.mass_and_bias(q, qd, params)
+        rhs = -bias if force is None else jnp.asarray(force, q.dtype) - bias
+        return cholesky_solve(mass, rhs)
+
+    def energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
+        _check(self.chain.n, q)
+        return self._full().energies(*self._angles(q, qd), params)
+
+    def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
+        _check(self.chain.n, q)
+        theta, theta_d = self._angles(q, qd)
+        theta_dd = None if qdd is None else self.chain.joint_rates(qdd.astype(q.dtype))
+        tau = self._full().inverse_dynamics(theta, theta_d, theta_dd, params)
+        return self._reduce(tau, q.dtype)
+
+    def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
+        _check(self.chain.n, q)
+        theta, theta_d = self._angles(q, qd)
+        theta_dd = self.chain.joint_rates(qdd.astype(q.dtype))
+        dq, dqd, mass = self._full().derivatives(theta, theta_d, theta_dd, params)
+        return tuple(self._congruent(x, q.dtype) for x in (dq, dqd, mass))

@@ -36,12 +36,28 @@ from .inertia import check_inertia
 from .joints import joint_constants, parse_joint_types, revolute
 from .recursions import Chain
 from .scene import Scene
-from .tree_equations import AbstractArticulated, ChainEquations, spatial_chain, spatial_energies
+from .tree_equations import (
+    AbstractArticulated,
+    ChainEquations,
+    CoupledEquations,
+    spatial_chain,
+    spatial_energies,
+)
 
 
 def _joint_damping(q, qd, params):
     """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²`."""
     return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2)
+
+
+class _CoupledDamping(eqx.Module):
+    """The joint damping of a tree with mimic joints: `D = ½ Σ b_i θ̇_i²` over all
+    joints, with `θ̇ = J q̇` (a damped mimic joint brakes its master)."""
+
+    tree: "AbstractTree"
+
+    def __call__(self, q, qd, params):
+        return _joint_damping(q, self.tree.joint_rates(qd), params)
 
 
 def _names(values: Any, n: int, default: str, what: str) -> tuple[str, ...]:
@@ -71,6 +87,40 @@ def _bounds(values: Any, n: int, what: str) -> tuple[float, ...]:
     if np.any(~(arr > 0)):
         raise ConfigurationError(f"{what} must be positive (inf: none), got {values!r}")
     return tuple(float(x) for x in arr)
+
+
+def _mimic(values: Any, n: int) -> tuple[tuple[int, int, float, float], ...]:
+    """Mimic entries `(body, master, multiplier, offset)`, sorted by body and checked."""
+    if not values:
+        return ()
+    items = [(b, *v) for b, v in values.items()] if isinstance(values, dict) else list(values)
+    out = []
+    for item in items:
+        try:
+            body, master, multiplier, offset = item
+            body, master = int(body), int(master)
+            multiplier, offset = float(multiplier), float(offset)
+        except (TypeError, ValueError):
+            raise ConfigurationError(
+                f"a mimic entry is (body, master, multiplier, offset), got {item!r}"
+            ) from None
+        if not (0 <= body < n and 0 <= master < n) or body == master:
+            raise ConfigurationError(
+                f"mimic entry {item!r}: body and master must be two different bodies 0..{n - 1}"
+            )
+        if not (math.isfinite(multiplier) and math.isfinite(offset)):
+            raise ConfigurationError(f"mimic entry {item!r}: multiplier and offset must be finite")
+        out.append((body, master, multiplier, offset))
+    bodies = [b for b, *_ in out]
+    if len(set(bodies)) != len(bodies):
+        raise ConfigurationError(f"mimic: a body mimics two joints, got {values!r}")
+    for body, master, *_ in out:
+        if master in bodies:
+            raise ConfigurationError(
+                f"mimic: body {body}'s master {master} is itself a mimic; give the master "
+                "at the end of the chain (compose the multipliers and offsets)"
+            )
+    return tuple(sorted(out))
 
 
 # Forward kinematics of a chain longer than this may loop (``lax.scan``) over its joints
@@ -117,6 +167,9 @@ class AbstractTree(AbstractArticulated):
     axes: eqx.AbstractVar[tuple[tuple[float, float, float], ...]]
     rotations: eqx.AbstractVar[tuple[tuple[tuple[float, ...], ...], ...]]
     up: eqx.AbstractVar[tuple[float, float, float]]
+    # `(body, master, multiplier, offset)` for every body whose joint mimics another's
+    # (see `Tree`); empty for most trees.
+    mimic: eqx.AbstractVar[tuple[tuple[int, int, float, float], ...]]
 
     # Forward kinematics loops over the joints (`lax.scan`, which follows one chain of
     # parents) beyond this many joints; `inf` (a tree, whose bodies may branch): always
@@ -124,9 +177,60 @@ class AbstractTree(AbstractArticulated):
     kinematics_scan_above: ClassVar[float] = math.inf
 
     @property
-    def n(self) -> int:
-        """Number of moving joints (and bodies)."""
+    def n_bodies(self) -> int:
+        """Number of moving joints (and bodies), mimic joints included."""
         return len(self.joint_types)
+
+    @property
+    def n(self) -> int:
+        """Number of coordinates: one per moving joint that does not mimic another (equal
+        to [`n_bodies`][lagrax.chains.AbstractTree.n_bodies] for a tree without mimic
+        joints)."""
+        return len(self.joint_types) - len(self.mimic)
+
+    @property
+    def coordinates(self) -> tuple[int, ...]:
+        """The bodies whose joint angles are the coordinates, in order (all bodies but
+        the mimic ones)."""
+        mimics = {body for body, *_ in self.mimic}
+        return tuple(i for i in range(self.n_bodies) if i not in mimics)
+
+    def coupling(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The affine map from the coordinates `q` to the joint angles `θ` of all
+        bodies, `θ_i = a_i q_{k_i} + b_i`, as NumPy arrays `(k, a, b)` of length
+        [`n_bodies`][lagrax.chains.AbstractTree.n_bodies] (a coordinate's body: its own
+        index, `a = 1`, `b = 0`; a mimic body: its master's coordinate, the URDF
+        `<mimic multiplier offset>`)."""
+        index = {body: k for k, body in enumerate(self.coordinates)}
+        k = np.array([index.get(i, -1) for i in range(self.n_bodies)])
+        a, b = np.ones(self.n_bodies), np.zeros(self.n_bodies)
+        for body, master, multiplier, offset in self.mimic:
+            k[body], a[body], b[body] = index[master], multiplier, offset
+        return k, a, b
+
+    def coupling_matrix(self) -> np.ndarray:
+        """`J = ∂θ/∂q`, shape `(n_bodies, n)`: joint rates `θ̇ = J q̇`, and a joint
+        torque `τ_θ` acts on the coordinates as `Jᵀ τ_θ` (a mimic joint's torque adds
+        to its master's, times the multiplier)."""
+        k, a, _ = self.coupling()
+        out = np.zeros((self.n_bodies, self.n))
+        out[np.arange(self.n_bodies), k] = a
+        return out
+
+    def joint_angles(self, q: Vector) -> jnp.ndarray:
+        """`θ = J q + b`: every body's joint angle from the coordinates (`q` itself
+        for a tree without mimic joints)."""
+        if not self.mimic:
+            return q
+        k, a, b = self.coupling()
+        return q[k] * jnp.asarray(a, q.dtype) + jnp.asarray(b, q.dtype)
+
+    def joint_rates(self, qd: Vector) -> jnp.ndarray:
+        """`θ̇ = J q̇` (`q̇` itself for a tree without mimic joints)."""
+        if not self.mimic:
+            return qd
+        k, a, _ = self.coupling()
+        return qd[k] * jnp.asarray(a, qd.dtype)
 
     def children(self, i: int) -> tuple[int, ...]:
         """The bodies hanging from body `i` (`−1`: from the base)."""
@@ -153,10 +257,10 @@ class AbstractTree(AbstractArticulated):
     def _body_params(
         self, values: dict[str, Any], inertia_per_kg: Any, dtype: Any, item: str
     ) -> dict[str, jnp.ndarray]:
-        """`values["m"], ["offset"], ["com"], ["inertia"]` broadcast to the `n` bodies
-        and checked (`inertia` `None`: `m` times `inertia_per_kg`); messages name the
-        class and the `item` (link or body)."""
-        n, who, inertia = self.n, type(self).__name__, values["inertia"]
+        """`values["m"], ["offset"], ["com"], ["inertia"]` broadcast to the `n_bodies`
+        bodies and checked (`inertia` `None`: `m` times `inertia_per_kg`); messages name
+        the class and the `item` (link or body)."""
+        n, who, inertia = self.n_bodies, type(self).__name__, values["inertia"]
         m_ = physical(broadcast("m", values["m"], (n,), dtype), f"{who}.params m", item=item)
         if inertia is None:
             inertia = m_[:, None, None] * jnp.asarray(inertia_per_kg, dtype)[None]
@@ -175,14 +279,15 @@ class AbstractTree(AbstractArticulated):
         return joint_constants(self.joint_types, self.axes, self.rotations)
 
     def frames(self, q: Vector, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """Forward kinematics: body-frame origins `(n, 3)` and rotations `(n, 3, 3)` in
+        """Forward kinematics at the coordinates `q`: body-frame origins
+        `(n_bodies, 3)` and rotations `(n_bodies, 3, 3)` in
         the world frame (`R_i` takes frame-`i` components to world ones): `R_i = R_p ᵖR_i`,
         `o_i = o_p + R_p ᵖp_i` with `p` the parent (the base: `R = 1`, `o = 0`)."""
         origins, rots, _ = self._kinematics(q, params, with_com=False)
         return _stacked(origins), _stacked(rots)
 
     def com_positions(self, q: Vector, params: Params) -> jnp.ndarray:
-        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n, 3)`."""
+        """Centres of mass in the world frame, `o_i + R_i com_i`, shape `(n_bodies, 3)`."""
         return _stacked(self._kinematics(q, params, with_com=True)[2])
 
     def _pose(self, q, params):
@@ -197,9 +302,9 @@ class AbstractTree(AbstractArticulated):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for the {self.label()}")
         offset = jnp.asarray(params["offset"])
         dtype = jnp.result_type(q, offset)
-        q, offset = q.astype(dtype), offset.astype(dtype)
+        q, offset = self.joint_angles(q.astype(dtype)), offset.astype(dtype)
         com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
-        if self.n > self.kinematics_scan_above:
+        if self.n_bodies > self.kinematics_scan_above:
             return self._kinematics_scan(q, offset, com, dtype)
         a, b, c, slide = (jnp.asarray(x, dtype) for x in self.joint_constants())
         base = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
@@ -238,13 +343,14 @@ class AbstractTree(AbstractArticulated):
         return -g * jnp.asarray(self.up, g.dtype)
 
     def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
-        """World joint axes, motion subspaces and body inertias at `q` (see
+        """World joint axes, motion subspaces and body inertias at the joint angles `q`
+        of all bodies (`θ`: the coordinates for a tree without mimic joints; see
         `lagrax._multibody.tree_equations.spatial_chain`)."""
         return spatial_chain(self, q, params, scan)
 
     def link_energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        """`(T, V)` by one outward pass in link frames (see
-        `lagrax._multibody.tree_equations.spatial_energies`)."""
+        """`(T, V)` by one outward pass in link frames at the joint angles and rates of
+        all bodies (see `lagrax._multibody.tree_equations.spatial_energies`)."""
         return spatial_energies(self, q, qd, params)
 
     def scene(self) -> Scene:
@@ -268,9 +374,10 @@ class AbstractTree(AbstractArticulated):
         [`coordinate_names`][lagrax.chains.AbstractTree.coordinate_names].
         `dataclasses.replace(system, equations=None)` differentiates the energies
         instead (the definition)."""
+        equations = CoupledEquations(self) if self.mimic else ChainEquations(self)
         return dataclasses.replace(
             self.scene().system(),
-            equations=ChainEquations(self),
+            equations=equations,
             coordinate_names=self.coordinate_names(),
         )
 
@@ -305,10 +412,23 @@ class Tree(AbstractTree):
     parallel-axis theorem, rotated into that body's frame), so the equations have one
     coordinate per moving joint.
 
+    **Mimic joints.** A body may follow another's joint instead of having a coordinate
+    (URDF's `<mimic joint multiplier offset>`: a gripper's second finger): its joint
+    angle is `θ_i = a q_k + b` with `q_k` its master's coordinate. The tree then has
+    `n_bodies` bodies and `n = n_bodies − len(mimic)` coordinates
+    ([`coordinates`][lagrax.chains.AbstractTree.coordinates]: the bodies that are not
+    mimics). With `J = ∂θ/∂q` ([`coupling_matrix`][lagrax.chains.AbstractTree.coupling_matrix])
+    the equations are those of the tree of independent joints at `θ`, reduced:
+    `M = Jᵀ M_θ J`, `C q̇ + G = Jᵀ (C_θ θ̇ + G_θ)`, so the master's generalized force
+    includes the mimic's; `q̈` is then a Cholesky solve (the articulated-body algorithm
+    needs independent joints). A tree without mimic joints runs exactly the plain
+    recursions.
+
     Structure (static): `joint_types`, `parents`, `axes`, `rotations`, `up`,
-    `joint_names`, `body_names`, `limits`, `velocity_limits`, `effort_limits`.
-    Parameters (arrays, from [`params`][lagrax.chains.Tree.params]): `m: (n,)`, `offset: (n, 3)`,
-    `com: (n, 3)`, `inertia: (n, 3, 3)`, `damping: (n,)`, `g: ()`.
+    `joint_names`, `body_names`, `limits`, `velocity_limits`, `effort_limits`, `mimic`
+    (all per body, mimic ones included). Parameters (arrays, from
+    [`params`][lagrax.chains.Tree.params]), per body: `m: (n,)`, `offset: (n, 3)`,
+    `com: (n, 3)`, `inertia: (n, 3, 3)`, `damping: (n,)`, and `g: ()`.
 
     The system's equations are Featherstone's recursions run over parents: `q̈` by the
     articulated-body algorithm (O(n)), `M` by the composite-rigid-body algorithm
@@ -328,9 +448,13 @@ class Tree(AbstractTree):
       stored for the user (e.g. for events); the equations do not enforce them.
     - `velocity_limits`, `effort_limits`: `n` positive bounds (default `inf`),
       stored likewise.
+    - `mimic`: `(body, master, multiplier, offset)` tuples (or a mapping
+      `{body: (master, multiplier, offset)}`): body `body`'s joint angle is
+      `multiplier · θ_master + offset` (default: none, every joint a coordinate).
 
     **Raises:** `ConfigurationError` (a `ValueError`) for an unknown joint type, a
-    parent index that is not an earlier body, or lists of the wrong length.
+    parent index that is not an earlier body, lists of the wrong length, or a mimic entry
+    whose body or master is not a body, or whose master is itself a mimic.
 
     **Example:** a torso joint carrying two one-joint arms:
 
@@ -351,6 +475,7 @@ class Tree(AbstractTree):
     limits: tuple[tuple[float, float], ...] = eqx.field(static=True)
     velocity_limits: tuple[float, ...] = eqx.field(static=True)
     effort_limits: tuple[float, ...] = eqx.field(static=True)
+    mimic: tuple[tuple[int, int, float, float], ...] = eqx.field(static=True)
 
     def __init__(
         self,
@@ -365,6 +490,7 @@ class Tree(AbstractTree):
         limits: Any = None,
         velocity_limits: Any = None,
         effort_limits: Any = None,
+        mimic: Any = None,
     ):
         types = parse_joint_types(joint_types, aliases={"C": "R"})
         n = len(types)
@@ -385,6 +511,7 @@ class Tree(AbstractTree):
         self.limits = _limits(limits, n)
         self.velocity_limits = _bounds(velocity_limits, n, "velocity_limits")
         self.effort_limits = _bounds(effort_limits, n, "effort_limits")
+        self.mimic = _mimic(mimic, n)
 
     def params(
         self,
@@ -397,7 +524,7 @@ class Tree(AbstractTree):
         g: Any = 9.81,
         dtype: Any = None,
     ) -> dict[str, jnp.ndarray]:
-        """Parameters as arrays, broadcast to all `n` bodies.
+        """Parameters as arrays, broadcast to all `n_bodies` bodies.
 
         Defaults: 1 kg bodies with their centre of mass at the joint, joints at their
         parent's origin, the inertia of a solid 1 kg sphere of radius 0.1 m
@@ -405,7 +532,7 @@ class Tree(AbstractTree):
 
         **Arguments:** `m`, `damping` (scalar or `(n,)`), `offset` and `com`
         (`(3,)` or `(n, 3)`), `inertia` (`(3, 3)` or `(n, 3, 3)`), `g`,
-        `dtype` (default float64 with x64).
+        `dtype` (default float64 with x64)).
 
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
         "damping": (n,), "g": ()}``.
@@ -417,19 +544,27 @@ class Tree(AbstractTree):
         dtype = float_dtype(dtype)
         values = {"m": m, "offset": offset, "com": com, "inertia": inertia}
         out = self._body_params(values, 0.004 * np.eye(3), dtype, item="body")
-        b = broadcast("damping", damping, (self.n,), dtype)
+        b = broadcast("damping", damping, (self.n_bodies,), dtype)
         out["damping"] = physical(b, "Tree.params damping", item="joint")
         out["g"] = jnp.asarray(g, dtype=dtype)
         return out
 
     def dissipation(self) -> Callable:
-        """Viscous joint damping: the Rayleigh dissipation `½ Σ b_i q̇_i²`."""
-        return _joint_damping
+        """Viscous joint damping: the Rayleigh dissipation `½ Σ b_i θ̇_i²` over all
+        joints (`θ̇ = q̇` without mimic joints)."""
+        return _CoupledDamping(self) if self.mimic else _joint_damping
 
     def label(self) -> str:
-        """`"<n>-joint tree"`."""
+        """`"<n>-joint tree"` (with mimic joints: `"<n_bodies>-joint tree (<n>
+        coordinates)"`)."""
+        if self.mimic:
+            return f"{self.n_bodies}-joint tree ({self.n} coordinates)"
         return f"{self.n}-joint tree"
 
     def coordinate_names(self) -> tuple[str, ...]:
-        """The joint names: a tree's system names its coordinates after its joints."""
-        return self.joint_names
+        """The joint names of the [`coordinates`][lagrax.chains.AbstractTree.coordinates]:
+        a tree's system names its coordinates after its joints (all of them, without
+        mimic joints)."""
+        if not self.mimic:
+            return self.joint_names
+        return tuple(self.joint_names[i] for i in self.coordinates)

@@ -11,13 +11,16 @@ name the link or joint at fault.
 
 import math
 import os
+import warnings
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import ConfigurationError, ParameterError, URDFError
+from .._core.errors import ConfigurationError, ParameterError, URDFError, URDFWarning
 from .common import float_dtype
 from .inertia import check_inertia
 from .limits import with_limits
@@ -25,7 +28,7 @@ from .trees import Tree
 
 _MOVING = {"revolute": "R", "continuous": "R", "prismatic": "P"}
 _UNSUPPORTED = {
-    "floating": "a floating base is not supported yet (lagrax trees are fixed to the world)",
+    "floating": "a floating joint is not supported yet (lagrax trees are fixed to the world)",
     "planar": "planar joints are not supported (model them as two prismatic joints and a "
     "revolute one)",
 }
@@ -73,6 +76,7 @@ class _Joint:
     velocity: float = math.inf
     effort: float = math.inf
     damping: float = 0.0
+    mimic: tuple[str, float, float] | None = None  # (master joint, multiplier, offset)
 
 
 @dataclass
@@ -108,7 +112,10 @@ def _origin(element: ET.Element, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(xyz, float), rpy_matrix(rpy)
 
 
-def _inertial(link: ET.Element) -> _Inertial | None:
+def _inertial(link: ET.Element, strict: bool = False) -> _Inertial | None:
+    """A link's `<inertial>` (`None`: it has none), checked: a negative mass, an
+    `<inertia>` that is not symmetric positive-semidefinite are errors; one that violates
+    the triangle inequality is a `URDFWarning` (an error with `strict`)."""
     name = link.get("name")
     where = f"link {name!r}"
     inertial = link.find("inertial")
@@ -129,11 +136,39 @@ def _inertial(link: ET.Element) -> _Inertial | None:
         )
     ixx, ixy, ixz, iyy, iyz, izz = (_floats(el, k, None, 1, where) for k in keys)
     tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    if np.max(np.abs(tensor)) <= _POINT * max(mass, 1.0):
+        # round-off around a point mass (`ixx="0" ... ixz="1.35525e-20"`, or -5.4e-20 on
+        # the diagonal): its inertia about the centre of mass is zero
+        tensor = np.zeros((3, 3))
     try:  # semidefinite: a point mass or a slender rod is physical
-        check_inertia(tensor, name=f"{where} <inertia>", semidefinite=True, rtol=1e-6)
+        check_inertia(
+            tensor, name=f"{where} <inertia>", semidefinite=True, rtol=_RTOL, triangle=strict
+        )
     except ParameterError as err:
         raise URDFError(f"{err} (in the URDF's <inertial> of {where})") from None
+    _warn_triangle(tensor, where, _RTOL)
     return _Inertial(mass, xyz, rot @ tensor @ rot.T)
+
+
+_RTOL = 1e-6  # of a link's <inertia> checks, relative to its largest principal moment
+_POINT = 1e-12  # kg m² per kg (at least 1 kg): an <inertia> this small is a point mass's
+
+
+def _warn_triangle(tensor: np.ndarray, where: str, rtol: float) -> None:
+    """A `URDFWarning` naming the link if its principal moments violate `I1 + I2 ≥ I3`
+    by more than `rtol` of `I3` (CAD exports and hand-edited files often do, by a
+    little; Pinocchio accepts them, MuJoCo refuses them unless told to balance them)."""
+    i1, i2, i3 = np.linalg.eigvalsh(tensor)
+    if i1 + i2 < i3 - rtol * max(i3, 0.0):
+        warnings.warn(
+            f"{where}: its <inertia> violates the triangle inequality of principal moments, "
+            f"I1 + I2 = {i1 + i2:.6g} < I3 = {i3:.6g} (short by {(i3 - i1 - i2) / i3:.2%} of "
+            "I3): no rigid body has these moments. Loaded as given (the dynamics stay "
+            "defined: the inertia is positive-semidefinite); pass strict_inertia=True to "
+            "refuse such a file",
+            URDFWarning,
+            stacklevel=4,
+        )
 
 
 def _joint(element: ET.Element, links: dict) -> _Joint:
@@ -158,16 +193,19 @@ def _joint(element: ET.Element, links: dict) -> _Joint:
         if link not in links:
             raise URDFError(f"{where}: its {tag} link {link!r} is not a <link> of the robot")
         ends.append(link)
-    if element.find("mimic") is not None:
-        raise URDFError(
-            f"{where} mimics another joint: mimic joints (a constraint between coordinates) "
-            "are not supported; make it an independent joint or a fixed one"
-        )
     xyz, rot = _origin(element, where)
     axis = np.asarray(_floats(element.find("axis"), "xyz", np.array([1.0, 0, 0]), 3, where))
     if kind in _MOVING and np.linalg.norm(axis) == 0:
         raise URDFError(f"{where}: its <axis xyz> is the zero vector")
     joint = _Joint(name, kind, ends[0], ends[1], xyz, rot, axis)
+    mimic = element.find("mimic")
+    if mimic is not None and kind != "fixed":
+        master = mimic.get("joint")
+        if not master:
+            raise URDFError(f"{where}: its <mimic> has no joint=... (the joint it follows)")
+        multiplier = float(_floats(mimic, "multiplier", 1.0, 1, where))
+        offset = float(_floats(mimic, "offset", 0.0, 1, where))
+        joint.mimic = (master, multiplier, offset)
     limit = element.find("limit")
     if limit is not None and kind != "fixed":
         if kind != "continuous":
@@ -187,13 +225,30 @@ def _joint(element: ET.Element, links: dict) -> _Joint:
     return joint
 
 
+_XACRO = ("{http://www.ros.org/wiki/xacro}", "{http://wiki.ros.org/xacro}", "xacro:")
+
+
 def _parse(text: str) -> tuple[dict, list[_Joint]]:
     try:
         robot = ET.fromstring(text)
     except ET.ParseError as err:
+        if "xacro:" in text:
+            raise URDFError(
+                f"not a URDF but a xacro file (XML with xacro macros): {err}; expand it into "
+                "a robot first: `xacro robot.urdf.xacro > robot.urdf`"
+            ) from None
         raise URDFError(f"malformed URDF (not well-formed XML): {err}") from None
     if robot.tag != "robot":
         raise URDFError(f"a URDF's top element is <robot>, got <{robot.tag}>")
+    for el in robot.iter():
+        if isinstance(el.tag, str) and el.tag.startswith(_XACRO):
+            what = el.tag.rsplit("}", 1)[-1].removeprefix("xacro:")
+            label = f" name={el.get('name')!r}" if el.get("name") else ""
+            raise URDFError(
+                f"not a URDF but a xacro file: it contains <xacro:{what}{label}>, a xacro "
+                "macro, not a robot. Expand it into a robot first (`xacro robot.urdf.xacro "
+                "> robot.urdf`, with the macro called)"
+            )
     links: dict[str, ET.Element] = {}
     for link in robot.findall("link"):
         name = link.get("name")
@@ -203,7 +258,13 @@ def _parse(text: str) -> tuple[dict, list[_Joint]]:
             raise URDFError(f"link {name!r} is defined twice")
         links[name] = link
     if not links:
-        raise URDFError("the URDF has no <link>")
+        hint = (
+            " (an empty <robot> that declares the xacro namespace: xacro's output from a "
+            "file of macros that no robot calls)"
+            if "xacro" in text
+            else ""
+        )
+        raise URDFError(f"the URDF has no <link>: its <robot> describes no robot{hint}")
     joints = [_joint(el, links) for el in robot.findall("joint")]
     names = [j.name for j in joints]
     for name in names:
@@ -283,6 +344,8 @@ def from_urdf(
     g: float = 9.81,
     massless_links: bool = False,
     dtype: Any = None,
+    locked: Mapping[str, float] | None = None,
+    strict_inertia: bool = False,
     limits: str | None = None,
     restitution: Any = 0.0,
     floating_base: bool = False,
@@ -298,6 +361,12 @@ def from_urdf(
     `friction` is not modelled). Joint names become `tree.joint_names` and the
     system's `coordinate_names`.
 
+    **Continuous joints** are revolute joints without limits, and their coordinate is
+    the angle `q` (any real number; `q` and `q + 2π` are the same pose). Pinocchio
+    stores such a joint's configuration as the unit vector `(cos q, sin q)` (two entries
+    of its `q`, one of its `v`): to compare, map the angle to `(cos q, sin q)` (and back
+    with `atan2`); velocities, accelerations and torques are the same numbers.
+
     A link's `<inertial>` gives its mass `m`, centre of mass `c` (`<origin xyz>`)
     and inertia `R Ī Rᵀ` with `Ī` the `<inertia>` entries and `R` the
     `<origin rpy>` rotation (URDF states the inertia in that rotated frame). **Fixed
@@ -307,6 +376,21 @@ def from_urdf(
     (`c' = p_f + R_f c`; the parallel-axis theorem) to that body; the body's centre of
     mass and inertia about it follow from the sums. Links fixed to the root (the world)
     do not move and are dropped; joints below them are placed through them.
+
+    **Massless links** (no `<inertial>`, or mass zero: a tool frame, a sensor, the
+    intermediate link of a two- or three-axis joint) are accepted wherever the
+    dynamics stay defined: fixed to a massive link, or moving a massive subtree. After
+    loading, the mass matrix is checked at two random configurations; if it is singular
+    at both (a joint that moves no mass, or only what the joints before it already move),
+    `from_urdf` raises a `URDFError` naming that joint.
+
+    **Mimic joints** (`<mimic joint="master" multiplier="a" offset="b"/>`: a gripper's
+    second finger) are not coordinates: the joint's angle is `a q_master + b`, and the
+    tree's equations are reduced by that map (`M = Jᵀ M_θ J`, the master's generalized
+    force includes the mimic's; see [`Tree`][lagrax.chains.Tree]). `tree.joint_names`
+    lists every moving joint (mimics included, as do `tree.limits` etc.);
+    the system's `coordinate_names` and `q` only the independent ones. A mimic of a
+    mimic follows the end of the chain (multipliers and offsets composed).
 
     Geometry (`<visual>`, `<collision>`, meshes) is ignored: a missing mesh file is no
     error.
@@ -323,10 +407,22 @@ def from_urdf(
     - `up`: the direction opposite to gravity (default `(0, 0, 1)`: gravity along −z,
       as in Pinocchio and MuJoCo).
     - `g`: gravity's magnitude (`params["g"]`).
-    - `massless_links`: accept moving links without `<inertial>` or with zero mass
-      (the mass matrix may then be singular). By default they are refused; links fixed to
-      a moving link may always lack `<inertial>` (frames such as a tool flange).
+    - `massless_links`: skip the check of the mass matrix (see above): load even a robot
+      whose mass matrix is singular (its forward dynamics are then NaN), e.g. to use its
+      kinematics. Massless links that leave the dynamics defined load without it.
     - `dtype`: of the params (default float64 with x64).
+    - `locked`: `{joint name: value}`: joints fixed at these values (radians or
+      metres), as Pinocchio's `buildReducedModel` does: each becomes a fixed joint
+      whose transform includes the motion by the value, and its child link is merged
+      like any fixed link (e.g. `{"panda_finger_joint1": 0.02}` for the Panda with its
+      fingers locked). Locking a mimic joint's master locks the mimic joint too (at
+      `a · value + b`); a mimic joint itself cannot be locked.
+    - `strict_inertia`: refuse an `<inertia>` whose principal moments violate the
+      triangle inequality `I1 + I2 ≥ I3` (more than `1e-6 I3`). By default such a
+      link is loaded as given, with a [`lagrax.URDFWarning`][] naming it and the
+      shortfall: no rigid body has such moments, but the body's spatial inertia stays
+      positive-semidefinite and the dynamics are defined (Pinocchio accepts them too).
+
     - `limits`: `None` (default): the `<limit>`s are kept in `tree.limits` and not
       enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
       restitution `restitution` (the params gain `"restitution"`, one per joint; pass
@@ -343,15 +439,20 @@ def from_urdf(
       positive mass.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
-    system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`
-    with `limits="impact"`).
+    system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
+    body, mimic ones included; and `"restitution"` with `limits="impact"`).
 
     **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a
-    missing or incomplete `<inertial>` on a moving link, a negative or zero mass, an
-    inertia that is not positive-semidefinite or violates the triangle inequality
-    `I1 + I2 ≥ I3`, a link with two parents, a loop, several roots without `root=`, an
-    unknown joint type, a floating or planar joint (not supported), a mimic joint, a
-    robot with no moving joint below `root`. `FileNotFoundError` for a missing file.
+    xacro file (macros, not a robot) or a `<robot>` without links, an incomplete
+    `<inertial>`, a negative mass, an inertia that is not positive-semidefinite (or,
+    with `strict_inertia`, violates the triangle inequality), a joint that moves no
+    mass (a singular mass matrix), a link with two parents, a loop, several roots
+    without `root=`, an unknown joint type, a floating or planar joint (not supported), a
+    mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
+    loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
+    that is not finite, a robot with no moving joint below `root`. `FileNotFoundError`
+    for a missing file. Warns [`lagrax.URDFWarning`][] for an inertia that violates the
+    triangle inequality (unless `strict_inertia`).
 
     **Example:**
 
@@ -360,14 +461,19 @@ def from_urdf(
     system = tree.system()
     qdd = system.forward_dynamics(q, qd, params, tau)
     tree.joint_names, tree.limits
+    panda, params = lagrax.chains.from_urdf(panda_urdf, locked={"panda_finger_joint1": 0.0})
     ```
     """
     links, joints = _parse(_read(source))
+    _lock(joints, locked)
     root, parent_of, children = _structure(links, joints, root)
     keep = _keep(root, tip, links, parent_of, children)
     bodies, place, order = _place_bodies(root, keep, children)
-    _merge_inertials(bodies, place, order, links, massless_links)
-    tree, params = _tree_and_params(bodies, up, g, dtype)
+    mimic = _mimic_map(bodies, joints)
+    _merge_inertials(bodies, place, order, links, strict_inertia)
+    tree, params = _tree_and_params(bodies, mimic, up, g, dtype)
+    if not massless_links:
+        _check_mass_matrix(tree, params, bodies)
     if floating_base:
         if limits is not None:
             raise ConfigurationError(
@@ -387,6 +493,105 @@ def _read(source: str | os.PathLike) -> str:
         with open(text, encoding="utf-8") as f:
             text = f.read()
     return text
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """`Rot(axis, angle)` by Rodrigues' formula (unit `axis`)."""
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+def _lock(joints: list[_Joint], locked: Mapping[str, float] | None) -> None:
+    """Turn every `locked` joint (and every mimic joint of a locked master, at
+    `a · value + b`) into a fixed joint whose transform includes its motion by the value:
+    a revolute joint's rotation `S Rot(axis, value)`, a prismatic one's origin
+    `xyz + S axis value`."""
+    if not locked:
+        return
+    by_name = {j.name: j for j in joints}
+    values: dict[str, float] = {}
+    for name, value in dict(locked).items():
+        j = by_name.get(name)
+        if j is None:
+            moving = [k.name for k in joints if k.kind != "fixed"]
+            raise URDFError(
+                f"locked: {name!r} is not a joint of the robot (its moving joints: {moving})"
+            )
+        if j.kind == "fixed":
+            raise URDFError(f"locked: joint {name!r} is a fixed joint already")
+        if j.mimic is not None:
+            raise URDFError(
+                f"locked: joint {name!r} mimics joint {j.mimic[0]!r}; lock its master "
+                f"{j.mimic[0]!r} instead (the mimic joint follows it)"
+            )
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            v = math.nan
+        if not math.isfinite(v):
+            raise URDFError(f"locked: joint {name!r} needs a finite value, got {value!r}")
+        values[name] = v
+    changed = True
+    while changed:  # mimic joints follow their locked masters (mimics of mimics too)
+        changed = False
+        for j in joints:
+            if j.mimic is not None and j.name not in values and j.mimic[0] in values:
+                master, multiplier, offset = j.mimic
+                values[j.name] = multiplier * values[master] + offset
+                changed = True
+    for name, v in values.items():
+        j = by_name[name]
+        axis = j.axis / np.linalg.norm(j.axis)
+        if _MOVING[j.kind] == "R":
+            j.rot = j.rot @ _axis_rotation(axis, v)
+        else:
+            j.xyz = j.xyz + j.rot @ axis * v
+        j.kind, j.mimic = "fixed", None
+
+
+def _mimic_map(bodies: list["_Body"], joints: list[_Joint]) -> tuple:
+    """`(body, master body, multiplier, offset)` of every body on a mimic joint, a chain
+    of mimics followed to its end: `θ = a (a' θ'' + b') + b`."""
+    index = {b.joint.name: i for i, b in enumerate(bodies)}
+    by_name = {j.name: j for j in joints}
+    out = []
+    for i, b in enumerate(bodies):
+        j, a, off, seen = b.joint, 1.0, 0.0, [b.joint.name]
+        while j.mimic is not None:
+            name, multiplier, offset = j.mimic
+            master = by_name.get(name)
+            if master is None:  # a dangling reference: the joint is its own coordinate
+                if j is b.joint:
+                    warnings.warn(
+                        f"joint {j.name!r} mimics joint {name!r}, which is not a joint of the "
+                        "robot: loaded as an independent joint (a coordinate of its own), as "
+                        "Pinocchio does without mimic support",
+                        URDFWarning,
+                        stacklevel=3,
+                    )
+                break
+            if master.kind == "fixed":
+                raise URDFError(
+                    f"joint {j.name!r} mimics joint {name!r}, which is a fixed joint: a mimic "
+                    "joint follows a revolute, continuous or prismatic one"
+                )
+            if name in seen:
+                raise URDFError(
+                    f"the mimic joints {seen} follow each other in a loop back to {name!r}: "
+                    "one of them must be an independent joint"
+                )
+            seen.append(name)
+            a, off = a * multiplier, a * offset + off
+            j = master
+        if j is b.joint:
+            continue
+        if j.name not in index:
+            raise URDFError(
+                f"joint {b.joint.name!r} mimics joint {j.name!r}, which is not in the tree "
+                "(root= or tip= dropped it): keep its master, or lock the mimic joint's master"
+            )
+        out.append((i, index[j.name], a, off))
+    return tuple(out)
 
 
 _Place = dict[str, tuple[int, np.ndarray, np.ndarray]]
@@ -416,34 +621,28 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _P
         order.append(link)
         stack.extend((c.child, c) for c in reversed(children[link]) if c.child in keep)
     if not bodies:
-        raise URDFError(f"the robot has no revolute, continuous or prismatic joint below {root!r}")
+        raise URDFError(
+            f"the robot has no revolute, continuous or prismatic joint below {root!r} (none "
+            "that is not locked): fixed to the world, it cannot move (a single rigid body "
+            "needs a floating base, which is not supported yet)"
+        )
     return bodies, place, order
 
 
 def _merge_inertials(
-    bodies: list[_Body], place: _Place, order: list[str], links: dict, massless_links: bool
+    bodies: list[_Body], place: _Place, order: list[str], links: dict, strict: bool
 ) -> None:
     """Add every link's `<inertial>` to its body: the mass, the first moment and the
     inertia about the body's origin (parallel-axis theorem); links fixed to the world are
-    skipped."""
+    skipped, and a link without `<inertial>` adds nothing (whether the bodies still
+    have a regular mass matrix is checked on the tree: `_check_mass_matrix`)."""
     for link in order:
         body, rot, pos = place[link]
         if body < 0:
             continue  # fixed to the world
-        moving = link == bodies[body].joint.child
-        inertial = _inertial(links[link])
+        inertial = _inertial(links[link], strict)
         if inertial is None:
-            if moving and not massless_links:
-                raise URDFError(
-                    f"link {link!r} (moved by joint {bodies[body].joint.name!r}) has no "
-                    "<inertial>: give its mass and inertia, or pass massless_links=True"
-                )
             continue
-        if inertial.mass <= 0 and not massless_links:
-            raise URDFError(
-                f"link {link!r}: mass {inertial.mass:g} is not positive; a moving link needs "
-                "a positive mass (or pass massless_links=True)"
-            )
         c = pos + rot @ inertial.com
         b = bodies[body]
         b.mass += inertial.mass
@@ -452,9 +651,12 @@ def _merge_inertials(
         b.inertia_o = b.inertia_o + rot @ inertial.inertia @ rot.T + shift
 
 
-def _tree_and_params(bodies: list[_Body], up: Any, g: float, dtype: Any) -> tuple[Tree, dict]:
+def _tree_and_params(
+    bodies: list[_Body], mimic: tuple, up: Any, g: float, dtype: Any
+) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] of the merged bodies and its params: each body's
-    centre of mass and its inertia about it from the sums."""
+    centre of mass and its inertia about it from the sums (the triangle inequality was
+    checked link by link: `_inertial`)."""
     masses = np.array([b.mass for b in bodies])
     coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
     inertias = np.stack(
@@ -476,14 +678,117 @@ def _tree_and_params(bodies: list[_Body], up: Any, g: float, dtype: Any) -> tupl
         limits=[j.limits for j in joint_list],
         velocity_limits=[j.velocity for j in joint_list],
         effort_limits=[j.effort for j in joint_list],
+        mimic=mimic,
     )
     params = tree.params(
         m=masses,
         offset=np.stack([b.offset for b in bodies]),
         com=coms,
-        inertia=inertias,
         damping=np.array([j.damping for j in joint_list]),
+        inertia=np.zeros_like(inertias),
         g=g,
         dtype=float_dtype(dtype),
     )
+    # The links' inertias were checked one by one (`_inertial`: semidefinite, and the
+    # triangle inequality warned about); the bodies' are their sums by the parallel-axis
+    # theorem, so a second check here could only trip on round-off (a point-mass link:
+    # moments of 1e-20 about its centre of mass) or repeat a warning as an error.
+    params["inertia"] = jnp.asarray(inertias, params["m"].dtype)
     return tree, params
+
+
+# A Cholesky pivot of M below this fraction of its diagonal entry: that coordinate moves
+# nothing the coordinates before it do not (an exact zero for a joint moving no mass;
+# round-off is ~1e-16 of it).
+_SINGULAR_RTOL = 1e-9
+
+
+def _mass_matrix(tree: Tree, params: dict, q: np.ndarray) -> np.ndarray:
+    """`M(q) = Jᵀ M_θ J` in NumPy by the composite-rigid-body algorithm (world frame,
+    the same conventions as `lagrax._multibody.recursions`)."""
+    big_a, big_b, big_c, slide = tree.joint_constants()
+    k, a, b = tree.coupling()
+    theta = q[k] * a + b
+    keys = ("m", "offset", "com", "inertia")
+    m, offset, com, inertia = (np.asarray(params[x], float) for x in keys)
+    n = tree.n_bodies
+    rots, origins = np.zeros((n, 3, 3)), np.zeros((n, 3))
+    s, spatial = np.zeros((n, 6)), np.zeros((n, 6, 6))
+    for i, kind in enumerate(tree.joint_types):
+        p = tree.parents[i]
+        rot_p, o_p = (np.eye(3), np.zeros(3)) if p < 0 else (rots[p], origins[p])
+        origins[i] = o_p + rot_p @ (offset[i] + theta[i] * slide[i])
+        rot = rot_p @ (big_a[i] + np.sin(theta[i]) * big_b[i] + (1 - np.cos(theta[i])) * big_c[i])
+        rots[i] = rot
+        z = rot @ np.asarray(tree.axes[i])
+        s[i] = np.concatenate([z, np.cross(origins[i], z)]) if kind == "R" else np.r_[0, 0, 0, z]
+        c = origins[i] + rot @ com[i]
+        cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
+        top = rot @ inertia[i] @ rot.T + m[i] * (c @ c * np.eye(3) - np.outer(c, c))
+        spatial[i] = np.block([[top, m[i] * cx], [m[i] * cx.T, m[i] * np.eye(3)]])
+    for i in reversed(range(n)):  # composite inertias: each body's subtree
+        if tree.parents[i] >= 0:
+            spatial[tree.parents[i]] += spatial[i]
+    full = np.zeros((n, n))
+    for i in range(n):
+        f, j = spatial[i] @ s[i], i
+        while j >= 0:  # M_ji = S_j · I^c_i S_i for j on i's path to the base
+            full[j, i] = full[i, j] = s[j] @ f
+            j = tree.parents[j]
+    jac = tree.coupling_matrix()
+    return jac.T @ full @ jac
+
+
+def _singular_pivot(mass: np.ndarray) -> tuple[int, float] | None:
+    """The first coordinate whose Cholesky pivot is `<= _SINGULAR_RTOL` of its diagonal
+    entry (it moves only what earlier ones move), with that pivot; `None`: regular. A
+    singular column is skipped so later ones are judged on their own."""
+    n = mass.shape[0]
+    low = np.zeros((n, n))
+    for j in range(n):
+        d = mass[j, j] - low[j, :j] @ low[j, :j]
+        if d <= _SINGULAR_RTOL * mass[j, j]:
+            return j, float(d)
+        low[j, j] = math.sqrt(d)
+        low[j + 1 :, j] = (mass[j + 1 :, j] - low[j + 1 :, :j] @ low[j, :j]) / low[j, j]
+    return None
+
+
+def _check_mass_matrix(tree: Tree, params: dict, bodies: list[_Body]) -> None:
+    """A `URDFError` naming the joint if `M` is singular at two random configurations
+    (structurally singular: a joint moving no mass); a configuration-dependent
+    singularity (a gimbal lock of massless links) is generically missed by both."""
+    rng = np.random.default_rng(0)
+    found = None
+    for _ in range(2):
+        q = rng.uniform(-2.0, 2.0, tree.n)
+        found = _singular_pivot(_mass_matrix(tree, params, q))
+        if found is None:
+            return
+    assert found is not None
+    k, pivot = found
+    body = tree.coordinates[k]
+    joint, link = tree.joint_names[body], tree.body_names[body]
+    below = [i for i in range(tree.n_bodies) if _is_below(tree.parents, i, body)]
+    mass = float(np.sum(np.asarray(params["m"])[below]))
+    what = (
+        f"the links it moves (link {link!r} and below) have no mass or inertia"
+        if mass == 0 and not np.any(np.asarray(params["inertia"])[below])
+        else f"it moves only what the joints before it already move (the pivot of the mass "
+        f"matrix is {pivot:.3g}, mass moved {mass:.6g} kg)"
+    )
+    raise URDFError(
+        f"joint {joint!r} moves no mass of its own: {what}, so the mass matrix is singular "
+        "and the accelerations are undefined. Give link "
+        f"{link!r} (or a link below it) an <inertial>, lock the joint (locked={{{joint!r}: "
+        "0.0}), or pass massless_links=True to load it anyway (its kinematics stay usable)"
+    )
+
+
+def _is_below(parents: tuple[int, ...], i: int, body: int) -> bool:
+    """Whether body `i` is `body` or hangs below it."""
+    while i >= 0:
+        if i == body:
+            return True
+        i = parents[i]
+    return False

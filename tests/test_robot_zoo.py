@@ -1,0 +1,267 @@
+"""Every URDF that example-robot-data ships, loaded with default options and held to
+Pinocchio.
+
+For each file, lagrax's ``M`` (CRBA), bias ``C q̇ + G`` (RNEA) and forward dynamics
+(ABA; a Cholesky solve for a robot with mimic joints) at three random states against
+Pinocchio's model of the same file (``buildModelFromUrdf``, fixed base), joints matched by
+name, continuous joints as ``(cos q, sin q)``: ``M`` and the bias to 1e-12 relative. The
+accelerations equal Pinocchio's ABA, and solve Pinocchio's equations (the residual
+``M a + b − τ`` against the size of its terms: the backward error), to 1e-12 relative
+where ``M`` is well conditioned. Errors in the accelerations grow with the condition
+number ``κ(M)`` (iCub's and TIAGo's reach 5e6–7e6, from gram-light finger and sensor
+links on 30-kg bodies), and lagrax's ABA, in world coordinates, leaves a larger residual
+there than Pinocchio's in link frames (TIAGo without hand: 4e-12 against 3e-14), so their
+bound is ``1e-12 · max(1, κ / 1e4)``; only iCub (9.5e-11 at κ = 7e6) and TIAGo without
+hand (7.9e-12 at κ = 5e6) need the slack.
+
+Pinocchio's model is built without mimic support (its mimic parser refuses Romeo and
+TALOS, whose mimic joints come before their masters), so a mimic joint is an independent
+joint there, and the reference is its reduction by hand: ``Jᵀ M J`` and ``Jᵀ τ`` with ``J`` the
+mimic map (``_helpers.pin_coupling``), the accelerations by solving the reduced equations.
+
+The few files that cannot be a fixed-base robot fail with a ``URDFError`` naming why
+(``FAILS``); the files whose inertias violate the triangle inequality or whose mimic joints
+name a missing master load with a ``URDFWarning`` (``WARNS``).
+
+Each robot's three functions are compiled once, as one program vmapped over the states
+(a module-scoped fixture per robot and base). ``BASES`` lists the bases tested: a
+floating base joins it when ``from_urdf`` supports one. Compiling costs 1.5–3 s a robot
+(XLA, whatever its size: the recursions loop over bodies), so the robots outside
+``QUICK`` (one of each kind: mimic joints, massless links, continuous and prismatic joints,
+inconsistent inertias, ill-conditioned ``M``) are marked ``slow``: ``-m 'not slow'`` runs
+eight of them, the full run all 64.
+"""
+
+import importlib.metadata
+import warnings
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from _helpers import pin_coupling, pin_state, rel_error
+from lagrax.chains import from_urdf
+
+RTOL = 1e-12
+N_STATES = 3
+BASES = ["fixed"]
+
+pin = pytest.importorskip(
+    "pinocchio", reason="Pinocchio (pip install pin) is the reference for URDF dynamics"
+)
+
+
+def _share() -> Path | None:
+    """example-robot-data's folder (``…/share/example-robot-data``), or ``None``."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in dist.files or ():
+        if f.name == "package.xml" and "example-robot-data" in f.parts:
+            return Path(str(dist.locate_file(f))).parent
+    return None
+
+
+SHARE = _share()
+if SHARE is None:
+    pytest.skip(
+        "example-robot-data is not installed (pip install example-robot-data)",
+        allow_module_level=True,
+    )
+assert SHARE is not None
+ROBOTS = SHARE / "robots"
+URDFS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.urdf"))
+XACROS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.xacro"))
+
+# Files that are not a fixed-base robot, with what the URDFError says.
+FAILS = {
+    # a single rigid body (only fixed joints): it needs a floating base
+    "hector_description/robots/quadrotor_base.urdf": "no revolute, continuous or prismatic",
+    "iris_description/robots/iris_simple.urdf": "no revolute, continuous or prismatic",
+    # the hand joints move only massless finger links (mimic joints): M is singular
+    "romeo_description/urdf/romeo.urdf": "joint 'LHand' moves no mass",
+    # a principal moment of -0.0027 kg m² (5 % of the largest): not an inertia
+    "romeo_description/urdf/romeo_laas_small.urdf": "'LHipPitch_link' <inertia> is not positive",
+    # xacro's output of a macro file: an empty <robot>
+    "ur_description/urdf/ur3.urdf": "no <link>",
+}
+# Files that load with a URDFWarning, and a name each warning is about.
+WARNS = {
+    "allegro_hand_description/urdf/allegro_left_hand.urdf": "link 'link_3.0'",
+    "allegro_hand_description/urdf/allegro_right_hand.urdf": "link 'link_3.0'",
+    "hyq_description/robots/hyq_no_sensors.urdf": "link 'lf_foot'",
+    "pr2_description/urdf/pr2.urdf": "link 'sensor_mount_link'",
+    "romeo_description/urdf/romeo_small.urdf": "link 'RShoulderYawLink'",
+    "alex_description/urdf/alex_psyonic_hands.urdf": "joint 'Left_index_q2'",
+}
+LOADS = [u for u in URDFS if u not in FAILS]
+QUICK = {
+    "panda_description/urdf/panda.urdf",  # a mimic finger
+    "pr2_description/urdf/pr2.urdf",  # mimic, continuous joints, inertia warnings
+    "talos_data/robots/talos_full_v2_box.urdf",  # mimic joints before their masters
+    "ur_description/urdf/ur5_robot.urdf",  # a massless ee_link
+    "human_description/robots/human.urdf",  # massless links inside 3-axis joints
+    "allegro_hand_description/urdf/allegro_right_hand.urdf",  # triangle inequality
+    "tiago_description/robots/tiago_no_hand.urdf",  # prismatic torso, ill-conditioned
+    "icub_description/robots/icub.urdf",  # point-mass links, ill-conditioned
+}
+
+
+def _load(rel: str, **options):
+    """``from_urdf`` of one file, with the warnings it gave."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", lx.URDFWarning)
+        tree, params = from_urdf(ROBOTS / rel, **options)
+    return tree, params, [str(w.message) for w in caught]
+
+
+def _equations(system, params):
+    """``(M, bias, q̈)`` at a batch of states, one compiled program (XLA's backend
+    optimizations off: they cost a third of the compile time, and these run once)."""
+
+    def one(q, qd, tau):
+        bias = system.inverse_dynamics(q, qd, jnp.zeros_like(q), params)
+        return system.mass_matrix(q, params), bias, system.forward_dynamics(q, qd, params, tau)
+
+    def run(q, qd, tau):
+        lowered = jax.jit(jax.vmap(one)).lower(q, qd, tau)
+        return lowered.compile({"xla_backend_optimization_level": 0})(q, qd, tau)
+
+    return run
+
+
+def _robot_param(rel: str, base: str):
+    marks = () if rel in QUICK else (pytest.mark.slow,)
+    return pytest.param((rel, base), marks=marks, id=f"{Path(rel).stem}-{base}")
+
+
+@pytest.fixture(scope="module", params=[_robot_param(u, b) for u in LOADS for b in BASES])
+def robot(request):
+    rel, base = request.param
+    tree, params, _ = _load(rel)
+    params = {**params, "damping": jnp.zeros(tree.n_bodies)}  # Pinocchio's ABA has none
+    model = pin.buildModelFromUrdf(str(ROBOTS / rel))
+    return rel, tree, params, model, _equations(tree.system(), params)
+
+
+def test_robot_matches_pinocchio(robot):
+    rel, tree, params, model, equations = robot
+    assert model.nv == tree.n_bodies, (model.nv, tree.n_bodies)
+    rng = np.random.default_rng(len(rel))
+    q, qd, tau = (rng.uniform(-1.0, 1.0, (N_STATES, tree.n)) for _ in range(3))
+    mass, bias, forward = (np.asarray(x) for x in equations(q, qd, tau))
+    data = model.createData()
+    jac = pin_coupling(pin, model, tree)
+    worst = {}
+    for k in range(N_STATES):
+        qp, vp, order = pin_state(pin, model, tree, q[k], qd[k])
+        m_pin = pin.crba(model, data, qp)
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        m_ref = jac.T @ m_pin @ jac
+        b_ref = jac.T @ pin.rnea(model, data, qp, vp, np.zeros(model.nv))
+        if tree.mimic:  # the reduced equations, solved
+            a_ref = np.linalg.solve(m_ref, tau[k] - b_ref)
+        else:
+            t_pin = np.zeros(model.nv)
+            t_pin[order] = tau[k]
+            a_ref = pin.aba(model, data, qp, vp, t_pin)[order]
+        terms = (np.abs(m_ref) @ np.abs(forward[k]), np.abs(b_ref), np.abs(tau[k]))
+        residual = m_ref @ forward[k] + b_ref - tau[k]
+        kappa = np.linalg.cond(m_ref)
+        errors = {
+            "M": rel_error(mass[k], m_ref),
+            "bias": rel_error(bias[k], b_ref),
+            "backward": float(np.max(np.abs(residual) / sum(terms))) / max(1.0, kappa / 1e4),
+            "ABA": rel_error(forward[k], a_ref) / max(1.0, kappa / 1e4),
+        }
+        worst = {key: max(worst.get(key, 0.0), e) for key, e in errors.items()}
+    assert max(worst.values()) <= RTOL, worst
+
+
+@pytest.mark.parametrize("rel", LOADS)
+def test_robot_warnings(rel):
+    """Exactly the files in ``WARNS`` warn, and name what they warn about."""
+    *_, messages = _load(rel)
+    if rel in WARNS:
+        assert messages and any(WARNS[rel] in m for m in messages), messages
+        assert all(m.startswith(("link '", "joint '")) for m in messages), messages
+    else:
+        assert not messages, messages
+
+
+@pytest.mark.parametrize("rel", sorted(FAILS))
+def test_refused_files_name_the_reason(rel):
+    with pytest.raises(lx.URDFError, match=FAILS[rel].replace("(", r"\(")):
+        _load(rel)
+
+
+@pytest.mark.parametrize("rel", XACROS)
+def test_xacro_files_are_not_robots(rel):
+    with pytest.raises(lx.URDFError, match="xacro"):
+        _load(rel)
+
+
+def test_most_files_load():
+    """The package ships 69 URDF files; all but the five in ``FAILS`` load."""
+    assert len(URDFS) >= 60 and len(FAILS) <= 5
+    assert set(FAILS) <= set(URDFS) and set(WARNS) <= set(LOADS)
+
+
+# ------------------------------------------------------------------ options on shipped robots
+def test_romeo_loads_with_its_hands_locked():
+    """Romeo's hand joints move only massless finger links: refused as they are, loaded
+    with the hands locked (their mimic fingers lock with them)."""
+    tree, _, _ = _load("romeo_description/urdf/romeo.urdf", locked={"LHand": 0.0, "RHand": 0.0})
+    assert "LHand" not in tree.joint_names and not tree.mimic
+    assert tree.n == 31
+
+
+def test_panda_with_fingers_locked_matches_pinocchio_reduced_model():
+    """``locked=`` against ``pin.buildReducedModel`` (the Panda as DESIGN.md loads it):
+    locking the master finger locks its mimic."""
+    rel = "panda_description/urdf/panda.urdf"
+    tree, params, _ = _load(rel, locked={"panda_finger_joint1": 0.03})
+    assert tree.joint_names == tuple(f"panda_joint{i}" for i in range(1, 8))
+    full = pin.buildModelFromUrdf(str(ROBOTS / rel))
+    lock = [full.getJointId(f"panda_finger_joint{i}") for i in (1, 2)]
+    q_ref = pin.neutral(full)
+    for jid in lock:
+        q_ref[full.joints[jid].idx_q] = 0.03
+    model = pin.buildReducedModel(full, lock, q_ref)
+    params = {**params, "damping": jnp.zeros(tree.n)}
+    rng = np.random.default_rng(7)
+    q, qd, tau = (rng.uniform(-1.0, 1.0, (N_STATES, tree.n)) for _ in range(3))
+    mass, bias, forward = (np.asarray(x) for x in _equations(tree.system(), params)(q, qd, tau))
+    data = model.createData()
+    for k in range(N_STATES):
+        m_pin = pin.crba(model, data, q[k])
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        assert rel_error(mass[k], m_pin) <= RTOL
+        assert rel_error(bias[k], pin.rnea(model, data, q[k], qd[k], np.zeros(7))) <= RTOL
+        assert rel_error(forward[k], pin.aba(model, data, q[k], qd[k], tau[k])) <= RTOL
+
+
+def test_panda_mimic_matches_pinocchio_mimic_model():
+    """The Panda's second finger mimics the first: lagrax's reduced equations equal
+    Pinocchio's own mimic joints (``buildModelFromUrdf(..., mimic=True)``: CRBA and RNEA;
+    its ABA does not support mimic joints)."""
+    rel = "panda_description/urdf/panda.urdf"
+    tree, params, _ = _load(rel)
+    assert tree.n == 8 and tree.n_bodies == 9
+    assert tree.system().coordinate_names == tree.joint_names[:8]
+    model = pin.buildModelFromUrdf(str(ROBOTS / rel), mimic=True)
+    assert model.nv == 8
+    params = {**params, "damping": jnp.zeros(tree.n_bodies)}
+    rng = np.random.default_rng(8)
+    q, qd, tau = (rng.uniform(-1.0, 1.0, (N_STATES, tree.n)) for _ in range(3))
+    mass, bias, _ = (np.asarray(x) for x in _equations(tree.system(), params)(q, qd, tau))
+    data = model.createData()
+    for k in range(N_STATES):
+        m_pin = pin.crba(model, data, q[k])
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        assert rel_error(mass[k], m_pin) <= RTOL
+        assert rel_error(bias[k], pin.rnea(model, data, q[k], qd[k], np.zeros(8))) <= RTOL
