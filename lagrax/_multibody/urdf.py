@@ -480,6 +480,14 @@ def from_urdf(
                 f"from_urdf: limits={limits!r} is not supported with floating_base=True yet "
                 "(the limit events index the joints of a fixed-base tree)"
             )
+        if tree.n != tree.n_bodies:
+            mimics = [
+                tree.joint_names[b] for b in range(tree.n_bodies) if b not in tree.coordinates
+            ]
+            raise ConfigurationError(
+                f"from_urdf: mimic joints ({', '.join(mimics)}) are not supported with "
+                "floating_base=True yet; lock them (locked={...}) to load the robot floating"
+            )
         from .floating import base_from_urdf
 
         return base_from_urdf(tree, params, place, order, links, root, _inertial)  # type: ignore[return-value]
