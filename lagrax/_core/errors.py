@@ -69,3 +69,10 @@ class MJCFError(LagraxError, ValueError):
     tendon, an equality constraint, armature, a joint spring, friction loss, gravity
     compensation, fluid forces). The message names the construct, its name and value,
     and what to do."""
+
+
+class PeriodicOrbitError(LagraxError, ValueError):
+    """A periodic-orbit search cannot start: the motion from the guess never reaches the
+    Poincaré section (within `t_max`), the section or the period is not usable, or an
+    option is invalid. The message names the section, the values seen and what to do.
+    (A Newton iteration that does not converge is reported in `PeriodicOrbit.result`.)"""
