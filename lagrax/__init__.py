@@ -47,11 +47,17 @@ from ._core.errors import MassMatrixError as MassMatrixError  # noqa: E402
 from ._core.errors import MJCFError as MJCFError  # noqa: E402
 from ._core.errors import NonFiniteError as NonFiniteError  # noqa: E402
 from ._core.errors import ParameterError as ParameterError  # noqa: E402
+from ._core.errors import PeriodicOrbitError as PeriodicOrbitError  # noqa: E402
 from ._core.errors import ShapeError as ShapeError  # noqa: E402
 from ._core.errors import SimulationError as SimulationError  # noqa: E402
 from ._core.errors import URDFError as URDFError  # noqa: E402
 from ._core.errors import URDFWarning as URDFWarning  # noqa: E402
 from ._core.results import RESULTS as RESULTS  # noqa: E402
+from ._periodic import Bifurcation as Bifurcation  # noqa: E402
+from ._periodic import OrbitBranch as OrbitBranch  # noqa: E402
+from ._periodic import PeriodicOrbit as PeriodicOrbit  # noqa: E402
+from ._periodic import continue_orbits as continue_orbits  # noqa: E402
+from ._periodic import periodic_orbit as periodic_orbit  # noqa: E402
 from ._solve.events import Event as Event  # noqa: E402
 from ._solve.events import EventRecord as EventRecord  # noqa: E402
 from ._solve.methods import METHODS as METHODS  # noqa: E402
@@ -86,6 +92,11 @@ __all__ = [
     "simulate",
     "Event",
     "EventRecord",
+    "periodic_orbit",
+    "PeriodicOrbit",
+    "continue_orbits",
+    "OrbitBranch",
+    "Bifurcation",
     "sweep",
     "grid",
     "samples",
@@ -112,6 +123,7 @@ __all__ = [
     "MassMatrixError",
     "NonFiniteError",
     "ParameterError",
+    "PeriodicOrbitError",
     "ShapeError",
     "SimulationError",
     "URDFError",

@@ -76,3 +76,10 @@ class URDFWarning(UserWarning):
     principal moments violate the triangle inequality `I1 + I2 ≥ I3` (no rigid body has
     them; the dynamics stay defined). The message names the link and the amount;
     `from_urdf(..., strict_inertia=True)` refuses such a file instead."""
+
+
+class PeriodicOrbitError(LagraxError, ValueError):
+    """A periodic-orbit search cannot start: the motion from the guess never reaches the
+    Poincaré section (within `t_max`), the section or the period is not usable, or an
+    option is invalid. The message names the section, the values seen and what to do.
+    (A Newton iteration that does not converge is reported in `PeriodicOrbit.result`.)"""

@@ -28,6 +28,20 @@ class RESULTS(dfx.RESULTS):
         "a Zeno-like cascade such as a ball bouncing infinitely often in finite time); "
         "the solve stopped there."
     )
+    orbit_not_converged = (
+        "The Newton iteration for a periodic orbit did not converge within max_iter "
+        "iterations: there may be no periodic orbit near the guess (or it is too far)."
+    )
+    orbit_no_return = (
+        "The motion from a Newton iterate did not return to the Poincare section before "
+        "t_max (it left the section's neighbourhood: a walker that fell, an orbit that "
+        "escaped): no periodic orbit near this guess, or t_max is too short."
+    )
+    orbit_singular = (
+        "The Newton iteration for a periodic orbit stopped at a singular or non-finite "
+        "Jacobian DP - I: a Floquet multiplier at 1 (a fold, or a family of orbits such "
+        "as a conservative system's), or a non-finite return map."
+    )
 
 
 def code_of(result: RESULTS):
