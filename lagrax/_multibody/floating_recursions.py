@@ -112,10 +112,12 @@ class FloatingChain:
 
 def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> FloatingChain:
     """The kinematics of a floating tree (`tree` the joints' `Tree`, `params` with
-    `base_m`, `base_com`, `base_inertia`) at `q` of size `7 + n`."""
-    n, dtype = tree.n, q.dtype
+    `base_m`, `base_com`, `base_inertia`) at `q` of size `7 + n`: every body's joint
+    angle `θ = J q_joints + b` (the coordinates themselves without mimic joints), so the
+    chain has `tree.n_bodies` links."""
+    n, dtype = tree.n_bodies, q.dtype
     p, rot = q[:3], quaternion_rotation(q[3:7])
-    joints = q[7:]
+    joints = tree.joint_angles(q[7:])
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, scan, dtype, tree.parents)
     big_a, big_b, big_c, slide = tree.joint_constants()
