@@ -217,7 +217,6 @@ def test_robot_matches_pinocchio(robot):
             "ABA": rel_error(forward[k], a_ref) / max(1.0, kappa / 1e4),
         }
         worst = {key: max(worst.get(key, 0.0), e) for key, e in errors.items()}
-    print(f"\n{rel} ({base}): " + ", ".join(f"{k} {v:.1e}" for k, v in worst.items()))
     assert max(worst.values()) <= RTOL, worst
 
 

@@ -345,7 +345,7 @@ class FloatingBaseSystem(AbstractSystem):
     def center_of_mass(self, q: Any, params: Params) -> jnp.ndarray:
         """The whole robot's centre of mass in the world frame, shape `(3,)`."""
         (q,) = self._inputs(q)
-        return _com(fr.crba(self._at(q, params))[1])
+        return _com(fr.crba(self._at(q, params))[1]) + q[:3]
 
     def momentum(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         r"""The spatial momentum `h = Σ_i I_i v_i = (L_O, p)` in the world frame: the
@@ -357,7 +357,8 @@ class FloatingBaseSystem(AbstractSystem):
         q, v = self._inputs(q, qd=v)
         fc = self._at(q, params)
         mass, _ = self._mass(fc)
-        return fc.force_from_base(mass[:6] @ v)
+        h = fc.force_from_base(mass[:6] @ v)  # about the base origin (world axes)
+        return jnp.concatenate([h[:3] + jnp.cross(fc.position, h[3:]), h[3:]])
 
     def kinetic_energy(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         """`T = ½ vᵀ M v`."""
@@ -367,11 +368,11 @@ class FloatingBaseSystem(AbstractSystem):
     def potential_energy(self, q: Any, params: Params) -> jnp.ndarray:
         """`V = m g up·c`: gravity on the whole robot's mass `m` at its centre of mass."""
         (q,) = self._inputs(q)
-        return _potential(self.robot, fr.crba(self._at(q, params))[1], params)
+        return _potential(self.robot, fr.crba(self._at(q, params))[1], params, q[:3])
 
     def _energies(self, q: Any, v: Any, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         mass, total = self._mass(self._at(q, params))
-        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params)
+        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params, q[:3])
 
     def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
         """The mechanical energy `T + V`."""
@@ -443,10 +444,14 @@ def _com(total: jnp.ndarray) -> jnp.ndarray:
     return jnp.stack([total[2, 4], total[0, 5], total[1, 3]]) / total[3, 3]
 
 
-def _potential(robot: FloatingTree, total: jnp.ndarray, params: Params) -> jnp.ndarray:
+def _potential(
+    robot: FloatingTree, total: jnp.ndarray, params: Params, position: Any
+) -> jnp.ndarray:
+    """`m g up·c` from the whole robot's spatial inertia about the base origin (`c` is
+    its centre of mass relative to it, plus the base `position`)."""
     up = jnp.asarray(robot.tree.up, total.dtype)
     g = jnp.asarray(params["g"], total.dtype)
-    return g * total[3, 3] * (up @ _com(total))
+    return g * total[3, 3] * (up @ (_com(total) + position))
 
 
 def base_from_urdf(
