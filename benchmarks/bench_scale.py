@@ -18,13 +18,20 @@ Measured in one run, on this machine:
    dynamics against Pinocchio loading the same file, and one trajectory (as in 2) against
    MuJoCo loading the same file.
 
+4. Floating bases from example-robot-data (``from_urdf(..., floating_base=True)``: a
+   quadruped, solo12, and humanoids, G1 (29 joints) and TALOS (reduced, 32 joints)):
+   per-state forward dynamics under ``jax.vmap`` over 4,096 random states (random unit
+   quaternions) against Pinocchio's ABA per call from Python on its free-flyer model of
+   the same file. Skipped where Pinocchio or example-robot-data is missing.
+
 Writes a log-log chart of cost against n with ``--chart PATH``.
 
-    python benchmarks/bench_scale.py [--quick] [--chart scale.png]
+    python benchmarks/bench_scale.py [--quick] [--chart scale.png] [--sections 4]
 """
 
 import argparse
 import dataclasses
+import importlib.metadata
 import os
 import sys
 import time
@@ -291,6 +298,83 @@ def urdf_arm(repeats):
     trajectory_vs_mujoco("   the URDF arm", system, params, q0, mujoco_model, repeats)
 
 
+# Section 4's robots: (label, path under example-robot-data's robots/)
+FLOATING_ROBOTS = (
+    ("solo12 (quadruped)", "solo_description/robots/solo12.urdf"),
+    ("G1 (humanoid)", "g1_description/urdf/g1_29dof_rev_1_0.urdf"),
+    ("TALOS reduced (humanoid)", "talos_data/robots/talos_reduced.urdf"),
+)
+
+
+def _robots_folder():
+    """example-robot-data's ``robots`` folder, or None when it is not installed."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in dist.files or ():
+        if f.name == "package.xml" and "example-robot-data" in f.parts:
+            return os.path.join(os.path.dirname(str(dist.locate_file(f))), "robots")
+    return None
+
+
+def _floating_states(rng, n, size):
+    """Random ``(q, v)`` of a floating base: a unit quaternion, joints in [-1, 1]."""
+    quat = rng.normal(size=(size, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    q = np.concatenate([rng.normal(size=(size, 3)), quat, rng.uniform(-1, 1, (size, n))], 1)
+    return q, rng.normal(size=(size, 6 + n))
+
+
+def floating_bases(repeats):
+    """Section 4: floating-base robots, lagrax (vmap over B states) against Pinocchio's
+    ABA per call on its free-flyer model of the same URDF."""
+    print(f"\n4. floating bases, forward dynamics per state (vmap over {B} states)")
+    folder = _robots_folder()
+    if folder is None:
+        print("   skipped: example-robot-data is not installed (pip install example-robot-data)")
+        return
+    try:
+        import pinocchio as pin
+    except ImportError:
+        pin = None
+    from lagrax.chains import from_urdf
+
+    for label, rel in FLOATING_ROBOTS:
+        path = os.path.join(folder, rel)
+        robot, params = from_urdf(path, floating_base=True)
+        params = {**params, "damping": jnp.zeros_like(params["damping"])}  # as Pinocchio's
+        system, n = robot.system(), robot.n
+        fn = jax.jit(jax.vmap(lambda q, v, s=system, p=params: s.accelerations(0.0, q, v, p, None)))
+        q, v = (jnp.asarray(x) for x in _floating_states(np.random.default_rng(0), n, B))
+        t0 = time.perf_counter()
+        fn(q, v).block_until_ready()
+        compile_s = time.perf_counter() - t0
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn(q, v).block_until_ready()
+            times.append(time.perf_counter() - t0)
+        ours = min(times) / B * 1e6
+        line = f"   {label:26s} {6 + n:2d} DOF: lagrax {ours:7.3f} µs per state"
+        if pin is None:
+            line += ", Pinocchio not installed"
+        else:
+            model = pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer())
+            data = model.createData()
+            qp = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+            vp, tau = np.full(model.nv, 0.1), np.zeros(model.nv)
+            best = []
+            for _ in range(repeats):
+                t0 = time.perf_counter()
+                for _ in range(1000):
+                    pin.aba(model, data, qp, vp, tau)
+                best.append((time.perf_counter() - t0) / 1000)
+            theirs = min(best) * 1e6
+            line += f", Pinocchio ABA {theirs:7.3f} µs per call ({ours / theirs:.2f}x)"
+        print(line + f" (compile {compile_s:.1f} s)")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
@@ -305,8 +389,8 @@ def main(argv=None):
         "--sections",
         type=int,
         nargs="+",
-        default=[1, 2, 3],
-        choices=[1, 2, 3],
+        default=[1, 2, 3, 4],
+        choices=[1, 2, 3, 4],
         help="which sections to run",
     )
     args = ap.parse_args(argv)
@@ -323,6 +407,8 @@ def main(argv=None):
         arm_trajectory(args.repeats)
     if 3 in args.sections:
         urdf_arm(args.repeats)
+    if 4 in args.sections:
+        floating_bases(args.repeats)
 
 
 def forward_dynamics(sizes, repeats):

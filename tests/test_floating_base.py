@@ -243,3 +243,62 @@ def test_dropped_robot_falls_at_g_through_simulate():
     fall = com[:1] + t * com_rate[None] - 0.5 * params["g"] * t**2 * jnp.array([[0.0, 0, 1]])
     assert float(jnp.max(jnp.abs(com - fall))) < 1e-12
     assert float(jnp.max(jnp.abs(sol.q[-1, 7:] - sol.q[0, 7:]))) > 1e-2  # the joints moved
+
+
+def _dropped_arm():
+    """arm7 on a floating base, dropped with its joints and base moving."""
+    robot, params, _ = _robot("arm7")
+    system = robot.system()
+    q0 = jnp.concatenate([jnp.array([0.0, 0.0, 1.0, 0.1, 0.2, 0.0, 1.0]), jnp.full(robot.n, 0.4)])
+    q0 = system.project_configuration(q0)
+    v0 = jnp.concatenate([jnp.array([0.1, 0.0, 0.5, 0.0, 0.3, 0.0]), jnp.ones(robot.n)])
+    return robot, system, params, q0, v0
+
+
+def test_sweep_of_a_floating_base_equals_simulate():
+    """A sweep over the base mass: `q` (size `7 + n`) on its own `q_dof` axis labelled
+    by the configuration names, `qd` (size `6 + n`) on `dof`; each member equals its
+    own `simulate` run."""
+    robot, system, params, q0, v0 = _dropped_arm()
+    masses = np.array([0.5, 1.0, 2.0]) * float(params["base_m"])
+    opts = dict(t1=0.3, n_save=4, rtol=1e-10, atol=1e-10)
+    members = lx.samples(params, base_m=masses)
+    ds = lx.sweep(system, q0, v0, members, keep="trajectory", **opts)
+    assert ds.q.dims == ("member", "time", "q_dof") and ds.qd.dims == ("member", "time", "dof")
+    assert list(ds.q_dof.values[:7]) == ["base_x", "base_y", "base_z"] + [
+        f"base_q{c}" for c in "xyzw"
+    ]
+    assert list(ds.dof.values[:6]) == list(system.coordinate_names[:6])
+    assert list(ds.q_dof.values[7:]) == list(ds.dof.values[6:]) == list(robot.joint_names)
+    for k, m in enumerate(masses):
+        sol = lx.simulate(system, q0, v0, dict(params, base_m=jnp.asarray(m)), **opts)
+        # round-off apart (a batched program against a single one): 1e-12 of |v| ~ 1
+        assert np.max(np.abs(ds.q.values[k] - np.asarray(sol.q))) < 1e-10
+        assert np.max(np.abs(ds.qd.values[k] - np.asarray(sol.qd))) < 1e-10
+    assert bool(ds.ok.all()) and float(np.max(np.abs(ds.constraint_violation))) < 1e-14
+    final = lx.sweep(system, q0, v0, lx.samples(params, base_m=masses), keep="final", t1=0.3)
+    assert final.q.dims == ("member", "q_dof") and final.qd.dims == ("member", "dof")
+
+
+def test_event_with_a_floating_base():
+    """A terminal event on the centre of mass's height: it falls on the parabola
+    `c_z(t) = c_z0 + ċ_z0 t − ½ g t²` whatever the joints do, so the crossing of a level
+    is known in closed form."""
+    robot, system, params, q0, v0 = _dropped_arm()
+    level = 0.6
+    height = lx.Event(
+        lambda t, q, qd, p: system.center_of_mass(q, p)[2] - level, direction=-1, terminal=True
+    )
+    sol = lx.simulate(
+        system, q0, v0, params, t1=2.0, events=height, solver="dopri8", rtol=1e-12, atol=1e-12
+    )
+    c0 = float(system.center_of_mass(q0, params)[2])
+    mass = float(params["base_m"] + jnp.sum(params["m"]))
+    rate = float(system.momentum(q0, v0, params)[5]) / mass
+    g = float(params["g"])
+    t_star = (rate + np.sqrt(rate**2 + 2 * g * (c0 - level))) / g
+    record = sol.events[0]
+    assert int(record.count) == 1 and sol.ok
+    assert abs(float(record.times[0]) - t_star) < 1e-9
+    assert abs(float(sol.t_end) - t_star) < 1e-9
+    assert record.q.shape[-1] == 7 + robot.n and record.qd.shape[-1] == 6 + robot.n

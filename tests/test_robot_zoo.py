@@ -23,13 +23,22 @@ The few files that cannot be a fixed-base robot fail with a ``URDFError`` naming
 (``FAILS``); the files whose inertias violate the triangle inequality or whose mimic joints
 name a missing master load with a ``URDFWarning`` (``WARNS``).
 
+With a floating base (``BASES``: ``from_urdf(..., floating_base=True)``) the reference
+is Pinocchio's free-flyer model of the same file (``buildModelFromUrdf(path,
+pin.JointModelFreeFlyer())``, the free flyer on the root link, the links fixed to it
+merged into it) at states with a random unit quaternion; the base's six velocities come
+first in both libraries, and a mimic joint is reduced by hand as above (``J =
+blockdiag(I_6, J_joints)``). Every file that loads fixed loads floating too (TIAGo with a
+``URDFWarning``: its antenna links, fixed to the base, have inertias that are not
+positive-semidefinite, which the fixed base never reads).
+
 Each robot's three functions are compiled once, as one program vmapped over the states
-(a module-scoped fixture per robot and base). ``BASES`` lists the bases tested: a
-floating base joins it when ``from_urdf`` supports one. Compiling costs 1.5–3 s a robot
+(a module-scoped fixture per robot and base). Compiling costs 1.5–3 s a robot
 (XLA, whatever its size: the recursions loop over bodies), so the robots outside
 ``QUICK`` (one of each kind: mimic joints, massless links, continuous and prismatic joints,
-inconsistent inertias, ill-conditioned ``M``) are marked ``slow``: ``-m 'not slow'`` runs
-eight of them, the full run all 64.
+inconsistent inertias, ill-conditioned ``M``) and ``QUICK_FLOATING`` (a quadruped, a
+humanoid with mimic grippers, TIAGo's warned antennas) are marked ``slow``: ``-m 'not
+slow'`` runs eleven of them, the full run all 64 on both bases.
 """
 
 import importlib.metadata
@@ -47,7 +56,7 @@ from lagrax.chains import from_urdf
 
 RTOL = 1e-12
 N_STATES = 3
-BASES = ["fixed"]
+BASES = ["fixed", "floating"]
 
 pin = pytest.importorskip(
     "pinocchio", reason="Pinocchio (pip install pin) is the reference for URDF dynamics"
@@ -110,6 +119,13 @@ QUICK = {
     "icub_description/robots/icub.urdf",  # point-mass links, ill-conditioned
 }
 
+QUICK_FLOATING = {
+    "solo_description/robots/solo12.urdf",  # a quadruped
+    "talos_data/robots/talos_full_v2_box.urdf",  # a humanoid with mimic grippers
+    "tiago_description/robots/tiago_no_hand.urdf",  # antennas with bad inertias on the base
+    "panda_description/urdf/panda.urdf",  # a mimic finger
+}
+
 
 def _load(rel: str, **options):
     """``from_urdf`` of one file, with the warnings it gave."""
@@ -124,7 +140,7 @@ def _equations(system, params):
     optimizations off: they cost a third of the compile time, and these run once)."""
 
     def one(q, qd, tau):
-        bias = system.inverse_dynamics(q, qd, jnp.zeros_like(q), params)
+        bias = system.inverse_dynamics(q, qd, jnp.zeros_like(qd), params)
         return system.mass_matrix(q, params), bias, system.forward_dynamics(q, qd, params, tau)
 
     def run(q, qd, tau):
@@ -135,40 +151,62 @@ def _equations(system, params):
 
 
 def _robot_param(rel: str, base: str):
-    marks = () if rel in QUICK else (pytest.mark.slow,)
+    quick = QUICK if base == "fixed" else QUICK_FLOATING
+    marks = () if rel in quick else (pytest.mark.slow,)
     return pytest.param((rel, base), marks=marks, id=f"{Path(rel).stem}-{base}")
 
 
 @pytest.fixture(scope="module", params=[_robot_param(u, b) for u in LOADS for b in BASES])
 def robot(request):
     rel, base = request.param
-    tree, params, _ = _load(rel)
+    if base == "floating":
+        robot, params, _ = _load(rel, floating_base=True)
+        model = pin.buildModelFromUrdf(str(ROBOTS / rel), pin.JointModelFreeFlyer())
+        tree = robot.tree
+    else:
+        tree, params, _ = _load(rel)
+        model = pin.buildModelFromUrdf(str(ROBOTS / rel))
+        robot = tree
     params = {**params, "damping": jnp.zeros(tree.n_bodies)}  # Pinocchio's ABA has none
-    model = pin.buildModelFromUrdf(str(ROBOTS / rel))
-    return rel, tree, params, model, _equations(tree.system(), params)
+    return rel, base, tree, params, model, _equations(robot.system(), params)
+
+
+def _states(rng, n: int, floating: bool):
+    """``(q, q̇, τ)`` at ``N_STATES`` random states: joints in ``[-1, 1]``; a floating
+    base's position normal and its quaternion a random unit one."""
+    joints, qd, tau = (rng.uniform(-1.0, 1.0, (N_STATES, n)) for _ in range(3))
+    if not floating:
+        return joints, qd, tau
+    quat = rng.normal(size=(N_STATES, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    q = np.concatenate([rng.normal(size=(N_STATES, 3)), quat, joints], axis=1)
+    base_v, base_f = rng.normal(size=(2, N_STATES, 6))
+    return q, np.concatenate([base_v, qd], axis=1), np.concatenate([base_f, tau], axis=1)
 
 
 def test_robot_matches_pinocchio(robot):
-    rel, tree, params, model, equations = robot
-    assert model.nv == tree.n_bodies, (model.nv, tree.n_bodies)
+    rel, base, tree, params, model, equations = robot
+    floating = base == "floating"
+    nb = 6 if floating else 0  # the base's velocities, first in both libraries
+    assert model.nv == nb + tree.n_bodies, (model.nv, tree.n_bodies)
     rng = np.random.default_rng(len(rel))
-    q, qd, tau = (rng.uniform(-1.0, 1.0, (N_STATES, tree.n)) for _ in range(3))
+    q, qd, tau = _states(rng, tree.n, floating)
     mass, bias, forward = (np.asarray(x) for x in equations(q, qd, tau))
     data = model.createData()
-    jac = pin_coupling(pin, model, tree)
+    # J = blockdiag(I_6, J_joints) with a floating base (Pinocchio's base velocities first)
+    jac = np.hstack([np.eye(model.nv)[:, :nb], pin_coupling(pin, model, tree)])
     worst = {}
     for k in range(N_STATES):
-        qp, vp, order = pin_state(pin, model, tree, q[k], qd[k])
+        qp, vp, _ = pin_state(pin, model, tree, q[k, 7 * floating :], qd[k, nb:])
+        qp[: 7 * floating], vp[:nb] = q[k, : 7 * floating], qd[k, :nb]
         m_pin = pin.crba(model, data, qp)
         m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
         m_ref = jac.T @ m_pin @ jac
         b_ref = jac.T @ pin.rnea(model, data, qp, vp, np.zeros(model.nv))
         if tree.mimic:  # the reduced equations, solved
             a_ref = np.linalg.solve(m_ref, tau[k] - b_ref)
-        else:
-            t_pin = np.zeros(model.nv)
-            t_pin[order] = tau[k]
-            a_ref = pin.aba(model, data, qp, vp, t_pin)[order]
+        else:  # J is a permutation
+            a_ref = jac.T @ pin.aba(model, data, qp, vp, jac @ tau[k])
         terms = (np.abs(m_ref) @ np.abs(forward[k]), np.abs(b_ref), np.abs(tau[k]))
         residual = m_ref @ forward[k] + b_ref - tau[k]
         kappa = np.linalg.cond(m_ref)
@@ -180,6 +218,14 @@ def test_robot_matches_pinocchio(robot):
         }
         worst = {key: max(worst.get(key, 0.0), e) for key, e in errors.items()}
     assert max(worst.values()) <= RTOL, worst
+
+
+def test_floating_base_merges_bad_inertias_with_a_warning():
+    """TIAGo's antenna links, fixed to its base, have inertias that are not
+    positive-semidefinite: a fixed base never reads them; a floating base merges them
+    (as Pinocchio does) with a warning naming each."""
+    *_, messages = _load("tiago_description/robots/tiago_no_hand.urdf", floating_base=True)
+    assert any("link 'base_antenna_left_link'" in m for m in messages), messages
 
 
 @pytest.mark.parametrize("rel", LOADS)

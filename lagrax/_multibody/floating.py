@@ -17,6 +17,7 @@ Featherstone's recursions with a free root (`lagrax._multibody.floating_recursio
 """
 
 import math
+import warnings
 from typing import Any
 
 import equinox as eqx
@@ -25,7 +26,8 @@ import numpy as np
 
 from .._core.checks import coords, finite, finite_params, is_traced, physical
 from .._core.custom_types import Params
-from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError
+from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
+from .._core.linalg import cholesky_solve
 from .._systems.abstract import AbstractSystem
 from . import floating_recursions as fr
 from .common import broadcast, float_dtype
@@ -33,6 +35,7 @@ from .inertia import check_inertia
 from .trees import Tree
 
 BASE_VELOCITY_NAMES = ("base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz")
+BASE_POSE_NAMES = ("base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw")
 
 
 class FloatingTree(eqx.Module):
@@ -118,10 +121,14 @@ class FloatingTree(eqx.Module):
         return FloatingBaseSystem(self)
 
 
-def _joint_damping(params: Params, v: Any) -> jnp.ndarray:
-    """`∂D/∂v` of `D = ½ Σ b_j q̇_j²` (joints only; the base is free)."""
+def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
+    """`∂D/∂v` of `D = ½ Σ b_j θ̇_j²` over the tree's joints (`θ̇ = J v_joints`, mimic
+    joints included: `Jᵀ (b θ̇)`; the base is free)."""
     b = jnp.asarray(params["damping"], v.dtype)
-    return jnp.concatenate([jnp.zeros(6, v.dtype), b * v[6:]])
+    rates = b * tree.joint_rates(v[6:])
+    if tree.mimic:
+        rates = jnp.asarray(tree.coupling_matrix(), v.dtype).T @ rates
+    return jnp.concatenate([jnp.zeros(6, v.dtype), rates])
 
 
 class FloatingBaseSystem(AbstractSystem):
@@ -139,6 +146,13 @@ class FloatingBaseSystem(AbstractSystem):
     articulated-body algorithm with a free root (Pinocchio's `aba`), `M` from the
     composite-rigid-body algorithm, `M v̇ + b` from recursive Newton–Euler. Joint damping
     `D = ½ Σ b_j q̇_j²` acts on the joints.
+
+    A tree with mimic joints (see [`Tree`][lagrax.chains.Tree]) has the joint angles
+    `θ = J q_joints + b` of all its bodies: the recursions run over all of them and are
+    reduced by `J_B = blockdiag(I_6, J)`, `M = J_Bᵀ M_θ J_B`, `b = J_Bᵀ b_θ` (a mimic
+    joint's torque, times its multiplier, adds to its master's), and `v̇` comes from a
+    Cholesky solve of the reduced equations (the articulated-body algorithm needs
+    independent joints).
 
     The mechanical energy `T + V` (`T = ½ vᵀ M v`, `V = m g up·c` with `c` the centre of
     mass) is conserved by an unforced, undamped motion; in zero gravity so is the spatial
@@ -175,8 +189,16 @@ class FloatingBaseSystem(AbstractSystem):
 
     @property
     def coordinate_names(self) -> tuple[str, ...]:
-        """The velocities' names: the base's six, then the joints'."""
-        return BASE_VELOCITY_NAMES + self.robot.joint_names
+        """The velocities' names: the base's six, then the joints' (the coordinates':
+        mimic joints are not among them)."""
+        return BASE_VELOCITY_NAMES + self.robot.tree.coordinate_names()
+
+    @property
+    def configuration_names(self) -> tuple[str, ...]:
+        """The configuration's names: the base position and quaternion
+        (`base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw`), then the joints'
+        (the coordinates'). `sweep` labels `q`'s `q_dof` axis with them."""
+        return BASE_POSE_NAMES + self.robot.tree.coordinate_names()
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, q: Any, **velocities: Any) -> list[Any]:
@@ -195,6 +217,42 @@ class FloatingBaseSystem(AbstractSystem):
 
     def _at(self, q: Any, params: Params) -> fr.FloatingChain:
         return fr.floating_chain(self.robot.tree, q, params)
+
+    # ------------------------------------------------------------------ mimic joints
+    def _full(self, v: Any) -> Any:
+        """A velocity-sized vector `(base 6, coordinates n)` as every body's:
+        `(base 6, J v_joints)` (itself without mimic joints; `None` kept)."""
+        if v is None or not self.robot.tree.mimic:
+            return v
+        return jnp.concatenate([v[:6], self.robot.tree.joint_rates(v[6:])])
+
+    def _reduce(self, f: Any) -> jnp.ndarray:
+        """A generalized force of every body reduced to the coordinates: `J_Bᵀ f`."""
+        tree = self.robot.tree
+        if not tree.mimic:
+            return f
+        j = jnp.asarray(tree.coupling_matrix(), f.dtype)
+        return jnp.concatenate([f[:6], j.T @ f[6:]])
+
+    def _mass(self, fc: fr.FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """`(M, I^c_B)` with `M = J_Bᵀ M_θ J_B` (`M_θ` itself without mimic joints)."""
+        mass, total = fr.crba(fc)
+        tree = self.robot.tree
+        if not tree.mimic:
+            return mass, total
+        j = jnp.asarray(tree.coupling_matrix(), mass.dtype)
+        n = tree.n
+        j_b = jnp.block(
+            [
+                [jnp.eye(6, dtype=mass.dtype), jnp.zeros((6, n), mass.dtype)],
+                [jnp.zeros((tree.n_bodies, 6), mass.dtype), j],
+            ]
+        )
+        return j_b.T @ mass @ j_b, total
+
+    def _rnea(self, fc: fr.FloatingChain, v: Any, vdot: Any) -> jnp.ndarray:
+        """`M v̇ + b` (`vdot` `None`: `b`) in the coordinates."""
+        return self._reduce(fr.rnea(fc, self._full(v), self._full(vdot)))
 
     # ------------------------------------------------------------------ configuration
     def configuration_rate(self, q: Any, v: Any) -> jnp.ndarray:
@@ -224,13 +282,13 @@ class FloatingBaseSystem(AbstractSystem):
         """`M(q)`, shape `(6 + n, 6 + n)`, by the composite-rigid-body algorithm (equal to
         Pinocchio's `crba` on the free-flyer model, both triangles filled)."""
         (q,) = self._inputs(q)
-        return fr.crba(self._at(q, params))[0]
+        return self._mass(self._at(q, params))[0]
 
     def bias(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         """`b(q, v)`: Coriolis, centrifugal and gravity terms, shape `(6 + n,)`
         (Pinocchio's `nonLinearEffects`), by recursive Newton–Euler."""
         q, v = self._inputs(q, qd=v)
-        return fr.rnea(self._at(q, params), v, None)
+        return self._rnea(self._at(q, params), v, None)
 
     def inverse_dynamics(
         self, q: Any, qd: Any, qdd: Any, params: Params, t: Any = 0.0
@@ -240,15 +298,19 @@ class FloatingBaseSystem(AbstractSystem):
         base frame. **Arguments:** `q` `(7 + n,)`, `qd` = `v` and `qdd` = `v̇`
         `(6 + n,)`, `params`."""
         q, v, vdot = self._inputs(q, qd=qd, qdd=qdd)
-        return fr.rnea(self._at(q, params), v, vdot) + _joint_damping(params, v)
+        return self._rnea(self._at(q, params), v, vdot) + _joint_damping(self.robot.tree, params, v)
 
     def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
-        """`v̇` of checked arrays by the articulated-body algorithm with a free root,
-        never raising (NaN where an articulated inertia is not positive)."""
-        force = -_joint_damping(params, qd)
+        """`v̇` of checked arrays by the articulated-body algorithm with a free root
+        (a Cholesky solve of the reduced equations for a tree with mimic joints), never
+        raising (NaN where an articulated inertia or `M` is not positive)."""
+        force = -_joint_damping(self.robot.tree, params, qd)
         if tau is not None:
             force = force + jnp.asarray(tau, qd.dtype)
-        return fr.aba(self._at(q, params), qd, force)
+        fc = self._at(q, params)
+        if not self.robot.tree.mimic:
+            return fr.aba(fc, qd, force)
+        return cholesky_solve(self._mass(fc)[0], force - self._rnea(fc, qd, None))
 
     def forward_dynamics(
         self, q: Any, qd: Any, params: Params, tau: Any = None, t: Any = 0.0
@@ -283,7 +345,7 @@ class FloatingBaseSystem(AbstractSystem):
     def center_of_mass(self, q: Any, params: Params) -> jnp.ndarray:
         """The whole robot's centre of mass in the world frame, shape `(3,)`."""
         (q,) = self._inputs(q)
-        return _com(fr.crba(self._at(q, params))[1])
+        return _com(fr.crba(self._at(q, params))[1]) + q[:3]
 
     def momentum(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         r"""The spatial momentum `h = Σ_i I_i v_i = (L_O, p)` in the world frame: the
@@ -294,22 +356,23 @@ class FloatingBaseSystem(AbstractSystem):
         (Pinocchio's `computeCentroidalMomentum`)."""
         q, v = self._inputs(q, qd=v)
         fc = self._at(q, params)
-        mass, _ = fr.crba(fc)
-        return fc.force_from_base(mass[:6] @ v)
+        mass, _ = self._mass(fc)
+        h = fc.force_from_base(mass[:6] @ v)  # about the base origin (world axes)
+        return jnp.concatenate([h[:3] + jnp.cross(fc.position, h[3:]), h[3:]])
 
     def kinetic_energy(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         """`T = ½ vᵀ M v`."""
         q, v = self._inputs(q, qd=v)
-        return 0.5 * v @ (fr.crba(self._at(q, params))[0] @ v)
+        return 0.5 * v @ (self._mass(self._at(q, params))[0] @ v)
 
     def potential_energy(self, q: Any, params: Params) -> jnp.ndarray:
         """`V = m g up·c`: gravity on the whole robot's mass `m` at its centre of mass."""
         (q,) = self._inputs(q)
-        return _potential(self.robot, fr.crba(self._at(q, params))[1], params)
+        return _potential(self.robot, fr.crba(self._at(q, params))[1], params, q[:3])
 
     def _energies(self, q: Any, v: Any, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
-        mass, total = fr.crba(self._at(q, params))
-        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params)
+        mass, total = self._mass(self._at(q, params))
+        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params, q[:3])
 
     def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
         """The mechanical energy `T + V`."""
@@ -328,7 +391,7 @@ class FloatingBaseSystem(AbstractSystem):
 
     def input_power(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
         """`v·(τ − ∂D/∂v)`: the power of the inputs and of the joint damping."""
-        force = -_joint_damping(params, qd)
+        force = -_joint_damping(self.robot.tree, params, qd)
         if tau is not None:
             force = force + tau
         return qd @ force
@@ -345,8 +408,8 @@ class FloatingBaseSystem(AbstractSystem):
         fc = self._at(q, params)
         return {
             "the base rotation (from the quaternion q[3:7])": fc.rot,
-            "the mass matrix M (CRBA)": fr.crba(fc)[0],
-            "the bias b = C v + G (RNEA)": fr.rnea(fc, qd, None),
+            "the mass matrix M (CRBA)": self._mass(fc)[0],
+            "the bias b = C v + G (RNEA)": self._rnea(fc, qd, None),
         }
 
     def check_state(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> None:
@@ -381,10 +444,14 @@ def _com(total: jnp.ndarray) -> jnp.ndarray:
     return jnp.stack([total[2, 4], total[0, 5], total[1, 3]]) / total[3, 3]
 
 
-def _potential(robot: FloatingTree, total: jnp.ndarray, params: Params) -> jnp.ndarray:
+def _potential(
+    robot: FloatingTree, total: jnp.ndarray, params: Params, position: Any
+) -> jnp.ndarray:
+    """`m g up·c` from the whole robot's spatial inertia about the base origin (`c` is
+    its centre of mass relative to it, plus the base `position`)."""
     up = jnp.asarray(robot.tree.up, total.dtype)
     g = jnp.asarray(params["g"], total.dtype)
-    return g * total[3, 3] * (up @ _com(total))
+    return g * total[3, 3] * (up @ (_com(total) + position))
 
 
 def base_from_urdf(
@@ -397,7 +464,16 @@ def base_from_urdf(
         body, rot, pos = place[link]
         if body >= 0:
             continue
-        part = inertial(links[link])
+        try:
+            part = inertial(links[link])
+        except URDFError as err:  # checked on the merged base below
+            part = inertial(links[link], check=False)
+            warnings.warn(
+                f"link {link!r} (fixed to the floating base {root!r}): {err}; merged into "
+                "the base as given (the base's merged inertia is checked)",
+                URDFWarning,
+                stacklevel=3,
+            )
         if part is None:
             continue
         c = pos + rot @ part.com

@@ -16,6 +16,13 @@ coordinates:
 `S_B v̇`. The bodies below the base are the tree's, placed from the base pose instead of
 the world's origin; gravity stays the fictitious base acceleration `a_0 = (0, g up)`.
 
+The recursions run in world axes at the *base origin* (`p = 0` above): in a uniform
+gravity field the equations do not depend on where the base is, and spatial inertias
+about a far-away origin would lose digits to the parallel-axis terms `m |p|²` (a light
+robot 2 m from the world origin: 1e-11 relative in `v̇` instead of 1e-13). The base's
+position is kept for what does depend on it (the centre of mass, the momentum about the
+world origin, the potential energy).
+
 - ABA: the joints' inward pass hands the base the articulated inertia `I^A_B` and bias
   `p^A_B` of its subtrees; the base, a free body, gets `a'_B = (I^A_B)⁻¹ (S_B⁻ᵀ τ_B −
   p^A_B)` (a 6×6 solve; `a'_B = S_B v̇ + a_0`), and the outward pass starts from it.
@@ -83,16 +90,19 @@ def _array(x: Any, dtype: Any) -> jnp.ndarray:
 class FloatingChain:
     """A floating-base tree at one configuration: the joints' `recursions.Chain` (placed
     from the base pose), the base's world inertia at the origin `I_B`, its motion
-    subspace `S_B` (6×6), and the pose `(p, R)`."""
+    subspace `S_B` (6×6), all in world axes at the base origin, and the pose: `position`
+    (the base origin in the world frame) and `rot` (`p`, the origin of the spatial
+    quantities relative to the base origin, is zero)."""
 
-    def __init__(self, chain: a.Chain, inertia_base: Any, s_base: Any, p: Any, rot: Any):
-        self.chain, self.inertia_base, self.s_base, self.p, self.rot = (
+    def __init__(self, chain: a.Chain, inertia_base: Any, s_base: Any, position: Any, rot: Any):
+        self.chain, self.inertia_base, self.s_base, self.position, self.rot = (
             chain,
             inertia_base,
             s_base,
-            p,
+            position,
             rot,
         )
+        self.p = jnp.zeros_like(position)
 
     def base_velocity(self, v_base: Any) -> Any:
         """`v_B = S_B (v_b, ω_b)` as a tuple."""
@@ -112,10 +122,13 @@ class FloatingChain:
 
 def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> FloatingChain:
     """The kinematics of a floating tree (`tree` the joints' `Tree`, `params` with
-    `base_m`, `base_com`, `base_inertia`) at `q` of size `7 + n`."""
-    n, dtype = tree.n, q.dtype
-    p, rot = q[:3], quaternion_rotation(q[3:7])
-    joints = q[7:]
+    `base_m`, `base_com`, `base_inertia`) at `q` of size `7 + n`: every body's joint
+    angle `θ = J q_joints + b` (the coordinates themselves without mimic joints), so the
+    chain has `tree.n_bodies` links."""
+    n, dtype = tree.n_bodies, q.dtype
+    position, rot = q[:3], quaternion_rotation(q[3:7])
+    p = jnp.zeros_like(position)  # the recursions' origin: the base origin
+    joints = tree.joint_angles(q[7:])
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, scan, dtype, tree.parents)
     big_a, big_b, big_c, slide = tree.joint_constants()
@@ -134,7 +147,7 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     inertia_base = a.spatial_inertia(m_base, _tuples(inertia_w), _tuples(centre))
     zero = jnp.zeros((3, 3), dtype)
     s_base = jnp.block([[zero, rot], [rot, _skew(p) @ rot]])
-    return FloatingChain(chain, inertia_base, s_base, p, rot)
+    return FloatingChain(chain, inertia_base, s_base, position, rot)
 
 
 def _velocities(chain: a.Chain, qd: Any, v0: Any) -> Any:
@@ -232,8 +245,8 @@ def rnea(fc: FloatingChain, v: Any, vdot: Any | None) -> jnp.ndarray:
 
 def crba(fc: FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:
     """`(M, I^c_B)`: the `(6 + n) × (6 + n)` mass matrix by the composite-rigid-body
-    algorithm with a free root, and the whole robot's spatial inertia in world
-    coordinates at the origin."""
+    algorithm with a free root, and the whole robot's spatial inertia in world axes at
+    the base origin."""
     chain = fc.chain
     passes, dtype = chain.passes, fc.s_base.dtype
 

@@ -112,10 +112,11 @@ def _origin(element: ET.Element, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(xyz, float), rpy_matrix(rpy)
 
 
-def _inertial(link: ET.Element, strict: bool = False) -> _Inertial | None:
+def _inertial(link: ET.Element, strict: bool = False, check: bool = True) -> _Inertial | None:
     """A link's `<inertial>` (`None`: it has none), checked: a negative mass, an
     `<inertia>` that is not symmetric positive-semidefinite are errors; one that violates
-    the triangle inequality is a `URDFWarning` (an error with `strict`)."""
+    the triangle inequality is a `URDFWarning` (an error with `strict`). `check=False`:
+    the `<inertia>` as given (a link merged into a floating base, whose sum is checked)."""
     name = link.get("name")
     where = f"link {name!r}"
     inertial = link.find("inertial")
@@ -140,6 +141,8 @@ def _inertial(link: ET.Element, strict: bool = False) -> _Inertial | None:
         # round-off around a point mass (`ixx="0" ... ixz="1.35525e-20"`, or -5.4e-20 on
         # the diagonal): its inertia about the centre of mass is zero
         tensor = np.zeros((3, 3))
+    if not check:
+        return _Inertial(mass, xyz, rot @ tensor @ rot.T)
     try:  # semidefinite: a point mass or a slender rod is physical
         check_inertia(
             tensor, name=f"{where} <inertia>", semidefinite=True, rtol=_RTOL, triangle=strict
@@ -435,8 +438,13 @@ def from_urdf(
       base and the result a [`FloatingTree`][lagrax.chains.FloatingTree] whose state is
       Pinocchio's free-flyer `q = (x, y, z, qx, qy, qz, qw, joints…)`,
       `v = (base linear, base angular velocity in the base frame, joint rates…)`; its
-      params gain `base_m`, `base_com`, `base_inertia`. The root link must then have a
-      positive mass.
+      params gain `base_m`, `base_com`, `base_inertia`. The root link, with the links
+      fixed to it, must then have a positive mass (as Pinocchio's
+      `buildModelFromUrdf(path, pin.JointModelFreeFlyer())`, which puts the free flyer on
+      the root link). A link fixed to the base whose own `<inertia>` is not
+      positive-semidefinite (TIAGo's antennas) is merged with a
+      [`lagrax.URDFWarning`][] naming it, when the base's merged inertia is. Mimic
+      joints are supported as on a fixed base.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
@@ -479,14 +487,6 @@ def from_urdf(
             raise ConfigurationError(
                 f"from_urdf: limits={limits!r} is not supported with floating_base=True yet "
                 "(the limit events index the joints of a fixed-base tree)"
-            )
-        if tree.n != tree.n_bodies:
-            mimics = [
-                tree.joint_names[b] for b in range(tree.n_bodies) if b not in tree.coordinates
-            ]
-            raise ConfigurationError(
-                f"from_urdf: mimic joints ({', '.join(mimics)}) are not supported with "
-                "floating_base=True yet; lock them (locked={...}) to load the robot floating"
             )
         from .floating import base_from_urdf
 

@@ -210,7 +210,7 @@ def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
         out = call(i, "reset", ev.reset)
         ok = isinstance(out, (tuple, list)) and len(out) == 2
         if ok:
-            ok = all(getattr(o, "shape", None) == q0.shape for o in out)
+            ok = tuple(getattr(o, "shape", None) for o in out) == (q0.shape, qd0.shape)
         if not ok:
             got = (
                 tuple(getattr(o, "shape", type(o).__name__) for o in out)
@@ -218,8 +218,8 @@ def check_events(events: tuple[Event, ...], t0, q0, qd0, params) -> None:
                 else getattr(out, "shape", type(out).__name__)
             )
             raise ShapeError(
-                f"events[{i}]: reset(t, q, qd, params) must return the pair (q, qd), each "
-                f"of shape {q0.shape}, got {got}"
+                f"events[{i}]: reset(t, q, qd, params) must return the pair (q, qd), of "
+                f"shapes {q0.shape} and {qd0.shape}, got {got}"
             )
 
 
@@ -234,14 +234,15 @@ def _crossed(direction: int, g_a, g_b):
 
 
 def _along(ev: Event, t, y, field, args):
-    """`g` and its rate `ġ` along the motion at `(t, y)`."""
+    """`g` and its rate `ġ` along the motion at `(t, y)` (the field's `(q̇, q̈)`: `q̇ =
+    N(q) v` on a floating base, whose `q` and `v` differ in size)."""
     params = args[0]
-    _, qdd = field(t, y, args)
+    q_rate, qdd = field(t, y, args)
     q, qd = y
     return jax.jvp(
         lambda s, a, b: jnp.asarray(ev.condition(s, a, b, params), q.dtype),
         (t, q, qd),
-        (jnp.ones_like(t), qd, qdd),
+        (jnp.ones_like(t), q_rate, qdd),
     )
 
 
@@ -480,8 +481,8 @@ class _EventLoop:
                 if ev.reset is None
                 else (
                     lambda y, ev=ev: tuple(
-                        jnp.asarray(v, dtype).reshape(self.q0.shape)
-                        for v in ev.reset(t_cut, y[0], y[1], params)
+                        jnp.asarray(v, dtype).reshape(part.shape)  # q and q̇ (sizes may differ)
+                        for v, part in zip(ev.reset(t_cut, y[0], y[1], params), y, strict=True)
                     )
                 )
                 for ev in self.events
@@ -556,7 +557,7 @@ def integrate_events(
         loop.conditions_at(t0, y0),
         tuple(jnp.full((ev.max_events,), loop.inf) for ev in events),
         tuple(jnp.full((ev.max_events,) + q0.shape, loop.inf) for ev in events),
-        tuple(jnp.full((ev.max_events,) + q0.shape, loop.inf) for ev in events),
+        tuple(jnp.full((ev.max_events,) + y0[1].shape, loop.inf) for ev in events),
         jnp.zeros((len(events),), jnp.int32),
         jnp.asarray(-jnp.inf, dtype),
     )

@@ -22,6 +22,7 @@ def dataset(
     *,
     dof: np.ndarray,
     attrs: Mapping[str, Any],
+    q_dof: np.ndarray | None = None,
 ):
     """The `xarray.Dataset` of a sweep (see `sweep`'s **Returns**).
 
@@ -31,7 +32,9 @@ def dataset(
     - `members`: the sweep's members (their grid or batched parameters label them).
     - `kept`: what was kept per member (`keep=`).
     - `dof`: the labels of the `dof` coordinate (the system's coordinate names, or
-      `0 … n−1`).
+      `0 … n−1`): the velocities' `qd` (and `q`'s where the two have one size).
+    - `q_dof`: the labels of `q`'s own `q_dof` coordinate where `q` and `qd` differ in
+      size (a floating base: the system's `configuration_names`), else `None`.
     - `attrs`: how the sweep ran (solver, tolerances, interval, schedule, devices, the
       cut), put into the Dataset's `attrs` after the failure counts.
 
@@ -43,6 +46,8 @@ def dataset(
     data = variables(cat, kept, list(members.dims), _shaper(members))
     # the system's coordinate names (a tree's joint names) label the dof axis
     coords: dict[str, Any] = {"dof": dof, **labels(members, kept)}
+    if q_dof is not None and kept.mode != "reduce":
+        coords["q_dof"] = q_dof
     ok = data["ok"][1].reshape(-1)
     stats = attrs_of(cat.result, ok, cat.busy_lane_steps, cat.lane_steps, members.size, attrs)
     return xr.Dataset(data, coords=coords, attrs=stats)
@@ -77,13 +82,14 @@ def _kept_variables(cat: ChunkResult, dims: list[str], shaped, kept: Kept, ok) -
     """`q`, `qd` and `energy` at the end (`keep="final"`, `inf` for a failed member) or
     at the saves; or the outputs of `reduce`, each named by its pytree path."""
     data: dict[str, Any] = {}
+    q_dim = q_dof_dim(cat.q_end.shape[-1], cat.qd_end.shape[-1])
     if kept.mode == "final":
         at_t1 = ok[:, None]
-        data["q"] = (dims + ["dof"], shaped(np.where(at_t1, cat.q_end, np.inf)))
+        data["q"] = (dims + [q_dim], shaped(np.where(at_t1, cat.q_end, np.inf)))
         data["qd"] = (dims + ["dof"], shaped(np.where(at_t1, cat.qd_end, np.inf)))
         data["energy"] = (dims, shaped(np.where(ok, cat.energy_end, np.inf)))
     elif kept.mode == "path":
-        data["q"] = (dims + ["time", "dof"], shaped(cat.q))
+        data["q"] = (dims + ["time", q_dim], shaped(cat.q))
         data["qd"] = (dims + ["time", "dof"], shaped(cat.qd))
         data["energy"] = (dims + ["time"], shaped(cat.energy))
     else:
@@ -93,6 +99,12 @@ def _kept_variables(cat: ChunkResult, dims: list[str], shaped, kept: Kept, ok) -
             extra = [f"{name}_dim_{k}" for k in range(x.ndim - len(dims))]
             data[name] = (dims + extra, x)
     return data
+
+
+def q_dof_dim(n_q: int, n_v: int) -> str:
+    """The dimension of `q`'s coordinates: `"dof"`, shared with `qd`, where the two have
+    one size; `"q_dof"` where they differ (a floating base: `7 + n` against `6 + n`)."""
+    return "dof" if n_q == n_v else "q_dof"
 
 
 def _outcomes(cat: ChunkResult, dims: list[str], shaped, ok, status: bool) -> dict[str, Any]:

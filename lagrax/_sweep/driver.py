@@ -160,7 +160,10 @@ def sweep(
 
     **Returns:** an `xarray.Dataset` with dimensions the grid's (or `"member"`),
     `"time"` (when kept) and `"dof"` (labelled by the system's `coordinate_names`
-    where it has them, e.g. a URDF robot's joint names; else `0 … n−1`); variables
+    where it has them, e.g. a URDF robot's joint names; else `0 … n−1`), and, where
+    `q` and `qd` differ in size (a floating base: `7 + n` and `6 + n`), `"q_dof"` for
+    `q` (labelled by `configuration_names`: `base_x … base_qw`, then the joints) while
+    `qd` keeps `"dof"` (`base_vx … base_wz`, then the joints); variables
     `q`, `qd`, `energy` (at the kept times, or at `t1` for `keep="final"`; the
     Jacobi integral `h`, see `Solution.energy`), `energy_error` (at the end, as
     `Solution.energy_error`: the balance residual `h − h₀ − W` over the scale
@@ -263,10 +266,15 @@ def sweep(
     defined = [members.params_of(), q0s, qd0s]
     fp = "" if ckpt is None and sink is None else fingerprint(setup, defined, settings)
     n_chunks = -(-members.size // cut.chunk_size)
-    dof = _dof_labels(system, q0s.shape[1])
+    dof = _dof_labels(system.coordinate_names, qd0s.shape[1])
+    q_dof = (
+        None
+        if q0s.shape[1] == qd0s.shape[1]
+        else _dof_labels(system.configuration_names, q0s.shape[1])
+    )
     run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
     if sink is not None:  # the store is the checkpoint; the result stays on disk
-        done = sink.prepare(fp, cut.chunk_size, members, n_chunks, dof)
+        done = sink.prepare(fp, cut.chunk_size, members, n_chunks, dof, q_dof)
         runner(spec, members, dict.fromkeys(done), lambda c, r: sink.write(c, r, kept), progress)
         return sink.finish(run)
     loaded: dict[int, ChunkResult | None] = {}
@@ -275,7 +283,7 @@ def sweep(
         loaded.update(prepare(ckpt, fp, cut.chunk_size, members.size, n_chunks))
         save = _chunk_file_writer(ckpt, fp, cut.chunk_size, members.size)
     chunks = runner(spec, members, loaded, save, progress, collect=True)
-    return dataset(chunks, members, kept, dof=dof, attrs=run)
+    return dataset(chunks, members, kept, dof=dof, attrs=run, q_dof=q_dof)
 
 
 def _store_option(store, checkpoint) -> SweepStore | None:
@@ -436,10 +444,10 @@ def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
     )
 
 
-def _dof_labels(system: AbstractSystem, n: int) -> np.ndarray:
-    """The labels of the result's `dof` coordinate: the system's coordinate names (a
-    tree's joint names) when it has one per coordinate, else `0 … n−1`."""
-    names = system.coordinate_names
+def _dof_labels(names: tuple[str, ...] | None, n: int) -> np.ndarray:
+    """The labels of the result's `dof` (or `q_dof`) coordinate: the system's coordinate
+    (configuration) names (a tree's joint names) when it has one per entry, else
+    `0 … n−1`."""
     if names is None or len(names) != n:
         return np.arange(n)
     return np.asarray(names, dtype=str)

@@ -131,8 +131,8 @@ class Grid:
             return q0, qd0
         out = {"q0": np.array(q0), "qd0": np.array(qd0)}
         cols = self.columns()
-        n = q0.shape[-1]
         for name, (which, i) in self.states.items():
+            n = out[which].shape[-1]  # q and q̇ differ in size on a floating base
             if i >= n:
                 raise ShapeError(
                     f"the sweep axis {name!r} sets {which}[{i}], but the system's state has "
@@ -242,8 +242,9 @@ class Members:
     - `grid`: the `Grid` they come from, or `None` for batched parameters.
     - `params`: without a grid, the batched parameters (every leaf a JAX array with a
       leading member axis); `None` with one.
-    - `q0s`, `qd0s`: every member's initial state, `(members, n)`, of one dtype (the
-      grid's swept state components set).
+    - `q0s`, `qd0s`: every member's initial state, `(members, n_q)` and `(members, n)`,
+      of one dtype (the grid's swept state components set; `n_q = n` but on a floating
+      base, whose `q` has a quaternion).
     """
 
     grid: Grid | None
@@ -268,11 +269,6 @@ class Members:
             grid, batched = None, jtu.tree_map(jnp.asarray, params)
         q0s = _states(q0, "q0", n_members)
         qd0s = _states(qd0, "qd0", n_members)
-        if q0s.shape != qd0s.shape:
-            raise ShapeError(
-                f"q0 and qd0 must have the same shape per member, got {q0s.shape[1:]} "
-                f"and {qd0s.shape[1:]}"
-            )
         if grid is not None:  # swept initial-state components (q0_i / qd0_i axes)
             q0s, qd0s = grid.initial_states(q0s, qd0s)
         dtype = jnp.result_type(q0s.dtype, qd0s.dtype)

@@ -76,7 +76,13 @@ class SweepStore:
         return size if isinstance(size, int) and size > 0 else None
 
     def prepare(
-        self, fp: str, chunk_size: int, members: Members, n_chunks: int, dof: np.ndarray
+        self,
+        fp: str,
+        chunk_size: int,
+        members: Members,
+        n_chunks: int,
+        dof: np.ndarray,
+        q_dof: np.ndarray | None = None,
     ) -> set[int]:
         """Check the store before any work and find the chunks it holds that verify.
 
@@ -121,6 +127,7 @@ class SweepStore:
                 dims=list(members.dims),
                 shape=list(shape),
                 dof=dof.tolist(),
+                **({} if q_dof is None else {"q_dof": q_dof.tolist()}),
                 complete=False,
             )
             group.attrs.update({ATTR: meta})
@@ -388,4 +395,6 @@ def open_sweep(path: str | os.PathLike):
         ds = xr.Dataset(data, coords=coords, attrs=ds.attrs)
     dof = np.asarray(meta["dof"])
     ds = ds.assign_coords(dof=dof)
+    if "q_dof" in meta and "q_dof" in ds.dims:  # a floating base's q
+        ds = ds.assign_coords(q_dof=np.asarray(meta["q_dof"]))
     return ds

@@ -142,6 +142,14 @@ class AbstractSystem(eqx.Module):
         joints) and `6 + n` velocities."""
         return self.n_dof
 
+    @property
+    def configuration_names(self) -> tuple[str, ...] | None:
+        """A label for each entry of the configuration `q` (`None`: unnamed); by default
+        the `coordinate_names` (`q` and the velocity have one size). A floating base
+        names its position and quaternion (`base_x … base_qw`) before its joints;
+        `sweep` labels `q`'s `q_dof` axis with them."""
+        return self.coordinate_names
+
     def configuration_rate(self, q: Vector, v: Vector) -> Vector:
         r"""`q̇ = N(q) v`: the rate of the configuration given the velocity, what a solver
         integrates for `q` (the state `(q, v)` evolves as `(N(q) v, v̇)`).
