@@ -320,6 +320,13 @@ def test_orbit_map_of_a_grid_equals_individual_calls():
             assert abs(float(member.max_multiplier) - np.max(np.abs(mu))) <= 1e-10
             assert bool(member.stable) == bool(one.stable)
             assert int(member.iterations) == int(one.iterations)
+    # four members at a time under vmap (then the last two): the same orbits
+    batched = lx.orbit_map(
+        FORCED, *guess, walks, period=lambda p: 2 * jnp.pi / p["w"], batch_size=4, **TIGHT,
+        tol=1e-12,
+    )  # fmt: skip
+    assert np.max(np.abs(batched.q.values - ds.q.values)) <= 1e-12
+    assert np.max(np.abs(batched.multipliers.values - ds.multipliers.values)) <= 1e-10
 
 
 def test_orbit_map_of_samples_reports_failures():
@@ -333,6 +340,8 @@ def test_orbit_map_of_samples_reports_failures():
     assert all("converge" in str(s) for s in ds.status.values), ds.status.values
     with pytest.raises(lx.ConfigurationError, match="unknown options"):
         lx.orbit_map(FORCED, [-0.6], [1.9], draws, period=3 * np.pi, maxiter=3)
+    with pytest.raises(lx.ConfigurationError, match="batch_size must be a positive integer"):
+        lx.orbit_map(FORCED, [-0.6], [1.9], draws, period=3 * np.pi, batch_size=0)
 
 
 # ------------------------------------------------------------ failures and bad input
