@@ -75,7 +75,7 @@ def orbit_map(
     - `batch_size`: how many members are solved together under `vmap` (default 1: one
       after another). Under `vmap` every member waits for the slowest one's solver steps
       and Newton steps (a walker that falls runs to `t_max` or `max_steps`): on a CPU one
-      at a time is much faster (the compass gait's 8 × 8 map: ~70×); on a GPU a batch of
+      at a time is much faster (the compass gait's map: ~40× per orbit); on a GPU a batch of
       thousands uses its width.
     - `**options`: `periodic_orbit`'s other options (`t0`, `t_max`, `tol`, `max_iter`,
       `rtol`, `atol`, `solver`, `max_steps`, `events`), shared by all members.
