@@ -57,6 +57,7 @@ from ._periodic import Bifurcation as Bifurcation  # noqa: E402
 from ._periodic import OrbitBranch as OrbitBranch  # noqa: E402
 from ._periodic import PeriodicOrbit as PeriodicOrbit  # noqa: E402
 from ._periodic import continue_orbits as continue_orbits  # noqa: E402
+from ._periodic import orbit_map as orbit_map  # noqa: E402
 from ._periodic import periodic_orbit as periodic_orbit  # noqa: E402
 from ._solve.events import Event as Event  # noqa: E402
 from ._solve.events import EventRecord as EventRecord  # noqa: E402
@@ -95,6 +96,7 @@ __all__ = [
     "periodic_orbit",
     "PeriodicOrbit",
     "continue_orbits",
+    "orbit_map",
     "OrbitBranch",
     "Bifurcation",
     "sweep",

@@ -293,6 +293,57 @@ def test_vmap_equals_a_loop(pendulum_solve):
         assert int(batch.iterations[k]) == int(one.iterations)
 
 
+def test_orbit_map_of_a_grid_equals_individual_calls():
+    amplitudes, frequencies = np.array([0.85, 0.9]), np.array([0.64, 2 / 3, 0.69])
+    walks = lx.grid(FORCING, A=amplitudes, w=frequencies, units={"w": "rad/s"})
+    guess = ([-0.6], [1.9])
+    ds = lx.orbit_map(
+        FORCED, *guess, walks, period=lambda p: 2 * jnp.pi / p["w"], **TIGHT, tol=1e-12
+    )
+    assert ds.q.dims == ("A", "w", "dof") and ds.multipliers.dims == ("A", "w", "multiplier")
+    assert np.array_equal(ds.A.values, amplitudes) and np.array_equal(ds.w.values, frequencies)
+    assert ds.w.attrs["units"] == "rad/s" and ds.period.attrs["units"] == "s"
+    assert ds.attrs["n_members"] == 6 and ds.attrs["n_failed"] == 0
+    for i, amplitude in enumerate(amplitudes):
+        for j, w in enumerate(frequencies):
+            one = lx.periodic_orbit(
+                FORCED, *guess, {**FORCING, "A": amplitude, "w": w}, period=2 * np.pi / w,
+                **TIGHT, tol=1e-12,
+            )  # fmt: skip
+            assert bool(one.ok) and bool(ds.ok[i, j]) and ds.status[i, j] == "ok"
+            member = ds.isel(A=i, w=j)
+            assert np.max(np.abs(member.q.values - np.asarray(one.q))) <= 1e-12
+            assert np.max(np.abs(member.qd.values - np.asarray(one.qd))) <= 1e-12
+            assert abs(float(member.period) - float(one.period)) <= 1e-12
+            mu = np.asarray(one.multipliers)
+            assert np.max(np.abs(member.multipliers.values - mu)) <= 1e-10
+            assert abs(float(member.max_multiplier) - np.max(np.abs(mu))) <= 1e-10
+            assert bool(member.stable) == bool(one.stable)
+            assert int(member.iterations) == int(one.iterations)
+    # four members at a time under vmap (then the last two): the same orbits
+    batched = lx.orbit_map(
+        FORCED, *guess, walks, period=lambda p: 2 * jnp.pi / p["w"], batch_size=4, **TIGHT,
+        tol=1e-12,
+    )  # fmt: skip
+    assert np.max(np.abs(batched.q.values - ds.q.values)) <= 1e-12
+    assert np.max(np.abs(batched.multipliers.values - ds.multipliers.values)) <= 1e-10
+
+
+def test_orbit_map_of_samples_reports_failures():
+    # one Newton step is not enough from this guess: every member fails, none raises
+    draws = lx.samples(FORCING, A=[0.9, 0.88], qd0_0=[1.9, 1.8])
+    ds = lx.orbit_map(FORCED, [[-0.6], [-0.6]], [1.9], draws, period=3 * np.pi, max_iter=1, **TIGHT)
+    assert ds.q.dims == ("member", "dof") and list(ds.member.values) == [0, 1]
+    assert not ds.ok.any() and ds.attrs["n_failed"] == 2
+    assert np.isnan(ds.q.values).all() and np.isnan(ds.period.values).all()
+    assert np.array_equal(ds.A.values, [0.9, 0.88]) and ds.qd0_0.dims == ("member",)
+    assert all("converge" in str(s) for s in ds.status.values), ds.status.values
+    with pytest.raises(lx.ConfigurationError, match="unknown options"):
+        lx.orbit_map(FORCED, [-0.6], [1.9], draws, period=3 * np.pi, maxiter=3)
+    with pytest.raises(lx.ConfigurationError, match="batch_size must be a positive integer"):
+        lx.orbit_map(FORCED, [-0.6], [1.9], draws, period=3 * np.pi, batch_size=0)
+
+
 # ------------------------------------------------------------ failures and bad input
 
 

@@ -5,3 +5,4 @@ from .continuation import OrbitBranch as OrbitBranch
 from .continuation import continue_orbits as continue_orbits
 from .orbit import PeriodicOrbit as PeriodicOrbit
 from .orbit import periodic_orbit as periodic_orbit
+from .stability_map import orbit_map as orbit_map
