@@ -20,7 +20,7 @@ from .._core.errors import ConfigurationError
 from .._core.results import code_of, messages
 from .._solve.events import Event
 from .._sweep.dataset import _member_labels, _short, statuses
-from .._sweep.driver import _dof_labels
+from .._sweep.driver import dof_labels
 from .._sweep.grid import Grid, Members
 from .._systems.abstract import AbstractSystem
 from .orbit import _Config, _Inputs, _prepare, _search
@@ -183,7 +183,7 @@ def orbit_map(
         "residual": (dims, shaped(np.asarray(orbits.residual))),
     }
     coords: dict[str, Any] = {
-        "dof": _dof_labels(system, n),
+        "dof": dof_labels(system.coordinate_names, n),
         "multiplier": np.arange(mu.shape[-1]),
         **_member_labels(members),
     }

@@ -266,11 +266,11 @@ def sweep(
     defined = [members.params_of(), q0s, qd0s]
     fp = "" if ckpt is None and sink is None else fingerprint(setup, defined, settings)
     n_chunks = -(-members.size // cut.chunk_size)
-    dof = _dof_labels(system.coordinate_names, qd0s.shape[1])
+    dof = dof_labels(system.coordinate_names, qd0s.shape[1])
     q_dof = (
         None
         if q0s.shape[1] == qd0s.shape[1]
-        else _dof_labels(system.configuration_names, q0s.shape[1])
+        else dof_labels(system.configuration_names, q0s.shape[1])
     )
     run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
     if sink is not None:  # the store is the checkpoint; the result stays on disk
@@ -444,7 +444,7 @@ def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
     )
 
 
-def _dof_labels(names: tuple[str, ...] | None, n: int) -> np.ndarray:
+def dof_labels(names: tuple[str, ...] | None, n: int) -> np.ndarray:
     """The labels of the result's `dof` (or `q_dof`) coordinate: the system's coordinate
     (configuration) names (a tree's joint names) when it has one per entry, else
     `0 … n−1`."""
