@@ -148,3 +148,22 @@ def rotation_tuple(rot, what: str) -> tuple:
     if not np.allclose(r.T @ r, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
         raise ConfigurationError(f"{what} is not a rotation matrix (R^T R = 1, det R = +1):\n{r}")
     return tuple(tuple(float(x) for x in row) for row in r)
+
+
+def steiner(mass: float, c: Any) -> np.ndarray:
+    """`m (|c|² 1 − c cᵀ)`: the parallel-axis term of a mass `m` at `c` (NumPy, for the
+    model loaders, which merge links on the host)."""
+    c = np.asarray(c, float)
+    return mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+
+
+def about_centres(bodies: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`(masses, coms, inertias)` of bodies merged as sums (each with `mass`, the first
+    moment `moment` and the inertia about its origin `inertia_o`): the centre of mass
+    (the origin for a massless body) and the symmetrized inertia about it."""
+    masses = np.array([b.mass for b in bodies])
+    coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
+    inertias = np.stack(
+        [b.inertia_o - steiner(b.mass, c) for b, c in zip(bodies, coms, strict=True)]
+    )
+    return masses, coms, 0.5 * (inertias + np.swapaxes(inertias, 1, 2))

@@ -30,7 +30,7 @@ from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFErro
 from .._core.linalg import cholesky_solve
 from .._systems.abstract import AbstractSystem
 from . import floating_recursions as fr
-from .common import broadcast, float_dtype
+from .common import broadcast, float_dtype, steiner
 from .inertia import check_inertia
 from .trees import Tree
 
@@ -480,14 +480,14 @@ def base_from_urdf(
         mass += part.mass
         moment = moment + part.mass * c
         inertia_o = inertia_o + rot @ part.inertia @ rot.T
-        inertia_o = inertia_o + part.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        inertia_o = inertia_o + steiner(part.mass, c)
     if not mass > 0 or not math.isfinite(mass):
         raise URDFError(
             f"root link {root!r} (with the links fixed to it) has mass {mass:g}: a floating "
             "base needs a positive mass; give it an <inertial>"
         )
     com = moment / mass
-    inertia = inertia_o - mass * (np.dot(com, com) * np.eye(3) - np.outer(com, com))
+    inertia = inertia_o - steiner(mass, com)
     inertia = 0.5 * (inertia + inertia.T)
     robot = FloatingTree(tree, base_name=root)
     dtype = params["m"].dtype

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import MJCFError
-from .common import float_dtype
+from .common import about_centres, float_dtype, steiner
 from .limits import with_limits
 from .trees import Tree
 
@@ -331,22 +331,14 @@ def _bodies(model, names: _Names) -> list[_Body]:
         target = bodies[tb]
         target.mass += mass
         target.moment = target.moment + mass * c
-        shift = mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        shift = steiner(mass, c)
         target.inertia_o = target.inertia_o + inertia + shift
     return bodies
 
 
 def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] and its params from the merged bodies."""
-    masses = np.array([b.mass for b in bodies])
-    coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
-    inertias = np.stack(
-        [
-            b.inertia_o - b.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
-            for b, c in zip(bodies, coms, strict=True)
-        ]
-    )
-    inertias = 0.5 * (inertias + np.swapaxes(inertias, 1, 2))
+    masses, coms, inertias = about_centres(bodies)
     gravity = np.asarray(model.opt.gravity, float)
     g = float(np.linalg.norm(gravity))
     mujoco = _mujoco()

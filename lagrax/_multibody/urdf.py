@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.errors import ConfigurationError, ParameterError, URDFError, URDFWarning
-from .common import float_dtype
+from .common import about_centres, float_dtype, steiner
 from .inertia import check_inertia
 from .limits import with_limits
 from .trees import Tree
@@ -655,7 +655,7 @@ def _merge_inertials(
         b = bodies[body]
         b.mass += inertial.mass
         b.moment = b.moment + inertial.mass * c
-        shift = inertial.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+        shift = steiner(inertial.mass, c)
         b.inertia_o = b.inertia_o + rot @ inertial.inertia @ rot.T + shift
 
 
@@ -665,15 +665,7 @@ def _tree_and_params(
     """The [`Tree`][lagrax.chains.Tree] of the merged bodies and its params: each body's
     centre of mass and its inertia about it from the sums (the triangle inequality was
     checked link by link: `_inertial`)."""
-    masses = np.array([b.mass for b in bodies])
-    coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
-    inertias = np.stack(
-        [
-            b.inertia_o - b.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
-            for b, c in zip(bodies, coms, strict=True)
-        ]
-    )
-    inertias = 0.5 * (inertias + np.swapaxes(inertias, 1, 2))
+    masses, coms, inertias = about_centres(bodies)
     joint_list = [b.joint for b in bodies]
     tree = Tree(
         "".join(_MOVING[j.kind] for j in joint_list),
@@ -732,7 +724,7 @@ def _mass_matrix(tree: Tree, params: dict, q: np.ndarray) -> np.ndarray:
         s[i] = np.concatenate([z, np.cross(origins[i], z)]) if kind == "R" else np.r_[0, 0, 0, z]
         c = origins[i] + rot @ com[i]
         cx = np.array([[0, -c[2], c[1]], [c[2], 0, -c[0]], [-c[1], c[0], 0]])
-        top = rot @ inertia[i] @ rot.T + m[i] * (c @ c * np.eye(3) - np.outer(c, c))
+        top = rot @ inertia[i] @ rot.T + steiner(m[i], c)
         spatial[i] = np.block([[top, m[i] * cx], [m[i] * cx.T, m[i] * np.eye(3)]])
     for i in reversed(range(n)):  # composite inertias: each body's subtree
         if tree.parents[i] >= 0:
