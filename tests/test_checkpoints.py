@@ -10,6 +10,8 @@ NaN and stiff members are reported per member and poison nothing.
 import json
 import os
 import shutil
+import threading
+import time
 
 import jax.numpy as jnp
 import numpy as np
@@ -17,6 +19,7 @@ import pytest
 
 import lagrax as lx
 from lagrax._sweep import checkpoint as _checkpoint
+from lagrax._sweep import defaults as _defaults
 from lagrax._sweep import driver as _driver
 
 KS = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
@@ -78,6 +81,7 @@ def test_crash_mid_sweep_then_resume_equals_uninterrupted(
     ckpt = tmp_path / "ckpt"
     real = _driver.solve_chunk
     calls = []
+    monkeypatch.setattr(_defaults, "host_cores", lambda: 1)  # one chunk after another
 
     def crash_after_first(*a, **k):
         calls.append(1)
@@ -99,6 +103,42 @@ def test_crash_mid_sweep_then_resume_equals_uninterrupted(
     for i in range(N_CHUNKS):  # every file verifies
         header, _ = _checkpoint.read_chunk(chunk(ckpt, i))
         assert header["chunk"] == i and header["version"] == _checkpoint.FORMAT_VERSION
+
+
+def test_crash_on_one_core_keeps_the_chunk_running_on_the_other(
+    oscillator, batch, reference, tmp_path, monkeypatch
+):
+    """Two cores, two chunks at once: the chunk of members 2–3 fails while the first
+    chunk is still being solved on the other thread. The failure is raised only once
+    that chunk has finished and is saved; the third chunk, not started, is not. The
+    resumed sweep solves the two missing chunks and equals the uninterrupted one."""
+    ckpt = tmp_path / "ckpt"
+    real = _driver.solve_chunk
+    first_done = threading.Event()
+    started = []
+
+    def second_fails(spec, params, q0s, qd0s):
+        k = float(np.asarray(params["k"])[0])
+        started.append(k)
+        if k == KS[2]:  # the second chunk: fail while the first still runs
+            raise RuntimeError("power cut")
+        if k == KS[0]:
+            time.sleep(0.5)
+            first_done.set()
+        return real(spec, params, q0s, qd0s)
+
+    monkeypatch.setattr(_defaults, "host_cores", lambda: 2)
+    monkeypatch.setattr(_driver, "solve_chunk", second_fails)
+    with pytest.raises(RuntimeError, match="power cut"):
+        run(oscillator, batch, ckpt, chunk_size=2)
+    assert first_done.is_set()
+    saved = sorted(p.name for p in ckpt.glob("chunk_*.npz"))
+    assert saved == ["chunk_000000.npz"] or saved == ["chunk_000000.npz", "chunk_000002.npz"]
+    calls = []
+    monkeypatch.setattr(_driver, "solve_chunk", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    resumed = run(oscillator, batch, ckpt)
+    assert len(calls) == N_CHUNKS - len(saved)
+    assert_same(resumed, reference)
 
 
 def test_complete_checkpoint_computes_nothing(oscillator, batch, reference, ckpt, chunk_calls):

@@ -4,6 +4,7 @@ the lane queue's schedule counted exactly, and the same numbers whatever the sch
 import math
 import os
 import sys
+import threading
 
 import numpy as np
 import pytest
@@ -121,7 +122,48 @@ def test_device_info_reads_platform_and_memory():
     assert device_info([FakeDevice("cuda", None)]) == DeviceInfo("gpu", None, 1)
     assert device_info([FakeDevice("tpu", {})]) == DeviceInfo("tpu", None, 1)
     no_stats = FakeDevice("cpu", NotImplementedError("no memory stats"))
-    assert device_info([no_stats]) == DeviceInfo("cpu", None, 1)
+    # one CPU device runs chunks on every core this process may use
+    cores = _defaults.host_cores()
+    assert cores == len(os.sched_getaffinity(0))
+    assert device_info([no_stats]) == DeviceInfo("cpu", None, 1, cores)
+    assert device_info([no_stats] * 2) == DeviceInfo("cpu", None, 2, 1)  # devices share them
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_cpu_cores_get_equal_chunks(threads):
+    """With several cores, the batch is cut into a multiple of the cores' count of
+    chunks of equal size (no chunk mostly padding); lanes follow the chunk as before."""
+    for n_members in (1, 7, 64, 1000, 8192, 50_000, 10**6):
+        for member_bytes in (56, 8 * 10**6):
+            one = plan(
+                DeviceInfo("cpu", None, 1),
+                n_members=n_members,
+                member_bytes=member_bytes,
+                lane_bytes=ARM_LANE,
+            )
+            cut = plan(
+                DeviceInfo("cpu", None, 1, threads),
+                n_members=n_members,
+                member_bytes=member_bytes,
+                lane_bytes=ARM_LANE,
+            )
+            n_chunks = -(-n_members // cut.chunk_size)
+            assert cut.threads == threads and cut.chunk_size <= one.chunk_size
+            if n_members >= threads:
+                assert n_chunks % threads == 0 or n_chunks == -(-n_members // one.chunk_size)
+                assert n_chunks >= threads
+            # padding: less than a member per chunk
+            assert n_chunks * cut.chunk_size - n_members < n_chunks
+            assert cut.n_lanes == max(1, min(1024, cut.chunk_size // 8))
+    # the user's chunk size is kept
+    mine = plan(
+        DeviceInfo("cpu", None, 1, threads),
+        n_members=1000,
+        member_bytes=56,
+        lane_bytes=ARM_LANE,
+        chunk_size=300,
+    )
+    assert (mine.chunk_size, mine.threads) == (300, threads)
 
 
 def test_schedule_count_by_hand():
@@ -142,18 +184,44 @@ def arm_batch(arm):
     return system, lx.grid(params, m2=np.linspace(0.5, 2.0, 12), l1=np.linspace(0.5, 1.5, 8))
 
 
-def test_cpu_sweep_reports_its_cut_and_its_idle_count(arm_batch):
+def test_cpu_sweep_reports_its_cut_and_its_idle_count(arm_batch, monkeypatch):
     system, batch = arm_batch
+    monkeypatch.setattr(_defaults, "host_cores", lambda: 1)
     ds = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, t1=2.0, progress=False)
     a = ds.attrs
     assert (a["platform"], a["chunk_size"], a["n_lanes"]) == ("cpu", 96, 12)  # 96 // 8
-    assert (a["refill_lanes"], a["tail_lanes"]) == (1, 0)
+    assert (a["refill_lanes"], a["tail_lanes"], a["threads"]) == (1, 0, 1)
     steps = ds.num_steps.values.ravel()
     assert a["lane_idle_fraction"] == idle_fraction(steps, 96, 12, 1, 0)
     # chunks of 40 (the last padded with copies of its first member)
     ds = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, t1=2.0, chunk_size=40, progress=False)
     assert (ds.attrs["chunk_size"], ds.attrs["n_lanes"]) == (40, 5)
     assert ds.attrs["lane_idle_fraction"] == idle_fraction(steps, 40, 5, 1, 0)
+
+
+def test_chunks_on_several_cores_give_the_same_numbers(arm_batch, monkeypatch):
+    """Two cores: the 96 members in two chunks of 48, solved at once on two threads (as
+    the worker threads' identities show), bitwise the numbers of the same cut run one
+    chunk after the other."""
+    system, batch = arm_batch
+    kw = dict(t1=2.0, keep="trajectory", n_save=5, progress=False)
+    threads_seen = set()
+    solve = _driver.solve_chunk
+
+    def spy(*args, **kwargs):
+        threads_seen.add(threading.get_ident())
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(_defaults, "host_cores", lambda: 1)
+    one = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, chunk_size=48, **kw)
+    monkeypatch.setattr(_defaults, "host_cores", lambda: 2)
+    monkeypatch.setattr(_driver, "solve_chunk", spy)
+    two = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, **kw)
+    assert (two.attrs["chunk_size"], two.attrs["threads"], one.attrs["threads"]) == (48, 2, 1)
+    assert len(threads_seen) == 2 and threading.get_ident() not in threads_seen
+    for name in ("q", "qd", "energy", "num_steps", "t_end", "energy_error", "result"):
+        np.testing.assert_array_equal(two[name].values, one[name].values)
+    assert two.attrs["lane_idle_fraction"] == one.attrs["lane_idle_fraction"]
 
 
 def test_gpu_schedule_on_cpu_gives_the_same_numbers(arm_batch, monkeypatch):

@@ -22,12 +22,22 @@ import zarr  # noqa: E402
 
 import lagrax as lx  # noqa: E402
 from lagrax._sweep import checkpoint as _checkpoint  # noqa: E402
+from lagrax._sweep import defaults as _defaults  # noqa: E402
 from lagrax._sweep import driver as _driver  # noqa: E402
 from lagrax._sweep import store as _store  # noqa: E402
 
 KS = [1.0, 2.0, 3.0, 4.0, 5.0]
 KW: dict[str, Any] = dict(t1=1.0, chunk_size=2, progress=False)  # three chunks: 2, 2 and 1 members
 N_CHUNKS = 3
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_chunk_at_a_time():
+    """The kill tests count chunks in the order they are solved: one core, one chunk
+    after another (chunks on several cores: test_checkpoints, test_sweep_defaults)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_defaults, "host_cores", lambda: 1)
+        yield
 
 
 @pytest.fixture(scope="module")

@@ -49,6 +49,16 @@ def client_option(client: Any, devices: Any) -> Any:
     return client
 
 
+def cluster_threads(client: Any) -> int:
+    """How many chunks `client`'s workers run at once (their threads; at least 1, for
+    a cluster whose workers have not joined yet): the sweep cuts its batch into a
+    multiple of it (`defaults.plan`)."""
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # a scheduler that cannot be asked: chunks as on one process
+        return 1
+
+
 def _solve(spec: ChunkSpec, params: Any, q0s: np.ndarray, qd0s: np.ndarray) -> ChunkResult:
     """One chunk, on a worker (the task)."""
     return solve_chunk(spec, params, q0s, qd0s)

@@ -3,11 +3,13 @@
 A pure function of a few numbers (`plan`), so that the choice is unit-tested
 without the device it is made for; `device_info` reads those numbers from JAX.
 
-- **CPU** (the choices tuned on a 2-core laptop, as before the device defaults):
-  chunks of up to 8,192 members (fewer when the kept output is large: about 64 MiB of it
-  per chunk), and an eighth of a chunk's members per device on lanes, at most 1,024,
-  refilled a sixteenth of the lanes at a time. A CPU core runs one lane after another,
-  so more lanes only add idle padding and memory.
+- **CPU**: chunks of up to 8,192 members (fewer when the kept output is large: about
+  64 MiB of it per chunk), and an eighth of a chunk's members per device on lanes, at
+  most 1,024, refilled a sixteenth of the lanes at a time. A CPU core runs one lane
+  after another, so more lanes only add idle padding and memory. A compiled chunk runs
+  on one core: with one CPU device and `threads` cores, the chunks run `threads` at a
+  time (`driver._run`), so the batch is cut into a multiple of `threads` chunks of
+  equal size (each core gets its share, and no chunk is mostly padding).
 - **GPU / TPU**: a step costs about the same on a few thousand lanes as on one, so lanes
   should fill the device: up to `MAX_LANES` per device (on an H100 the 2R arm's
   throughput still grew from 32k to 131k lanes, and barely beyond), fewer when the
@@ -24,8 +26,11 @@ without the device it is made for; `device_info` reads those numbers from JAX.
 
 import dataclasses
 import math
+import os
 from collections.abc import Sequence
 from typing import Any
+
+import jax
 
 #: lanes per accelerator at most (2R arm on an H100: 124k traj/s at 131k lanes, 60k at 32k)
 MAX_LANES = 1 << 17
@@ -57,22 +62,38 @@ class DeviceInfo:
     platform: str
     memory: int | None
     count: int
+    #: chunks run at once on the host (the cores, with one CPU device; else 1)
+    threads: int = 1
 
 
 @dataclasses.dataclass(frozen=True)
 class Plan:
     """The chosen cut: `chunk_size` members per compiled call (a whole number per
     device), `n_lanes` lanes per device, `refill` members started per refill and the
-    width of the tail loop (`tail_lanes`; 0: none), see `lanes.run_lanes`."""
+    width of the tail loop (`tail_lanes`; 0: none), see `lanes.run_lanes`; `threads`
+    chunks run at once."""
 
     chunk_size: int
     n_lanes: int
     refill: int
     tail_lanes: int
+    threads: int = 1
+
+
+def host_cores() -> int:
+    """The CPU cores this process may run on (its affinity mask where the OS has one:
+    a batch job's or container's share, not the whole machine)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - macOS and Windows have no affinity mask
+        return max(1, os.cpu_count() or 1)
 
 
 def device_info(devices: Sequence[Any]) -> DeviceInfo:
-    """`DeviceInfo` of `devices` (JAX devices, all of one kind)."""
+    """`DeviceInfo` of `devices` (JAX devices, all of one kind): with one CPU device in
+    a single-process run, the chunks may run on all the host's cores (`host_cores`);
+    several CPU devices (`--xla_force_host_platform_device_count`) already share the
+    cores out, and an accelerator runs one chunk at a time."""
     first = devices[0]
     platform = str(getattr(first, "platform", "cpu")).lower()
     if platform in ("cuda", "rocm"):
@@ -86,7 +107,11 @@ def device_info(devices: Sequence[Any]) -> DeviceInfo:
         limit = stats.get("bytes_limit")
         if isinstance(limit, int) and limit > 0:
             memory = limit
-    return DeviceInfo(platform, memory, max(1, len(devices)))
+    count = max(1, len(devices))
+    threads = 1
+    if platform == "cpu" and count == 1 and jax.process_count() == 1:
+        threads = host_cores()
+    return DeviceInfo(platform, memory, count, threads)
 
 
 def lane_bytes(n_dof: int, n_params: int, itemsize: int) -> int:
@@ -127,6 +152,10 @@ def plan(
         if not accelerator:
             chunk = min(_CPU_MAX_CHUNK, max(_CPU_MIN_CHUNK, _CPU_OUTPUT_BYTES // member_bytes))
             chunk = min(chunk, n_members)
+            if info.threads > 1:  # a multiple of `threads` chunks, of equal size
+                chunks = -(-n_members // chunk)
+                chunks = -(-chunks // info.threads) * info.threads
+                chunk = -(-n_members // chunks)
         else:
             budget = int((info.memory or FALLBACK_MEMORY) * MEMORY_SHARE) // 2
             lanes_fit = _lanes_fit(budget, lane_bytes)
@@ -149,7 +178,7 @@ def plan(
         lanes = _lanes_fit(budget, lane_bytes)
     lanes = max(1, min(lanes, per_device))
     if not accelerator:
-        return Plan(chunk, lanes, max(1, lanes // 16), 0)
+        return Plan(chunk, lanes, max(1, lanes // 16), 0, max(1, info.threads))
     tail = lanes // 4 if lanes >= TAIL_MIN_LANES else 0
     return Plan(chunk, lanes, max(1, lanes // 32), tail)
 

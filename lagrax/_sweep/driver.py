@@ -7,7 +7,10 @@ checkpoint (`checkpoint.prepare`), the chunks (`_run`: `chunk.solve_chunk`, each
 `ChunkResult`, written to the checkpoint) and the Dataset (`dataset.dataset`).
 """
 
+import concurrent.futures
+import dataclasses
 import functools
+import itertools
 import math
 import os
 import warnings
@@ -31,7 +34,7 @@ from .._systems.abstract import AbstractSystem, host_state
 from .._systems.vector_field import LagrangianVectorField, split_tau
 from .checkpoint import chunk_path, fingerprint, prepare, stored_chunk_size, write_chunk
 from .chunk import ChunkSpec, Setup, solve_chunk
-from .cluster import client_option, run_on_cluster
+from .cluster import client_option, cluster_threads, run_on_cluster
 from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
@@ -252,12 +255,17 @@ def sweep(
     ckpt = Path(checkpoint) if checkpoint is not None else None
     sink = _store_option(store, checkpoint)
     client = client_option(client, devices)
-    runner = _run if client is None else functools.partial(run_on_cluster, client)
+    if client is not None:  # chunks run at once: one per worker thread
+        info = dataclasses.replace(info, threads=cluster_threads(client))
     if chunk_size is None and ckpt is not None:
         chunk_size = stored_chunk_size(ckpt)  # resume with the chunks on disk
     if chunk_size is None and sink is not None:
         chunk_size = sink.stored_chunk_size()
     cut = _cut(info, members, kept, chunk_size, lanes)
+    if client is None:
+        runner = functools.partial(_run, threads=cut.threads)
+    else:
+        runner = functools.partial(run_on_cluster, client)
     setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
     times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
     spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
@@ -396,39 +404,93 @@ def _run(
     progress,
     *,
     collect: bool = False,
+    threads: int = 1,
 ) -> list[ChunkResult]:
     """Solve the chunks not in `loaded` (`solve_chunk`), passing each to `save` as it
     finishes (the checkpoint directory's or the sweep store's writer; `None` for
     neither), with a progress bar of members.
 
+    With `threads > 1` (a CPU device and several cores: a compiled chunk runs on one
+    core, and JAX releases the GIL while it runs), `threads` chunks are solved at once,
+    on a thread pool; at most `threads` more wait, so memory stays bounded by a few
+    chunks. Whatever the order they finish in, each chunk is saved once, by its index,
+    from this thread, and its numbers do not depend on the threads.
+
     `loaded` holds the chunks done before: a checkpoint directory's read back, or
     `None` for those a store holds. **Returns:** with `collect`, every chunk's
     `ChunkResult` in order (loaded or solved); else `[]` (a store's result stays on
     disk)."""
-    loaded = dict(loaded)
     size, n_members = spec.size, members.size
+    n_chunks = -(-n_members // size)
     if progress is None:
         progress = progress_default()
     bar = progress_bar(progress)(total=n_members, unit="member", disable=not progress, desc="sweep")
-    results: list[ChunkResult] = []
+    results: dict[int, ChunkResult] = {}
+
+    def bounds(c: int) -> tuple[int, int]:
+        return c * size, min((c + 1) * size, n_members)
+
+    def solve(c: int) -> ChunkResult:
+        a, b = bounds(c)
+        return solve_chunk(spec, members.params_of(a, b), members.q0s[a:b], members.qd0s[a:b])
+
+    def done(c: int, chunk: ChunkResult, fresh: bool) -> None:
+        if fresh and save is not None:
+            save(c, chunk)
+        if collect:
+            results[c] = chunk
+        a, b = bounds(c)
+        bar.update(b - a)
+
+    todo = [c for c in range(n_chunks) if c not in loaded]
     try:
-        for c in range(-(-n_members // size)):
-            a, b = c * size, min((c + 1) * size, n_members)
-            done = c in loaded
-            chunk = loaded.pop(c, None)
-            if not done:
-                chunk = solve_chunk(
-                    spec, members.params_of(a, b), members.q0s[a:b], members.qd0s[a:b]
-                )
-                if save is not None:
-                    save(c, chunk)
-            if collect:
-                assert chunk is not None  # a directory's chunks are loaded
-                results.append(chunk)
-            bar.update(b - a)
+        for c, chunk in loaded.items():  # (`None` for a store's: not collected)
+            done(c, chunk, False)  # type: ignore[arg-type]
+        if threads <= 1 or len(todo) <= 1:
+            for c in todo:
+                done(c, solve(c), True)
+        else:
+            _run_threaded(solve, done, todo, threads)
     finally:
         bar.close()
-    return results
+    if not collect:
+        return []
+    return [results[c] for c in range(n_chunks)]
+
+
+def _run_threaded(solve, done, todo: list[int], threads: int) -> None:
+    """`done(c, solve(c), True)` for every chunk `c` of `todo`: `solve` on a pool of
+    `threads` threads (at most `2 * threads` chunks submitted and not yet done),
+    `done` on this thread as each finishes.
+
+    A failure (an exception in a chunk or in `done`, or an interrupt) cancels the
+    chunks not started; the running ones cannot be stopped, so they finish, and those
+    that succeed still go to `done` (saved, when the sweep has a checkpoint or store)
+    before the failure is raised."""
+    pending: dict[concurrent.futures.Future, int] = {}
+    queue = iter(todo)
+    with concurrent.futures.ThreadPoolExecutor(threads, thread_name_prefix="lagrax-sweep") as pool:
+        try:
+            for c in itertools.islice(queue, 2 * threads):
+                pending[pool.submit(solve, c)] = c
+            while pending:
+                finished, _ = concurrent.futures.wait(
+                    pending, return_when=concurrent.futures.FIRST_COMPLETED
+                )
+                for future in sorted(finished, key=pending.__getitem__):
+                    c = pending.pop(future)
+                    done(c, future.result(), True)
+                    nxt = next(queue, None)
+                    if nxt is not None:
+                        pending[pool.submit(solve, nxt)] = nxt
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            for future in sorted(pending, key=pending.__getitem__):
+                if future.cancelled() or future.exception() is not None:
+                    continue
+                done(pending[future], future.result(), True)
+            raise
 
 
 def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
@@ -441,6 +503,7 @@ def _reported(cut: Plan, schedule: str, info: DeviceInfo) -> dict[str, Any]:
         n_lanes=cut.chunk_size // info.count if lockstep else cut.n_lanes,
         refill_lanes=0 if lockstep else cut.refill,
         tail_lanes=0 if lockstep else cut.tail_lanes,
+        threads=cut.threads,
     )
 
 
@@ -473,7 +536,9 @@ def _refuse_unused(system, tau_fn, tau_const, members: Members) -> None:
         # a swept name is read when any leaf under it is
         names = [_top_name(p) for p in paths]
         names_read = {k for k, r in zip(names, read, strict=True) if r}
-        unused = [k for k in grid.axes if k not in names_read and k not in grid.states]
+        # an element `m[3]` is read when its parameter is
+        leaf = {k: grid.elements.get(k, (k,))[0] for k in grid.axes}
+        unused = [k for k in grid.axes if leaf[k] not in names_read and k not in grid.states]
         all_names = list(dict.fromkeys(names))
     else:
         leaves = jtu.tree_leaves(members.params)

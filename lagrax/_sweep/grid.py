@@ -15,6 +15,7 @@ from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .options import batch_size
 
 _STATE = re.compile(r"^(q0|qd0)_(\d+)$")
+_ELEMENT = re.compile(r"^([A-Za-z_]\w*)\[\s*(-?\d+(?:\s*,\s*-?\d+)*)\s*\]$")
 
 
 class Grid:
@@ -26,12 +27,13 @@ class Grid:
     dimension, e.g. Monte-Carlo draws). `sweep` labels its results with these names and
     values. A name `q0_i` or `qd0_i` (for an integer `i`) sweeps component `i` of the
     initial coordinates or velocities instead of a parameter (unless the fixed
-    parameters have an entry of that name).
+    parameters have an entry of that name); a name `m[3]` (or `inertia[2, 0, 0]`) sweeps
+    one element of an array-valued parameter, the rest of the array staying fixed.
 
-    **Attributes:** `base` (the fixed parameters), `axes` (name → 1-D values), `states`
-    (the state axes: name → `("q0" | "qd0", i)`), `units` (name → unit string, for the
-    result's coordinate attrs), `dims` (the result's sweep dimensions), `shape`, `size`
-    (number of members).
+    **Attributes:** `base` (the fixed parameters), `axes` (name → values), `states`
+    (the state axes: name → `("q0" | "qd0", i)`), `elements` (the element axes: name →
+    `(parameter, index)`), `units` (name → unit string, for the result's coordinate
+    attrs), `dims` (the result's sweep dimensions), `shape`, `size` (number of members).
     """
 
     def __init__(
@@ -56,8 +58,13 @@ class Grid:
         self.base = base
         self.axes = {}
         fixed = base if isinstance(base, Mapping) else base._asdict()
+        self.elements = _elements(axes, fixed)
         for name, values in axes.items():
-            self.axes[name] = _swept(name, values, fixed, product)
+            if name in self.elements:
+                leaf: tuple[int, ...] | None = ()  # one element: a scalar per member
+            else:
+                leaf = np.shape(fixed[name]) if name in fixed else None
+            self.axes[name] = _swept(name, values, leaf, product)
         self.states: dict[str, tuple[str, int]] = {}
         for name in self.axes:
             match = _STATE.match(name)
@@ -114,7 +121,13 @@ class Grid:
                 v = jnp.asarray(v)
                 out[k] = jnp.broadcast_to(v, (n,) + v.shape)
         for k, v in cols.items():
-            out[k] = jnp.asarray(v)
+            if k in self.elements:
+                leaf, index = self.elements[k]
+                x = out[leaf]
+                out[leaf] = x.at[(slice(None), *index)].set(jnp.asarray(v, x.dtype))
+            else:
+                out[k] = jnp.asarray(v)
+        cols = {k: v for k, v in cols.items() if k not in self.elements}
         if isinstance(self.base, Mapping):
             return out
         unknown = set(cols) - set(fixed)
@@ -142,15 +155,52 @@ class Grid:
         return out["q0"], out["qd0"]
 
 
-def _swept(name: str, values: Any, fixed: Mapping[str, Any], product: bool) -> np.ndarray:
-    """The swept values of `name` as an array, checked against the fixed leaf they
-    replace: for `grid`, 1-D (one value per point of its axis); for `samples`, one
+def _elements(axes: Mapping[str, Any], fixed: Mapping[str, Any]) -> dict:
+    """The swept names that are one element of an array-valued parameter, `"m[3]"` or
+    `"inertia[2, 0, 0]"`: name → `(parameter, index)` (the index non-negative, of one
+    entry per axis of the parameter). A name that is itself a fixed parameter is not
+    read as an element.
+
+    **Raises:** `ConfigurationError` for an element of a parameter that does not exist
+    or that is also swept whole; `ShapeError` for an index that does not fit the
+    parameter's shape."""
+    out: dict[str, tuple[str, tuple[int, ...]]] = {}
+    for name in axes:
+        match = _ELEMENT.match(name)
+        if match is None or name in fixed:
+            continue
+        leaf = match.group(1)
+        index = tuple(int(i) for i in match.group(2).split(","))
+        if leaf not in fixed:
+            raise ConfigurationError(
+                f"{name!r} sweeps an element of {leaf!r}, which is not one of the fixed "
+                f"parameters ({', '.join(map(repr, fixed)) or 'none'})"
+            )
+        if leaf in axes:
+            raise ConfigurationError(
+                f"{name!r} sweeps an element of {leaf!r}, which is swept whole as well: "
+                f"sweep either {leaf!r} or its elements"
+            )
+        shape = np.shape(fixed[leaf])
+        fits = len(index) == len(shape)
+        if not (fits and all(-s <= i < s for i, s in zip(index, shape, strict=True))):
+            raise ShapeError(
+                f"{name!r}: the index {index} does not fit the parameter {leaf!r} of shape "
+                f"{shape} (one index per axis, each within its length)"
+            )
+        out[name] = (leaf, tuple(i % s for i, s in zip(index, shape, strict=True)))
+    return out
+
+
+def _swept(name: str, values: Any, leaf: tuple[int, ...] | None, product: bool) -> np.ndarray:
+    """The swept values of `name` as an array, checked against the shape `leaf` of the
+    fixed leaf they replace (`()` for one element, `None` for a name without a fixed
+    value): for `grid`, 1-D (one value per point of its axis); for `samples`, one
     entry per member along the leading axis, each of the leaf's shape (an
     array-valued parameter such as a 7-link arm's masses is swept as `(members, 7)`).
 
     **Raises:** `ShapeError` naming the leaf and both shapes."""
     v = np.asarray(values)
-    leaf = np.shape(fixed[name]) if name in fixed else None
     if v.ndim == 0 or v.shape[0] == 0:
         raise ShapeError(
             f"swept values of {name!r} must be a non-empty array with one entry per "
@@ -160,8 +210,10 @@ def _swept(name: str, values: Any, fixed: Mapping[str, Any], product: bool) -> n
         if v.ndim != 1 or (leaf is not None and leaf != ()):
             raise ShapeError(
                 f"grid() sweeps scalar parameters along 1-D axes: {name!r} got values of "
-                f"shape {v.shape} for a parameter of shape {leaf}. Sweep an array-valued "
-                "parameter with samples(params, name=values of shape (members, *shape))."
+                f"shape {v.shape} for a parameter of shape {leaf}. Sweep one element of an "
+                f"array-valued parameter along an axis, as grid(params, **{{'{name}[0]': "
+                "values}), or the whole array with samples(params, name=values of shape "
+                "(members, *shape))."
             )
         return v
     if leaf is not None and v.shape[1:] != leaf:
@@ -192,6 +244,12 @@ def grid(base: Any = None, /, *, units: Mapping[str, str] | None = None, **axes:
     study is `grid(params, q0_0=np.linspace(0.1, 3.0, 30))`, with a `q0_0` dimension in
     the result.
 
+    A name with an index sweeps one element of an array-valued parameter, the rest of
+    it fixed: for a 7-link arm with masses `m` of shape `(7,)`,
+    `grid(params, **{"m[3]": np.linspace(1, 3, 21)})` varies the fourth link's mass,
+    with a `"m[3]"` dimension in the result (an index per axis of the parameter:
+    `"inertia[3, 2, 2]"`; negative indices count from the end).
+
     **Arguments:**
 
     - `base`: the fixed parameters (a dict or NamedTuple, e.g. from
@@ -203,10 +261,12 @@ def grid(base: Any = None, /, *, units: Mapping[str, str] | None = None, **axes:
 
     **Returns:** a `Grid`.
 
-    **Raises:** `ShapeError` for values that are not a non-empty 1-D array (and, in
+    **Raises:** `ShapeError` for values that are not a non-empty 1-D array, a whole
+    array-valued parameter, an element index that does not fit its parameter (and, in
     `sweep`, a state component the system does not have); `ConfigurationError` for no
-    swept name or a `units` entry naming none; `ArgumentTypeError` for fixed parameters
-    that are not a dict or NamedTuple.
+    swept name, a `units` entry naming none, or an element of a parameter that does not
+    exist or is also swept whole; `ArgumentTypeError` for fixed parameters that are not
+    a dict or NamedTuple.
     """
     return Grid(base, axes, product=True, units=units)
 
@@ -224,7 +284,8 @@ def samples(base: Any = None, /, *, units: Mapping[str, str] | None = None, **va
     whose other axes are the parameter's own: for a URDF arm with link masses `m` of
     shape `(7,)`, `samples(params, m=params["m"] * rng.uniform(0.8, 1.2, (1000, 7)))`
     varies every link mass by ±20 %. The result labels it with extra dimensions,
-    `m (member, m_dim_0)`.
+    `m (member, m_dim_0)`. A name with an index, `"m[3]"`, draws one element only, as
+    for `grid`.
 
     **Raises:** `ShapeError` for values without members, values of a parameter whose
     per-member shape is not the parameter's (naming both), or draws of different
