@@ -98,6 +98,15 @@ def test_grid_trajectory_store_has_the_grid_layout(arm, tmp_path):
     ds = lx.sweep(system, [0.3, 0.8], [0.0, 0.0], batch, store=tmp_path / "g.zarr", **kw)
     assert is_lazy(ds) and ds.q.dims == ("m2", "l1", "time", "dof")
     xr.testing.assert_identical(ds.load(), reference)
+    # load_sweep reads the store with the same layout, into memory
+    loaded = lx.load_sweep(tmp_path / "g.zarr")
+    assert not is_lazy(loaded)
+    xr.testing.assert_identical(loaded, reference)
+    # and open_sweep opens save_sweep's .zarr result lazily
+    lx.save_sweep(reference, tmp_path / "saved.zarr")
+    saved = lx.open_sweep(tmp_path / "saved.zarr")
+    assert is_lazy(saved)
+    xr.testing.assert_equal(saved.load(), reference)
 
 
 def test_complete_store_computes_nothing(oscillator, batch, reference, study, chunk_calls):

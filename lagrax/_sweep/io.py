@@ -3,6 +3,7 @@
 import itertools
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -42,18 +43,27 @@ def save_sweep(ds: Any, path: str | os.PathLike) -> Path:
     elif suffix in (".nc", ".nc4", ".netcdf"):
         ds.to_netcdf(path)
     elif suffix == ".zarr":
-        ds.to_zarr(path, mode="w")
+        with warnings.catch_warnings():
+            # the members' `status` strings: zarr 3 stores fixed-width Unicode before
+            # the format specifies it, and says so; xarray (and lagrax) read it back
+            warnings.filterwarnings("ignore", message=".*does not have a Zarr V3 specification")
+            ds.to_zarr(path, mode="w", consolidated=False)
     else:
         raise ConfigurationError(f"unknown format {suffix!r}: use .nc, .zarr or .npz")
     return path
 
 
 def load_sweep(path: str | os.PathLike):
-    """Read a sweep result written by `save_sweep` (any of its formats).
+    """Read a sweep result written by `save_sweep` (any of its formats) into memory.
+
+    A `.zarr` store that `sweep(..., store=path)` wrote is read as `open_sweep` reads
+    it (the same dimensions, labels and checks), then loaded; to keep a store larger
+    than memory on disk and read only what a computation needs, use `open_sweep`.
 
     **Raises:** `FileNotFoundError` for a missing file; `CheckpointError` (naming the
     path and what is wrong) for a file that is truncated, damaged, fails its checksum,
-    or is not a sweep result; `ConfigurationError` for an unknown suffix.
+    or is not a sweep result, and for a sweep store that is not complete or of a newer
+    format; `ConfigurationError` for an unknown suffix.
     """
     import xarray as xr
 
@@ -65,8 +75,17 @@ def load_sweep(path: str | os.PathLike):
         raise FileNotFoundError(f"no sweep result at {path}")
     if suffix == ".npz":
         return _load_npz(xr, path)
+    if suffix == ".zarr" and path.is_dir():
+        from .store import is_sweep_store, open_sweep
+
+        if is_sweep_store(path):
+            return open_sweep(path).load()
     try:
-        ds = xr.open_zarr(path).load() if suffix == ".zarr" else xr.load_dataset(path)
+        ds = (
+            xr.open_zarr(path, consolidated=False).load()
+            if suffix == ".zarr"
+            else xr.load_dataset(path)
+        )
     except Exception as err:  # noqa: BLE001 - every backend fails its own way
         raise CheckpointError(
             f"{path} cannot be read as a sweep result ({type(err).__name__}: {err}): the "

@@ -299,6 +299,12 @@ def _warn(message: str) -> None:
     warnings.warn(message, CheckpointWarning, stacklevel=5)
 
 
+def is_sweep_store(path: str | os.PathLike) -> bool:
+    """Whether `path` is a zarr group that `sweep(..., store=path)` wrote (finished
+    or not), not some other zarr store such as `save_sweep`'s."""
+    return _meta_or_none(Path(path)) is not None
+
+
 def _meta_or_none(path: Path) -> dict[str, Any] | None:
     try:
         return _meta(path)
@@ -329,6 +335,7 @@ def _meta(path: Path) -> dict[str, Any]:
 def open_sweep(path: str | os.PathLike):
     """Open a sweep's zarr store (written by `sweep(..., store=path)`) lazily: the
     Dataset `sweep` returns, its variables dask arrays read chunk by chunk on demand.
+    A `.zarr` result that `save_sweep` wrote is opened lazily too.
 
     Reduce it with xarray as usual (`ds.q.mean("member").compute()`); only the chunks
     a computation needs are read.
@@ -357,6 +364,8 @@ def open_sweep(path: str | os.PathLike):
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no sweep store at {path}")
+    if path.is_dir() and not is_sweep_store(path) and _saved_result(path):
+        return _open_saved(xr, path)
     meta = _meta(path)
     if meta.get("version", 0) > STORE_VERSION:
         raise CheckpointError(
@@ -398,3 +407,24 @@ def open_sweep(path: str | os.PathLike):
     if "q_dof" in meta and "q_dof" in ds.dims:  # a floating base's q
         ds = ds.assign_coords(q_dof=np.asarray(meta["q_dof"]))
     return ds
+
+
+def _saved_result(path: Path) -> bool:
+    """Whether `path` is a zarr group holding a sweep result (`ok` and `result`), as
+    `save_sweep` writes it."""
+    zarr = _zarr()
+    try:
+        group = zarr.open_group(str(path), mode="r")
+        return all(k in group for k in ("ok", "result"))
+    except Exception:  # noqa: BLE001 - not a zarr group: `_meta` names the fault
+        return False
+
+
+def _open_saved(xr: Any, path: Path):
+    """`save_sweep`'s `.zarr` result, opened lazily."""
+    try:
+        return xr.open_zarr(str(path), consolidated=False)
+    except Exception as err:  # noqa: BLE001 - every backend fails its own way
+        raise CheckpointError(
+            f"{path} cannot be read as a sweep result ({type(err).__name__}: {err})"
+        ) from err
