@@ -273,7 +273,12 @@ class SweepStore:
         attrs[ATTR] = {**attrs[ATTR], "variables": sorted(data)}  # type: ignore[dict-item]
         coords = labels(self.members, kept)
         ds = xr.Dataset(template, coords=coords, attrs=attrs)
-        ds.to_zarr(str(self.path), mode="a", compute=False, consolidated=False)
+        # uncompressed: trajectories of floats barely compress, and the chunks are
+        # written while the cores solve the next ones (compression would take from them)
+        encoding = {k: {"compressors": None} for k in template}
+        ds.to_zarr(
+            str(self.path), mode="a", compute=False, consolidated=False, encoding=encoding
+        )
         self._has_arrays = True
 
     def finish(self, run: Mapping[str, Any]):
