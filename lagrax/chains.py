@@ -6,8 +6,10 @@ parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] an
 [`AbstractTree`][lagrax.chains.AbstractTree] (kinematics, `frames`, `scene`, `system`);
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
 bodies) with its joint names, limits and damping; [`from_mjcf`][lagrax.chains.from_mjcf], a
-MuJoCo model through MuJoCo's own compiler; [`limit_events`][lagrax.chains.limit_events], the
-events that stop a robot's joints at their limits:
+MuJoCo model through MuJoCo's own compiler (a free joint: a floating base, whose state
+[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts);
+[`limit_events`][lagrax.chains.limit_events], the events that stop a robot's joints at their
+limits:
 
 ```python
 tree, params = lx.chains.from_urdf("arm.urdf")        # or root=..., tip=... for a chain
@@ -59,6 +61,8 @@ from ._multibody.floating import FloatingBaseSystem as FloatingBaseSystem
 from ._multibody.floating import FloatingTree as FloatingTree
 from ._multibody.limits import limit_events as limit_events
 from ._multibody.mjcf import from_mjcf as from_mjcf
+from ._multibody.mjcf import from_mujoco_state as from_mujoco_state
+from ._multibody.mjcf import to_mujoco_state as to_mujoco_state
 from ._multibody.trees import AbstractTree as AbstractTree
 from ._multibody.trees import Tree as Tree
 from ._multibody.urdf import from_urdf as from_urdf
@@ -74,6 +78,8 @@ __all__ = [
     "FloatingBaseSystem",
     "from_urdf",
     "from_mjcf",
+    "from_mujoco_state",
+    "to_mujoco_state",
     "limit_events",
     "axis_angle_rotation",
     "BodyKind",

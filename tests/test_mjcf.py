@@ -9,6 +9,8 @@
   against ``mj_fullM`` and ``q̈`` against ``mj_forward``'s ``qacc`` (contacts, limits and
   actuators off, ``qfrc_applied = τ``) at random states, in MuJoCo's own coordinates.
 - A URDF read by MuJoCo equals the same URDF read by ``from_urdf``.
+- A free joint makes a floating base (``tests/mjcf/floating.xml``), against MuJoCo through
+  the state conversions.
 - Constructs lagrax does not model raise ``MJCFError`` naming them.
 """
 
@@ -95,6 +97,74 @@ def test_mass_matrix_and_accelerations_match_mujoco(name):
     assert worst_m < RTOL and worst_a < RTOL, (worst_m, worst_a)
 
 
+def test_free_joint_is_a_floating_base_matching_mujoco():
+    """``floating.xml``: a free torso (a welded head, legs of hinges and a slide, a floor
+    welded to the world) is a `FloatingTree`. At random states (random unit quaternions
+    and base positions, contacts off): `M` equals `Tᵀ M_mj T` (`T` takes the base's
+    linear velocity from the base frame to MuJoCo's world frame) and `q̈` MuJoCo's
+    `qacc` through `from_mujoco_state`; the conversions are inverse to each other."""
+    robot, params = from_mjcf(HERE / "floating.xml")
+    assert isinstance(robot, lx.chains.FloatingTree)
+    assert robot.joint_names == ("l_hip", "l_knee", "r_hip", "r_ankle")
+    model = _model("floating")
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    # the base carries the torso and the head, not the floor
+    assert float(params["base_m"]) == pytest.approx(model.body_mass[2] + model.body_mass[3])
+    system = robot.system()
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(5)
+    for _ in range(N_STATES):
+        qpos = np.array(model.qpos0)
+        qpos[:3] += rng.normal(size=3)
+        quat = rng.normal(size=4)
+        qpos[3:7] = quat / np.linalg.norm(quat)
+        qpos[7:] += rng.uniform(-1.0, 1.0, robot.n)
+        qvel, force = (rng.uniform(-2.0, 2.0, model.nv) for _ in range(2))
+        data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
+        mujoco.mj_forward(model, data)
+        q, v = (np.asarray(x) for x in lx.chains.from_mujoco_state(qpos, qvel))
+        back = lx.chains.to_mujoco_state(q, v)
+        np.testing.assert_allclose(back[0], qpos, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(back[1], qvel, rtol=0, atol=1e-14)
+        rot = data.xmat[2].reshape(3, 3)  # the torso's (body 1 is the floor)
+        np.testing.assert_allclose(v[:3], rot.T @ qvel[:3], rtol=0, atol=1e-14)
+        tau = np.concatenate([rot.T @ force[:3], force[3:]])  # a force converts like v
+        a = np.asarray(system.forward_dynamics(jnp.asarray(q), jnp.asarray(v), params, tau))
+        qacc = np.concatenate([rot @ (a[:3] + np.cross(v[3:6], v[:3])), a[3:]])
+        assert rel_error(qacc, data.qacc) < RTOL
+        m_mj = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, m_mj)
+        t = np.eye(model.nv)
+        t[:3, :3] = rot
+        m_lx = np.asarray(system.mass_matrix(jnp.asarray(q), params))
+        assert _rel(m_lx, t.T @ m_mj @ t) < RTOL
+
+
+def test_free_joints_lagrax_cannot_load_are_named():
+    two = _xml(
+        '<body name="a"><freejoint name="fa"/><geom size="0.1"/>'
+        '<body name="a1"><joint name="ja"/><geom size="0.1"/></body></body>'
+        '<body name="b"><freejoint name="fb"/><geom size="0.1"/></body>'
+    )
+    with pytest.raises(lx.MJCFError, match="2 free joints.*'fa'.*'fb'"):
+        from_mjcf(two)
+    beside = _xml(
+        '<body name="a"><freejoint name="fa"/><geom size="0.1"/>'
+        '<body name="a1"><joint name="ja"/><geom size="0.1"/></body></body>'
+        '<body name="arm"><joint name="fixed_arm"/><geom size="0.1"/></body>'
+    )
+    with pytest.raises(lx.MJCFError, match="'fixed_arm'.*not below the floating base"):
+        from_mjcf(beside)
+    with pytest.raises(lx.MJCFError, match="nothing to move.*rigid_body"):
+        from_mjcf(BAD["free joint"][0])
+    damped = two.replace('<freejoint name="fa"/>', '<joint name="fa" type="free" damping="1"/>')
+    damped = damped[: damped.index('<body name="b">')] + "</worldbody></mujoco>"
+    with pytest.raises(lx.MJCFError, match="damping on the free joint 'fa'"):
+        from_mjcf(damped)
+    with pytest.raises(lx.ConfigurationError, match="free joint"):
+        from_mjcf(HERE / "floating.xml", limits="impact")
+
+
 def test_a_body_with_two_joints_is_a_chain_of_tree_bodies():
     """``branched.xml``'s "left" body has two hinges: a massless tree body for the first,
     the body's inertia on the second (its dynamics are checked against MuJoCo above)."""
@@ -161,9 +231,9 @@ def _xml(body: str, extra: str = "") -> str:
 
 ARM = '<body name="b1"><joint name="j1" axis="0 1 0"/><geom size="0.1" mass="1"/></body>'
 BAD = {
-    "free joint": (
+    "free joint": (  # a free body alone: nothing for a tree to move
         _xml('<body name="torso"><freejoint name="root"/><geom size="0.1"/></body>'),
-        ["free joint", "'root'", "floating bases"],
+        ["no hinge or slide joint", "lagrax.rigid_body"],
     ),
     "ball joint": (
         _xml('<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'),
@@ -216,8 +286,8 @@ def test_ignore_unsupported_drops_with_a_warning():
     with pytest.warns(UserWarning, match="tendon"):
         tree, _ = from_mjcf(text, ignore_unsupported=True)
     assert tree.joint_names == ("j1",)
-    with pytest.raises(lx.MJCFError, match="free joint"):  # still: not one coordinate
-        from_mjcf(BAD["free joint"][0], ignore_unsupported=True)
+    with pytest.raises(lx.MJCFError, match="ball joint"):  # still: not one coordinate
+        from_mjcf(BAD["ball joint"][0], ignore_unsupported=True)
 
 
 def test_missing_file_and_missing_mujoco(monkeypatch, tmp_path):

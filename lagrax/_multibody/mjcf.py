@@ -28,9 +28,10 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import MJCFError
+from .._core.errors import ConfigurationError, MJCFError
 from .common import about_centres, float_dtype, steiner
 from .limits import with_limits
 from .trees import Tree
@@ -122,12 +123,6 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
     free and ball joints are refused in any case (they are not one coordinate)."""
     for j, kind in enumerate(model.jnt_type):
         where = f"joint {names('joint', j)!r} (body {names('body', model.jnt_bodyid[j])!r})"
-        if kind == _FREE:
-            raise MJCFError(
-                f"{where} is a free joint: floating bases are not supported for MJCF yet (a "
-                "lagrax tree is fixed to the world). Remove the <freejoint> to load the "
-                "model welded to the world"
-            )
         if kind == _BALL:
             raise MJCFError(
                 f"{where} is a ball joint, which lagrax trees do not have (a quaternion "
@@ -154,6 +149,14 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         found.append(f"{what} {shown} on {who}")
 
     first_nonzero(model.dof_armature, "armature (rotor inertia added to M's diagonal)", "dof")
+    free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
+    if free:  # a floating base has no damping of its own
+        dofs = [int(model.jnt_dofadr[free[0]]) + k for k in range(6)]
+        if np.any(np.asarray(model.dof_damping)[dofs]) and not disabled & int(off.mjDSBL_DAMPER):
+            found.append(
+                f"damping on the free joint {names('joint', free[0])!r} (a floating base has "
+                "none in lagrax)"
+            )
     first_nonzero(model.jnt_stiffness, "joint stiffness (a spring)", "joint", off.mjDSBL_SPRING)
     if hasattr(model, "jnt_stiffnesspoly"):
         first_nonzero(
@@ -196,10 +199,20 @@ def from_mjcf(
     geoms, angles in degrees, URDF files). Each hinge joint becomes a revolute body of the
     tree and each slide joint a prismatic one, in MuJoCo's order, so **`q` is MuJoCo's
     `qpos` and `q̇` its `qvel`**, with the joint's `ref` (`qpos0`) folded into the
-    tree's fixed rotation or offset. A body with several joints becomes a chain of
-    massless tree bodies (its inertia on the last); a body with no joint is merged into
-    the body it is welded to (mass, centre of mass and inertia by the parallel-axis
-    theorem), and bodies welded to the world are dropped.
+    tree's fixed rotation or offset.
+
+    A **free joint** (`<freejoint/>`, on a body hanging from the world, with every other
+    joint below it) makes that body a floating base: the result is a
+    [`FloatingTree`][lagrax.chains.FloatingTree], whose state is Pinocchio's free-flyer
+    `(q, v)`, not MuJoCo's `(qpos, qvel)`: the quaternion's order and the frame of the
+    base's linear velocity differ ([`from_mujoco_state`][lagrax.chains.from_mujoco_state]
+    and [`to_mujoco_state`][lagrax.chains.to_mujoco_state] convert). The bodies welded
+    to the free body are merged into the base; bodies welded to the world are dropped.
+
+    A body with several joints becomes a chain of massless tree bodies (its inertia on
+    the last); a body with no joint is merged into the body it is welded to (mass,
+    centre of mass and inertia by the parallel-axis theorem), and bodies welded to the
+    world are dropped.
 
     Read: `body_mass`, `body_ipos`, `body_iquat`, `body_inertia` (the principal
     inertia rotated into the body frame), `dof_damping` (`params["damping"]`, MuJoCo's
@@ -233,21 +246,25 @@ def from_mjcf(
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
     - `ignore_unsupported`: drop what lagrax does not model (armature, joint springs,
-      friction loss, gravity compensation, tendons, equality constraints, fluid forces)
+      friction loss, gravity compensation, tendons, equality constraints, fluid forces,
+      damping on a free joint)
       with one `UserWarning` naming each, instead of refusing the model.
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
-    `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`).
+    `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`); with a
+    free joint, the [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus
+    `{"base_m", "base_com", "base_inertia"}`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
-    message); for a free joint (floating bases are not supported for MJCF yet) or a
-    ball joint, naming the joint and its body; for a model with no hinge or slide joint;
+    message); for a ball joint, naming the joint and its body; for more than one free
+    joint, a free body with other joints, a joint not below the free body, or a
+    massless floating base; for a model with no hinge or slide joint;
     and, unless `ignore_unsupported`, for nonzero armature, joint stiffness, friction
     loss or gravity compensation, tendons, equality constraints or fluid forces, naming
     the first one and its value. `MJCFError` also when the `mujoco` package is not
     installed. `FileNotFoundError` for a missing file; `ConfigurationError` for a bad
-    `limits` or `restitution`.
+    `limits` or `restitution`, and for `limits` with a free joint (not supported yet).
 
     **Example:**
 
@@ -273,20 +290,111 @@ def from_mjcf(
             UserWarning,
             stacklevel=2,
         )
-    bodies = _bodies(model, names)
+    free = _free_body(model, names)
+    bodies, base = _bodies(model, names, free)
     if not bodies:
-        raise MJCFError("the model has no hinge or slide joint: there is nothing to move")
+        extra = " (a single free body: see lagrax.rigid_body)" if free is not None else ""
+        raise MJCFError(f"the model has no hinge or slide joint: there is nothing to move{extra}")
     tree, params = _tree_and_params(model, bodies, dtype)
-    return with_limits(tree, params, limits, restitution)
+    if base is None:
+        return with_limits(tree, params, limits, restitution)
+    if limits is not None:
+        raise ConfigurationError(
+            f"from_mjcf: limits={limits!r} is not supported with a free joint yet (the limit "
+            "events index the joints of a fixed-base tree)"
+        )
+    return _floating(tree, params, base)  # type: ignore[return-value]
 
 
-def _bodies(model, names: _Names) -> list[_Body]:
+def _free_body(model, names: _Names) -> int | None:
+    """The body with the model's free joint (a floating base), or `None`: at most one,
+    on a body hanging from the world, as its body's only joint, and every other joint
+    below it (a floating robot, not a robot beside a fixed one).
+
+    **Raises:** `MJCFError` naming the joint otherwise."""
+    free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
+    if not free:
+        return None
+    first = free[0]
+    b = int(model.jnt_bodyid[first])
+    where = f"free joint {names('joint', first)!r} (body {names('body', b)!r})"
+    if len(free) > 1:
+        other = names("joint", free[1])
+        raise MJCFError(
+            f"the model has {len(free)} free joints ({names('joint', first)!r}, {other!r}, "
+            "...): lagrax loads one floating base, the first free body with the joints "
+            "below it"
+        )
+    if int(model.body_jntnum[b]) != 1 or int(model.body_parentid[b]) != 0:
+        raise MJCFError(
+            f"{where}: a floating base is a body hanging from the world whose only joint "
+            "is the free joint"
+        )
+    for j in range(model.njnt):
+        a = int(model.jnt_bodyid[j])
+        while a not in (0, b):
+            a = int(model.body_parentid[a])
+        if a == 0:
+            raise MJCFError(
+                f"joint {names('joint', j)!r} (body {names('body', int(model.jnt_bodyid[j]))!r}) "
+                f"is not below the floating base of the {where}: lagrax loads a floating "
+                "robot or a robot fixed to the world, not both in one model"
+            )
+    return b
+
+
+def _floating(tree: Tree, params: dict, base: "_Body"):
+    """The [`FloatingTree`][lagrax.chains.FloatingTree] on `base` (the free body, with
+    the bodies welded to it) and its params."""
+    from .floating import FloatingTree
+    from .inertia import check_inertia
+
+    if not base.mass > 0:
+        raise MJCFError(
+            f"the floating base {base.name!r} (with the bodies welded to it) has mass "
+            f"{base.mass:g}: a floating base needs a positive mass"
+        )
+    (mass,), (com,), (inertia,) = about_centres([base])
+    dtype = params["m"].dtype
+    out = dict(params)
+    out["base_m"] = jnp.asarray(mass, dtype)
+    out["base_com"] = jnp.asarray(com, dtype)
+    out["base_inertia"] = check_inertia(
+        jnp.asarray(inertia, dtype)[None], name=f"body {base.name!r} inertia", semidefinite=True
+    )[0]
+    return FloatingTree(tree, base_name=base.name), out
+
+
+_WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
+
+
+def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body], _Body | None]:
     """The tree's bodies, in MuJoCo's joint order, with every MuJoCo body's inertia
-    merged into the tree body that carries it."""
+    merged into the tree body that carries it; and with a free body `free`, the floating
+    base (tree body −1: its frame is the free body's, and it carries the bodies welded
+    to it), else `None`."""
     bodies: list[_Body] = []
-    # each MuJoCo body's frame in its tree body's frame (tree body −1: the world)
-    place = {0: (-1, np.eye(3), np.zeros(3))}
+    base = None
+    # each MuJoCo body's frame in its tree body's frame (tree body −1: the world, or the
+    # floating base; `_WORLD`: the world beside a floating base)
+    place = {0: (-1 if free is None else _WORLD, np.eye(3), np.zeros(3))}
     for b in range(1, model.nbody):
+        if b == free:
+            place[b] = (-1, np.eye(3), np.zeros(3))
+            base = _Body(
+                names("body", b),
+                names("joint", int(model.body_jntadr[b])),
+                "F",
+                _WORLD,
+                np.eye(3),
+                np.zeros(3),
+                np.zeros(3),
+                0.0,
+                (-math.inf, math.inf),
+                math.inf,
+            )
+            _add_inertia(model, b, base, np.eye(3), np.zeros(3))
+            continue
         tb, rot, pos = place[int(model.body_parentid[b])]
         pos = pos + rot @ model.body_pos[b]
         rot = rot @ _quat_matrix(model.body_quat[b])
@@ -322,18 +430,26 @@ def _bodies(model, names: _Names) -> list[_Body]:
             )
             tb, rot, pos = len(bodies) - 1, np.eye(3), -anchor
         place[b] = (tb, rot, pos)
-        mass = float(model.body_mass[b])
-        if tb < 0 or mass <= 0:
-            continue  # welded to the world, or massless
-        c = pos + rot @ model.body_ipos[b]
-        r = rot @ _quat_matrix(model.body_iquat[b])
-        inertia = r @ np.diag(model.body_inertia[b]) @ r.T
-        target = bodies[tb]
-        target.mass += mass
-        target.moment = target.moment + mass * c
-        shift = steiner(mass, c)
-        target.inertia_o = target.inertia_o + inertia + shift
-    return bodies
+        if tb >= 0:
+            _add_inertia(model, b, bodies[tb], rot, pos)
+        elif tb == -1 and base is not None:
+            _add_inertia(model, b, base, rot, pos)  # welded to the floating base
+        # else: welded to the world
+    return bodies, base
+
+
+def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray) -> None:
+    """Add MuJoCo body `b`'s inertia to `target` (whose frame holds `b`'s frame at
+    `pos`, rotated by `rot`): its mass, first moment and inertia about the origin."""
+    mass = float(model.body_mass[b])
+    if mass <= 0:
+        return  # massless
+    c = pos + rot @ model.body_ipos[b]
+    r = rot @ _quat_matrix(model.body_iquat[b])
+    inertia = r @ np.diag(model.body_inertia[b]) @ r.T
+    target.mass += mass
+    target.moment = target.moment + mass * c
+    target.inertia_o = target.inertia_o + inertia + steiner(mass, c)
 
 
 def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict]:
@@ -369,3 +485,48 @@ def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict
         dtype=float_dtype(dtype),
     )
     return tree, params
+
+
+def _rotation(quat_xyzw: Any) -> jnp.ndarray:
+    from .floating_recursions import quaternion_rotation
+
+    return quaternion_rotation(quat_xyzw)
+
+
+def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+    r"""A floating robot's MuJoCo state (free joint first) as lagrax's `(q, v)`.
+
+    MuJoCo's free joint has `qpos = (x, y, z, q_w, q_x, q_y, q_z)` and `qvel = (v_O,
+    ω_b)`, the body origin's velocity in the **world** frame and the angular velocity in
+    the body frame; lagrax's floating base (Pinocchio's free-flyer convention, see
+    [`FloatingTree`][lagrax.chains.FloatingTree]) has `q = (x, y, z, q_x, q_y, q_z,
+    q_w)` and `v = (R^T v_O, ω_b)`, both velocities in the base frame. The joints
+    follow unchanged. A generalized force converts like the velocity (`R^T f` for the
+    linear part), and MuJoCo's `qacc` is `(R (v̇_b + ω_b × v_b), ω̇_b, q̈)`.
+
+    **Arguments:** `qpos` `(..., 7 + n)`, `qvel` `(..., 6 + n)` (leading batch axes
+    allowed).
+
+    **Returns:** `(q, v)`, of the same shapes.
+    """
+    qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
+    quat = jnp.concatenate([qpos[..., 4:7], qpos[..., 3:4]], axis=-1)
+    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
+    linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., :3])
+    q = jnp.concatenate([qpos[..., :3], quat, qpos[..., 7:]], axis=-1)
+    return q, jnp.concatenate([linear, qvel[..., 3:]], axis=-1)
+
+
+def to_mujoco_state(q: Any, v: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+    r"""lagrax's floating-base `(q, v)` as MuJoCo's `(qpos, qvel)` of a free joint: the
+    inverse of [`from_mujoco_state`][lagrax.chains.from_mujoco_state].
+
+    **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`.
+
+    **Returns:** `(qpos, qvel)`, of the same shapes.
+    """
+    q, v = jnp.asarray(q), jnp.asarray(v)
+    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., 3:7])
+    linear = jnp.einsum("...ij,...j->...i", rot, v[..., :3])
+    qpos = jnp.concatenate([q[..., :3], q[..., 6:7], q[..., 3:6], q[..., 7:]], axis=-1)
+    return qpos, jnp.concatenate([linear, v[..., 3:]], axis=-1)
