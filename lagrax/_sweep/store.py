@@ -276,9 +276,7 @@ class SweepStore:
         # uncompressed: trajectories of floats barely compress, and the chunks are
         # written while the cores solve the next ones (compression would take from them)
         encoding = {k: {"compressors": None} for k in template}
-        ds.to_zarr(
-            str(self.path), mode="a", compute=False, consolidated=False, encoding=encoding
-        )
+        ds.to_zarr(str(self.path), mode="a", compute=False, consolidated=False, encoding=encoding)
         self._has_arrays = True
 
     def finish(self, run: Mapping[str, Any]):
