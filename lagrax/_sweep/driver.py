@@ -84,7 +84,9 @@ def sweep(
     chunk, members are integrated on `n_lanes` vectorized lanes as a work queue: a lane
     whose member is done takes the next member, so fast members do not wait for slow ones
     (`schedule="queue"`). How many of each is chosen for the device (a CPU, a GPU or a
-    TPU: see `chunk_size` and `n_lanes`), and does not change any member's numbers.
+    TPU: see `chunk_size` and `n_lanes`), and does not change any member's numbers. On
+    a CPU, chunks run on every core at once, one chunk a core (a compiled chunk runs on
+    one core), so the batch is cut into a multiple of the cores' count of equal chunks.
     `schedule="lockstep"` is a plain `vmap` of `simulate` instead (bitwise the same
     numbers as `simulate`, but every member of a chunk steps until the slowest is done).
 
@@ -112,14 +114,16 @@ def sweep(
     - `tau`, `solver`, `rtol`, `atol`, `dt`, `dt0`, `max_steps`,
       `stepsize_controller`: as for `lagrax.simulate` (shared by all members).
     - `chunk_size`: members per compiled call. Default, from the device: on a CPU, up
-      to 8,192 (fewer when the kept output is large: about 64 MiB of it per chunk); on a
+      to 8,192 (fewer when the kept output is large: about 64 MiB of it per chunk, and
+      so that every core this process may use gets a chunk); on a
       GPU or TPU, four members a lane (the whole batch when it is smaller), within half
       the device's memory.
     - `n_lanes`: members integrated at once inside a chunk, per device. Default, from
       the device: on a CPU, an eighth of the chunk's members per device, at most 1,024;
       on a GPU or TPU, enough to fill it: as many as there are members, up to 131,072,
       fewer for a model whose lanes would not fit in a quarter of the device's memory.
-      The result's `attrs` say what was chosen (`chunk_size`, `n_lanes`); to
+      The result's `attrs` say what was chosen (`chunk_size`, `n_lanes`, and
+      `threads`: the chunks that ran at once); to
       override, pass `chunk_size=` and/or `n_lanes=` (e.g. `n_lanes=4096` to try
       fewer lanes on a small GPU, or a CPU's smaller lanes on a GPU shared with other
       work).
