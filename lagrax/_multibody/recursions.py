@@ -201,6 +201,15 @@ def _as_arrays(x: Any, dtype: Any) -> Any:
     return jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype), x)
 
 
+MAX_PHASES = 4
+"""The most phases (scans per pass) of a tree's [`Lanes`][]: XLA compiles one loop per
+phase and pass (a floating base's forward dynamics: about 2 s more per phase, without
+the persistent cache), so a tree of more phases (a robot with hands, TIAGo, PR2) runs
+its passes as one scan over its bodies instead, with every body's carry in a buffer read
+and written by parent index (several times slower per state, compiled about as fast as
+one phase). Quadrupeds and arms have one phase, G1 three, TALOS four."""
+
+
 class Lanes:
     """A tree's bodies laid out for scans vectorized over its branches.
 
@@ -333,7 +342,9 @@ class Passes:
     by body (`scan=False`: straight-line code, structural zeros skipped, fastest to run
     for short chains) or as `lax.scan` over the tree's [`Lanes`][] (`scan=True`: one
     scan step per depth of each group of branches, every scalar of a body's code a
-    `(W,)` array over the branches; compile time independent of the branches' lengths).
+    `(W,)` array over the branches; compile time independent of the branches' lengths;
+    a tree of more than `MAX_PHASES` phases: one scan over the bodies, their carries in
+    a buffer indexed by parent).
 
     `parents` gives each body's parent (`−1`: the base), with `parents[i] < i`;
     `None` is a chain (`parents[i] = i − 1`). An outward pass hands body `i` its
@@ -342,10 +353,11 @@ class Passes:
     children: composite and articulated inertias, bias forces, joint forces).
 
     A pass is `step(carry, x) -> (carry, y)`; per-body inputs `xs` are a list of
-    per-body pytrees (unrolled) or, for a scan, per group a list of per-phase pytrees
-    with leaves `(depth, …, W)` (from `links`), and `run` returns the per-body outputs
-    in the same form (a scan's: leaves `(depth, W)`, or Python floats for values equal
-    over a phase). `column` and `vector` give them in body order.
+    per-body pytrees (unrolled), one pytree of stacked arrays (one scan over the bodies)
+    or, over lanes, per group a list of per-phase pytrees with leaves `(depth, …, W)`
+    (from `links`), and `run` returns the per-body outputs in the same form (over lanes:
+    leaves `(depth, W)`, or Python floats for values equal over a phase). `column` and
+    `vector` give them in body order.
     """
 
     def __init__(self, n: int, scan: bool, dtype: Any, parents: tuple[int, ...] | None = None):
@@ -355,6 +367,8 @@ class Passes:
         self.parents = None if parents is None else tuple(int(p) for p in parents)
         chain = tuple(range(-1, n - 1))
         self.lanes = Lanes(chain if self.parents is None else self.parents) if scan else None
+        if self.lanes is not None and sum(map(len, self.lanes.phases)) > MAX_PHASES:
+            self.lanes = None  # compile time grows with the phases: one scan, buffers
 
     def ancestors(self) -> np.ndarray:
         """`(n, n)` booleans: `[j, i]` is true where body `j` is body `i` or on its
@@ -371,6 +385,8 @@ class Passes:
 
     def links(self, per_link: Any) -> Any:
         """Per-body data given as a pytree of arrays with a leading axis `n`."""
+        if self.scan and self.lanes is None:
+            return per_link
         if self.lanes is None:
             return [
                 scalars(jax.tree_util.tree_map(lambda v, i=i: v[i], per_link))
@@ -389,6 +405,8 @@ class Passes:
 
     def zip(self, *seqs: Any) -> Any:
         """Several per-body sequences as one (tuples per body)."""
+        if self.scan and self.lanes is None:
+            return tuple(seqs)
         if self.lanes is None:
             return list(zip(*seqs, strict=True))
         return [
@@ -400,6 +418,8 @@ class Passes:
         if self.lanes is not None:
             return self._run_lanes(step, carry, xs, reverse)
         if self.parents is not None:
+            if self.scan:
+                return self._run_tree_scan(step, carry, xs, reverse)
             return self._run_tree(step, carry, xs, reverse)
         ys: list = [None] * self.n
         for i in reversed(range(self.n)) if reverse else range(self.n):
@@ -425,6 +445,43 @@ class Passes:
             else:
                 total = jax.tree_util.tree_map(add, total, out)
         return total, ys
+
+    def _run_tree_scan(self, step: Callable, init: Any, xs: Any, reverse: bool):
+        """`run` as one `lax.scan` over the bodies, every body's carry in a buffer (one
+        more slot for the base) read (outward) and accumulated (inward) by parent index:
+        for trees of more than `MAX_PHASES` phases."""
+        parents = self.parents
+        assert parents is not None
+        n, dtype = self.n, self.dtype
+        index = jnp.arange(n)
+        parent = jnp.asarray([p if p >= 0 else n for p in parents])  # slot n: the base
+        init = _as_arrays(init, dtype)
+        slots = jax.tree_util.tree_map(lambda v: jnp.broadcast_to(v, (n + 1, *v.shape)), init)
+
+        def take(buf, k):
+            return jax.tree_util.tree_map(lambda b: b[k], buf)
+
+        if not reverse:
+
+            def outward(buf, x):
+                (i, p), xi = x
+                out, y = step(scalars(take(buf, p)), scalars(xi))
+                out = _as_arrays(out, dtype)
+                buf = jax.tree_util.tree_map(lambda b, o: b.at[i].set(o), buf, out)
+                return buf, _as_arrays(y, dtype)
+
+            _, ys = jax.lax.scan(outward, slots, ((index, parent), xs))
+            return init, ys
+
+        def inward(buf, x):
+            (i, p), xi = x
+            out, y = step(scalars(take(buf, i)), scalars(xi))
+            out = _as_arrays(out, dtype)
+            buf = jax.tree_util.tree_map(lambda b, o: b.at[p].add(o), buf, out)
+            return buf, _as_arrays(y, dtype)
+
+        buf, ys = jax.lax.scan(inward, slots, ((index, parent), xs), reverse=True)
+        return take(buf, n), ys
 
     def _run_lanes(self, step: Callable, init: Any, xs: Any, reverse: bool) -> tuple[Any, Any]:
         """`run` as scans over the phases of `self.lanes` (an outward pass returns its
@@ -470,6 +527,8 @@ class Passes:
 
     def split(self, ys: Any) -> tuple:
         """Per-body outputs that are tuples, as a tuple of per-body sequences."""
+        if self.scan and self.lanes is None:
+            return tuple(ys)
         if self.lanes is None:
             return tuple(list(c) for c in zip(*ys, strict=True))
         k = len(ys[0][0])
@@ -490,6 +549,8 @@ class Passes:
 
     def column(self, ys: Any) -> Any:
         """Per-body vector outputs as an `(n, k)` array."""
+        if self.scan and self.lanes is None:
+            return jnp.stack(jax.tree_util.tree_leaves(ys), axis=-1).reshape(self.n, -1)
         if self.lanes is None:
             return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
         dtype = self.dtype
@@ -505,6 +566,8 @@ class Passes:
     def vector(self, values: Any, like: Any) -> Any:
         """Per-body scalar outputs (a list of scalars, some perhaps Python `0.0`, or a
         scan's per-phase outputs) as an `(n,)` array of `like`'s dtype."""
+        if self.scan and self.lanes is None:
+            return values.astype(like.dtype)
         if self.lanes is None:
             return stack(values, like)
         return self._bodies(values).astype(like.dtype)
