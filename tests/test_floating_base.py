@@ -8,7 +8,8 @@
   the centre of mass and the centroidal momentum against Pinocchio's.
 - Invariants: a dropped robot's centre of mass falls at ``g`` whatever its joints do; a
   free-floating satellite with a 7-joint arm in zero gravity conserves its linear and
-  angular momentum through ``simulate``, whose quaternion stays on the unit sphere.
+  angular momentum over 100 s through ``simulate``, whose quaternion stays on the unit
+  sphere.
 """
 
 import glob
@@ -184,20 +185,23 @@ def _satellite():
 
 
 def test_free_floating_satellite_conserves_momentum():
-    """Over 20 s (Dopri8, tolerances 1e-12) the spatial momentum stays constant to 1e-10
-    relative, the energy to 1e-10, and the quaternion stays on the unit sphere."""
+    """Over 100 s (Dopri8, tolerances 1e-13) the linear and the angular momentum each stay
+    constant to 1e-10 relative (measured: 1e-12 and 2e-11; at tolerances 1e-12 the
+    angular momentum drifts by 1.2e-10), the energy to 1e-10, and the quaternion stays on
+    the unit sphere."""
     robot, params = _satellite()
     system = robot.system()
     rng = np.random.default_rng(1)
     q0, v0 = _random_state(rng, robot.n)
     v0[:6] *= 0.3
     sol = lx.simulate(
-        system, q0, v0, params, t1=20.0, solver="dopri8", rtol=1e-12, atol=1e-12, n_save=41
+        system, q0, v0, params, t1=100.0, solver="dopri8", rtol=1e-13, atol=1e-13, n_save=101
     )
-    assert sol.q.shape == (41, 14) and sol.qd.shape == (41, 13)
-    h = jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd)
-    drift = np.max(np.abs(np.asarray(h - h[:1]))) / np.linalg.norm(np.asarray(h[0]))
-    assert drift < 1e-10, drift
+    assert sol.q.shape == (101, 14) and sol.qd.shape == (101, 13)
+    h = np.asarray(jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd))
+    for part in (slice(0, 3), slice(3, 6)):  # angular (about the world origin), linear
+        drift = np.max(np.abs(h[:, part] - h[:1, part])) / np.linalg.norm(h[0, part])
+        assert drift < 1e-10, (part, drift)
     assert np.max(np.abs(sol.energy_error)) < 1e-10
     assert sol.constraint_violation is not None
     assert np.max(np.abs(sol.constraint_violation)) < 1e-12  # |q_quat| − 1 at the saves

@@ -147,3 +147,55 @@ def test_bad_limit_options_are_named():
         lx.simulate(
             tree.system(), [0.0, 0.0], [0.0, 0.0], params, t1=0.1, events=limit_events(tree)
         )
+
+
+# The same arm on a free-floating base (2 kg, its own inertia), in zero gravity.
+FLOATING = URDF.replace(
+    '<link name="base"/>',
+    '<link name="base"><inertial><mass value="2.0"/>'
+    '<inertia ixx="0.05" ixy="0" ixz="0" iyy="0.04" iyz="0" izz="0.03"/></inertial></link>',
+)
+
+
+def test_floating_base_joint_hits_its_limit():
+    """A floating base's joints stop at their limits too (``q[7:]``, ``v[6:]``): in zero
+    gravity the elbow, set swinging, hits both its stops; each hit is at the limit angle,
+    reverses the elbow's rate times the restitution, and its impulse ``M (v⁺ − v⁻)`` acts
+    on the elbow alone, not on the base, so the robot's spatial momentum is the same
+    after every hit as before (an internal impulse), and the kinetic energy falls by
+    ``½ (1 − e²) v_k² / (M⁻¹)_kk``."""
+    robot, params = from_urdf(FLOATING, floating_base=True, limits="impact", restitution=E, g=0.0)
+    assert isinstance(robot, lx.chains.FloatingTree)
+    np.testing.assert_allclose(params["restitution"], [E, E])
+    system, events = robot.system(), limit_events(robot)
+    assert len(events) == 2
+    q0 = jnp.array([0.1, -0.2, 0.3, 0.0, 0.0, 0.0, 1.0, 0.2, 0.0])
+    v0 = jnp.array([0.05, 0.0, -0.1, 0.0, 0.2, 0.0, 0.0, 4.0])
+    sol = lx.simulate(
+        system, q0, v0, params, t1=3.0, n_save=301, events=events, rtol=1e-11, atol=1e-11
+    )
+    assert sol.ok
+    h = np.asarray(jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd))
+    assert np.max(np.abs(h - h[0])) <= 1e-9 * np.linalg.norm(h[0])
+    mass_matrix = jax.jit(system.mass_matrix)
+    hits = 0
+    for k, (ev, (lo, hi)) in enumerate(zip(events, robot.tree.limits, strict=True)):
+        assert np.all(np.asarray(sol.q[:, 7 + k]) >= lo - 1e-9)
+        assert np.all(np.asarray(sol.q[:, 7 + k]) <= hi + 1e-9)
+        for t, q, v in zip(*_hits(sol, k), strict=True):
+            hits += 1
+            assert min(abs(q[7 + k] - lo), abs(q[7 + k] - hi)) < 1e-9
+            q_after, v_after = ev.reset(t, jnp.asarray(q), jnp.asarray(v), params)
+            assert float(v_after[6 + k]) == pytest.approx(-E * v[6 + k], rel=1e-12)
+            mass = np.asarray(mass_matrix(q_after, params))
+            impulse = mass @ (np.asarray(v_after) - v)
+            others = np.delete(impulse, 6 + k)
+            assert np.max(np.abs(others)) <= 1e-12 * abs(impulse[6 + k])
+            h_before = np.asarray(system.momentum(jnp.asarray(q), jnp.asarray(v), params))
+            h_after = np.asarray(system.momentum(q_after, v_after, params))
+            scale = np.linalg.norm(h_before)
+            np.testing.assert_allclose(h_after, h_before, rtol=0, atol=1e-12 * scale)
+            drop = 0.5 * (1 - E**2) * v[6 + k] ** 2 / np.linalg.inv(mass)[6 + k, 6 + k]
+            kinetic = 0.5 * (v @ mass @ v - np.asarray(v_after) @ mass @ np.asarray(v_after))
+            assert kinetic == pytest.approx(drop, rel=1e-10)
+    assert len(_hits(sol, 1)[0]) >= 2 and hits >= 2

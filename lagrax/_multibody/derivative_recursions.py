@@ -164,4 +164,4 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
     dtau_dqd = jnp.where(up, s_a @ pv_a.T, jnp.where(down, 2.0 * (u_a @ d_a.T) + bt_a @ s_a.T, 0.0))
     g = s_a @ u_a.T  # g[j, i] = S_j · Y_i S_i
     mass = jnp.where(up, g, jnp.where(up.T, g.T, 0.0))
-    return r.stack(tau, s_a), dtau_dq, dtau_dqd, mass
+    return passes.vector(tau, s_a), dtau_dq, dtau_dqd, mass

@@ -40,7 +40,7 @@ import numpy as np
 
 from . import recursions as a
 from .joints import revolute_flags
-from .tree_equations import UNROLL_MAX_SPATIAL, _spatial_link
+from .tree_equations import UNROLL_MAX_SPATIAL, _spatial_link, joint_trig
 
 
 def quaternion_rotation(quat: Any) -> jnp.ndarray:
@@ -135,7 +135,7 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     axes = np.asarray(tree.axes, float)
     rev = revolute_flags(tree.joint_types)
     values = (jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m"))
-    per_link = (joints, big_a, big_b, big_c, slide, axes, rev, *values)
+    per_link = (joint_trig(joints), big_a, big_b, big_c, slide, axes, rev, *values)
     _, ys = passes.run(_spatial_link, (_tuples(rot), _tuples(p)), passes.links(per_link))
     s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], dtype)
@@ -207,7 +207,7 @@ def aba(fc: FloatingChain, v: Any, force: Any | None) -> jnp.ndarray:
         return a.vadd(acc, a.vscale(s, qdd)), qdd
 
     qdd = passes.run(outward, _tuples(acc_base), passes.zip(chain.s, vel, factors))[1]
-    return jnp.concatenate([vdot_base, a.stack(qdd, v)])
+    return jnp.concatenate([vdot_base, passes.vector(qdd, v)])
 
 
 def rnea(fc: FloatingChain, v: Any, vdot: Any | None) -> jnp.ndarray:
@@ -240,7 +240,7 @@ def rnea(fc: FloatingChain, v: Any, vdot: Any | None) -> jnp.ndarray:
     f_sub, taus = passes.run(inward, chain._zero(), passes.zip(chain.s, forces), reverse=True)
     f_base = a.vadd(a.matvec(fc.inertia_base, _tuples(acc_base)), _base_bias(fc, v_b))
     f_base = _array(a.vadd(f_base, f_sub), dtype)
-    return jnp.concatenate([fc.s_base.T @ f_base, a.stack(taus, v)])
+    return jnp.concatenate([fc.s_base.T @ f_base, passes.vector(taus, v)])
 
 
 def crba(fc: FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:

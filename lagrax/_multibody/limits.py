@@ -32,6 +32,7 @@ import numpy as np
 
 from .._core.errors import ConfigurationError, ParameterError
 from .._solve.events import Event
+from .floating import FloatingTree
 from .trees import AbstractTree, Tree
 
 LIMIT_MODELS = (None, "impact")
@@ -80,8 +81,18 @@ def with_limits(
     return tree, {**params, "restitution": jnp.asarray(e, dtype=params["g"].dtype)}
 
 
+def _joints(tree: Any) -> tuple[Any, int, int]:
+    """`(joints, q0, v0)`: the tree whose joints carry the limits, and where its
+    coordinates start in `q` and in `q̇` (a floating base's `q = (pose 7, joints)`,
+    `v = (twist 6, joint rates)`; a fixed-base tree's are its joints')."""
+    if isinstance(tree, FloatingTree):
+        return tree.tree, 7, 6
+    return tree, 0, 0
+
+
 class _LimitCondition(eqx.Module):
-    """`min(q_i − lo, hi − q_i)`: positive inside the limits, zero at either."""
+    """`min(q_i − lo, hi − q_i)`: positive inside the limits, zero at either (`index`
+    is the joint's place in `q`)."""
 
     index: int = eqx.field(static=True)
     lower: float = eqx.field(static=True)
@@ -97,17 +108,20 @@ class _LimitCondition(eqx.Module):
 
 
 class _LimitImpact(eqx.Module):
-    """The state after joint `index` hits a stop with restitution `e` (the module
-    docstring's impulse law)."""
+    """The state after joint `index` (its coordinate number) hits a stop with
+    restitution `e` (the module docstring's impulse law); the joint sits at `q[q0 +
+    index]` and `q̇[v0 + index]` (a floating base: `q0 = 7`, `v0 = 6`)."""
 
-    tree: AbstractTree
+    tree: AbstractTree | FloatingTree
     index: int = eqx.field(static=True)
     lower: float = eqx.field(static=True)
     upper: float = eqx.field(static=True)
     restitution: float | None = eqx.field(static=True)
+    q0: int = eqx.field(default=0, static=True)
+    v0: int = eqx.field(default=0, static=True)
 
     def __call__(self, t, q, qd, params):
-        i = self.index
+        i, k = self.q0 + self.index, self.v0 + self.index
         if self.restitution is None:
             if "restitution" not in params:
                 raise ParameterError(
@@ -116,18 +130,18 @@ class _LimitImpact(eqx.Module):
                     "limits='impact'), and params has no 'restitution': pass "
                     "restitution=... to limit_events, or load the robot with limits='impact'"
                 )
-            e = jnp.asarray(params["restitution"], qd.dtype)[i]
+            e = jnp.asarray(params["restitution"], qd.dtype)[self.index]
         else:
             e = jnp.asarray(self.restitution, qd.dtype)
         mass = self.tree.system().mass_matrix(q, params)
-        x = jnp.linalg.solve(mass, jnp.zeros_like(qd).at[i].set(1.0))  # M⁻¹ e_i
-        impulse = -(1 + e) * qd[i] / x[i]
+        x = jnp.linalg.solve(mass, jnp.zeros_like(qd).at[k].set(1.0))  # M⁻¹ e_k
+        impulse = -(1 + e) * qd[k] / x[k]
         q_after = q.at[i].set(jnp.clip(q[i], self.lower, self.upper))
         return q_after, qd + impulse * x
 
 
 def limit_events(
-    tree: AbstractTree,
+    tree: AbstractTree | FloatingTree,
     *,
     restitution: Any = None,
     joints: Sequence[str] | None = None,
@@ -161,7 +175,10 @@ def limit_events(
 
     - `tree`: a [`Tree`][lagrax.chains.Tree] (from [`lagrax.chains.from_urdf`][] or
       [`lagrax.chains.from_mjcf`][]) or another [`AbstractTree`][lagrax.chains.AbstractTree]
-      with `limits`.
+      with `limits`, or a [`FloatingTree`][lagrax.chains.FloatingTree] (from
+      `from_urdf(..., floating_base=True)`), whose joints' coordinates are `q[7:]` and
+      rates `v[6:]`: a stop's impulse acts on its joint alone, never on the base, so a
+      free-floating robot's momentum is the same after a hit as before.
     - `restitution`: the coefficient `e` in `[0, 1]`, a number or one per joint of the
       tree. Default `None`: read at run time from `params["restitution"]` (set by
       `from_urdf`/`from_mjcf` with `limits="impact"`), so a sweep may vary it and
@@ -185,16 +202,18 @@ def limit_events(
     sol.events[0].times[: sol.events[0].count]      # when the first limited joint hit
     ```
     """
-    limits = getattr(tree, "limits", None)
+    joints_tree, q0, v0 = _joints(tree)
+    limits = getattr(joints_tree, "limits", None)
     if limits is None:
         raise ConfigurationError(
             f"limit_events needs a tree with joint limits (tree.limits), got a "
             f"{type(tree).__name__}"
         )
-    names = tuple(getattr(tree, "joint_names", (f"joint{i}" for i in range(tree.n))))
+    n = joints_tree.n
+    names = tuple(getattr(joints_tree, "joint_names", (f"joint{i}" for i in range(n))))
     # per coordinate: a mimic joint is no coordinate (it follows its master, whose limits
     # stop both), so the limits and names of the coordinates' own bodies
-    bodies = getattr(tree, "coordinates", tuple(range(tree.n)))
+    bodies = getattr(joints_tree, "coordinates", tuple(range(n)))
     limits = [limits[b] for b in bodies]
     names = tuple(names[b] for b in bodies)
     finite = [i for i, (lo, hi) in enumerate(limits) if math.isfinite(lo) or math.isfinite(hi)]
@@ -222,12 +241,12 @@ def limit_events(
                     f"{limits[i]})"
                 )
             chosen.append(i)
-    e = None if restitution is None else _restitution(restitution, tree.n, "limit_events")
+    e = None if restitution is None else _restitution(restitution, n, "limit_events")
     events = []
     for i in chosen:
         lo, hi = (float(x) for x in limits[i])
-        reset = _LimitImpact(tree, i, lo, hi, None if e is None else float(e[i]))
+        reset = _LimitImpact(tree, i, lo, hi, None if e is None else float(e[i]), q0, v0)
         events.append(
-            Event(_LimitCondition(i, lo, hi), direction=-1, reset=reset, max_events=max_events)
+            Event(_LimitCondition(q0 + i, lo, hi), direction=-1, reset=reset, max_events=max_events)
         )
     return tuple(events)

@@ -201,23 +201,163 @@ def _as_arrays(x: Any, dtype: Any) -> Any:
     return jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype), x)
 
 
+MAX_PHASES = 4
+"""The most phases (scans per pass) of a tree's [`Lanes`][]: XLA compiles one loop per
+phase and pass (a floating base's forward dynamics: about 2 s more per phase, without
+the persistent cache), so a tree of more phases (a robot with hands, TIAGo, PR2) runs
+its passes as one scan over its bodies instead, with every body's carry in a buffer read
+and written by parent index (several times slower per state, compiled about as fast as
+one phase). Quadrupeds and arms have one phase, G1 three, TALOS four."""
+
+
+class Lanes:
+    """A tree's bodies laid out for scans vectorized over its branches.
+
+    The tree is cut into *segments*: a body continues its parent's segment where it is
+    the parent's only child, so a segment ends at a leaf or at a branching body. Segments
+    are grouped by their number of ancestor segments (a humanoid: its legs and torso, then
+    its arms and head), and a group's segments are its *lanes*, longest first. A group is
+    run as *phases*, one `lax.scan` each: phase `k` runs depths `[l_{k−1}, l_k)` (`l_k`
+    the lanes' distinct lengths) over the lanes still running, a prefix of them, so every
+    step does the work of all its lanes at once and no lane is padded.
+
+    A pass then costs one scan step per depth of each group instead of one per body, and
+    every carry is handed from step to step: no buffer of all the bodies' carries, read
+    and written by parent index. A segment of group `g + 1` hangs from the last body of a
+    segment of group `g` (a branching body ends its segment), so between phases and
+    groups only lanes' final carries are passed on (outward) or summed into their parent
+    lanes (inward).
+
+    **Arguments:** `parents`, each body's parent (`−1`: the base), with `parents[i] < i`.
+    """
+
+    def __init__(self, parents: tuple[int, ...]):
+        n = len(parents)
+        children = [0] * n
+        for p in parents:
+            if p >= 0:
+                children[p] += 1
+        segment_of = [0] * n
+        segments: list[list[int]] = []
+        level: list[int] = []
+        for i, p in enumerate(parents):
+            if p >= 0 and children[p] == 1:
+                segment_of[i] = segment_of[p]
+                segments[segment_of[i]].append(i)
+                continue
+            segment_of[i] = len(segments)
+            segments.append([i])
+            level.append(0 if p < 0 else level[segment_of[p]] + 1)
+        groups = []
+        for g in range(max(level) + 1):
+            group = [k for k in range(len(segments)) if level[k] == g]
+            groups.append(sorted(group, key=lambda k: -len(segments[k])))
+        lane_of = {k: w for group in groups for w, k in enumerate(group)}
+        # per group: its width and the lane (in group g − 1) each lane hangs from
+        self.widths = tuple(len(group) for group in groups)
+        self.parent_lane = [None] + [
+            np.array([lane_of[segment_of[parents[segments[k][0]]]] for k in group])
+            for group in groups[1:]
+        ]
+        # per group, its phases: (group, width, (depth, width) body indices)
+        self.phases: list[list[tuple[int, int, np.ndarray]]] = []
+        order = np.zeros(n, int)
+        offset = 0
+        for g, group in enumerate(groups):
+            lengths = [len(segments[k]) for k in group]
+            phases, begin = [], 0
+            for end in sorted(set(lengths)):
+                width = sum(length >= end for length in lengths)
+                index = np.array([segments[k][begin:end] for k in group[:width]]).T
+                order[index] = offset + np.arange(index.size).reshape(index.shape)
+                offset += index.size
+                phases.append((g, width, index))
+                begin = end
+            self.phases.append(phases)
+        self.order = order  # body i's place in the phases' flattened (depth, lane) grids
+
+
+def _lane_scalars(x: Any) -> Any:
+    """A lane-vectorized leaf (`(…, W)`, lanes last) as nested tuples of `(W,)` arrays."""
+    if isinstance(x, float) or x.ndim <= 1:
+        return x
+    return tuple(_lane_scalars(x[i]) for i in range(x.shape[0]))
+
+
+def _components(x: Any) -> Any:
+    """A phase's input leaf (`(depth, …, W)`): a NumPy constant as nested tuples of
+    `(depth, W)` entries, each entry equal over the whole phase as a Python float (a
+    structural zero or one the step's scalar algebra skips); other leaves as they are."""
+    if not isinstance(x, np.ndarray):
+        return x
+    if x.ndim == 2:
+        return float(x.flat[0]) if np.all(x == x.flat[0]) else x
+    return tuple(_components(x[:, i]) for i in range(x.shape[1]))
+
+
+def _lane_scan(step: Callable, carry: Any, xs: Any, reverse: bool, dtype: Any):
+    """`lax.scan` of `step` over one phase of [`Lanes`][]: every scalar a `(W,)` array.
+
+    Inputs equal over the phase stay Python floats inside the step (not scanned), and
+    of the step's outputs only the distinct arrays are stacked: a Python float (a
+    structural zero) stays a float in the outputs, and a value the step returns twice
+    (a symmetric inertia's mirrored entries) is stored once. Both spare the memory
+    traffic of writing and reading back per-body arrays between passes, and the floats
+    let the next pass skip work as the unrolled code does."""
+    tree_map, flatten = jax.tree_util.tree_map, jax.tree_util.tree_flatten
+    leaves, x_def = flatten(tree_map(_components, xs))
+    fixed = [isinstance(v, float) for v in leaves]
+    scanned = [v for v, f in zip(leaves, fixed, strict=True) if not f]
+    width = jax.tree_util.tree_leaves(carry)[0].shape[0]
+    plan: dict = {}
+
+    def lane_array(v: Any) -> Any:
+        return jnp.broadcast_to(jnp.asarray(v, dtype), (width,))
+
+    def body(c, dyn):
+        it = iter(dyn)
+        x = x_def.unflatten([v if f else next(it) for v, f in zip(leaves, fixed, strict=True)])
+        c2, y = step(c, tree_map(_lane_scalars, x))
+        y_leaves, plan["def"] = flatten(y)
+        outs: list = []
+        seen: dict = {}
+        plan["leaves"] = []
+        for v in y_leaves:
+            if isinstance(v, float):
+                plan["leaves"].append(float(v))
+                continue
+            if id(v) not in seen:
+                seen[id(v)] = len(outs)
+                outs.append(lane_array(v))
+            plan["leaves"].append(seen[id(v)])
+        return tree_map(lane_array, c2), outs
+
+    final, outs = jax.lax.scan(body, tree_map(lane_array, carry), scanned, reverse=reverse)
+    y_leaves = [v if isinstance(v, float) else outs[v] for v in plan["leaves"]]
+    return final, plan["def"].unflatten(y_leaves)
+
+
 class Passes:
     """How a recursion runs over the `n` bodies of a chain or a tree: written out body
     by body (`scan=False`: straight-line code, structural zeros skipped, fastest to run
-    for short chains) or as `lax.scan` (`scan=True`: one body's code, compile time
-    independent of `n`).
+    for short chains) or as `lax.scan` over the tree's [`Lanes`][] (`scan=True`: one
+    scan step per depth of each group of branches, every scalar of a body's code a
+    `(W,)` array over the branches; compile time independent of the branches' lengths;
+    a tree of more than `MAX_PHASES` phases: one scan over the bodies, their carries in
+    a buffer indexed by parent).
 
     `parents` gives each body's parent (`−1`: the base), with `parents[i] < i`;
     `None` is a chain (`parents[i] = i − 1`). An outward pass hands body `i` its
     parent's carry (the initial carry for a body on the base); an inward pass hands it the
     initial carry plus the sum of its children's carries (every inward recursion sums over
-    children: composite and articulated inertias, bias forces, joint forces). A scan over
-    a tree keeps the carries of all bodies in an array with one more slot for the base,
-    read (outward) and accumulated (inward, `.at[parent].add`) by parent index.
+    children: composite and articulated inertias, bias forces, joint forces).
 
     A pass is `step(carry, x) -> (carry, y)`; per-body inputs `xs` are a list of
-    per-body pytrees (unrolled) or one pytree of stacked arrays (scan), and `run`
-    returns the per-body outputs in the same form.
+    per-body pytrees (unrolled), one pytree of stacked arrays (one scan over the bodies)
+    or, over lanes, per group a list of per-phase pytrees with leaves `(depth, …, W)`
+    (from `links`), and `run` returns the per-body outputs in the same form (over lanes:
+    leaves `(depth, W)`, or Python floats for values equal over a phase). `column` and
+    `vector` give them in body order.
     """
 
     def __init__(self, n: int, scan: bool, dtype: Any, parents: tuple[int, ...] | None = None):
@@ -225,6 +365,10 @@ class Passes:
         if parents is not None and tuple(parents) == tuple(range(-1, n - 1)):
             parents = None  # a chain: the plain carry-passing loops
         self.parents = None if parents is None else tuple(int(p) for p in parents)
+        chain = tuple(range(-1, n - 1))
+        self.lanes = Lanes(chain if self.parents is None else self.parents) if scan else None
+        if self.lanes is not None and sum(map(len, self.lanes.phases)) > MAX_PHASES:
+            self.lanes = None  # compile time grows with the phases: one scan, buffers
 
     def ancestors(self) -> np.ndarray:
         """`(n, n)` booleans: `[j, i]` is true where body `j` is body `i` or on its
@@ -241,35 +385,46 @@ class Passes:
 
     def links(self, per_link: Any) -> Any:
         """Per-body data given as a pytree of arrays with a leading axis `n`."""
-        if self.scan:
+        if self.scan and self.lanes is None:
             return per_link
+        if self.lanes is None:
+            return [
+                scalars(jax.tree_util.tree_map(lambda v, i=i: v[i], per_link))
+                for i in range(self.n)
+            ]
+
+        def lay(v: Any, index: np.ndarray) -> Any:
+            if isinstance(v, np.ndarray):  # constants stay NumPy (see `_components`)
+                return np.moveaxis(v[index], 1, -1)  # (depth, W, …) -> (depth, …, W)
+            return jnp.moveaxis(jnp.asarray(v)[index], 1, -1)
+
         return [
-            scalars(jax.tree_util.tree_map(lambda v, i=i: v[i], per_link)) for i in range(self.n)
+            [jax.tree_util.tree_map(lambda v, i=index: lay(v, i), per_link) for *_, index in p]
+            for p in self.lanes.phases
         ]
 
     def zip(self, *seqs: Any) -> Any:
         """Several per-body sequences as one (tuples per body)."""
-        if self.scan:
+        if self.scan and self.lanes is None:
             return tuple(seqs)
-        return list(zip(*seqs, strict=True))
+        if self.lanes is None:
+            return list(zip(*seqs, strict=True))
+        return [
+            [tuple(seq[g][k] for seq in seqs) for k in range(len(p))]
+            for g, p in enumerate(self.lanes.phases)
+        ]
 
     def run(self, step: Callable, carry: Any, xs: Any, reverse: bool = False) -> tuple[Any, Any]:
+        if self.lanes is not None:
+            return self._run_lanes(step, carry, xs, reverse)
         if self.parents is not None:
             if self.scan:
                 return self._run_tree_scan(step, carry, xs, reverse)
             return self._run_tree(step, carry, xs, reverse)
-        if not self.scan:
-            ys: list = [None] * self.n
-            for i in reversed(range(self.n)) if reverse else range(self.n):
-                carry, ys[i] = step(carry, xs[i])
-            return carry, ys
-        dtype = self.dtype
-
-        def body(c, x):
-            c2, y = step(c, scalars(x))
-            return _as_arrays(c2, dtype), _as_arrays(y, dtype)
-
-        return jax.lax.scan(body, _as_arrays(carry, dtype), xs, reverse=reverse)
+        ys: list = [None] * self.n
+        for i in reversed(range(self.n)) if reverse else range(self.n):
+            carry, ys[i] = step(carry, xs[i])
+        return carry, ys
 
     def _run_tree(self, step: Callable, init: Any, xs: Any, reverse: bool) -> tuple[Any, Any]:
         parents = self.parents
@@ -292,6 +447,9 @@ class Passes:
         return total, ys
 
     def _run_tree_scan(self, step: Callable, init: Any, xs: Any, reverse: bool):
+        """`run` as one `lax.scan` over the bodies, every body's carry in a buffer (one
+        more slot for the base) read (outward) and accumulated (inward) by parent index:
+        for trees of more than `MAX_PHASES` phases."""
         parents = self.parents
         assert parents is not None
         n, dtype = self.n, self.dtype
@@ -325,17 +483,94 @@ class Passes:
         buf, ys = jax.lax.scan(inward, slots, ((index, parent), xs), reverse=True)
         return take(buf, n), ys
 
+    def _run_lanes(self, step: Callable, init: Any, xs: Any, reverse: bool) -> tuple[Any, Any]:
+        """`run` as scans over the phases of `self.lanes` (an outward pass returns its
+        initial carry, an inward one the initial carry plus the base's children's)."""
+        lanes = self.lanes
+        assert lanes is not None
+        dtype, tree_map = self.dtype, jax.tree_util.tree_map
+        init = _as_arrays(init, dtype)
+
+        def lane_arrays(x: Any, width: int) -> Any:
+            return tree_map(lambda v: jnp.broadcast_to(v, (width,)), x)
+
+        def run_group(g: int, carry: Any, phases: Any) -> Any:
+            """The group's phases from its lanes' carries; their final carries."""
+            for k in phases:
+                width = lanes.phases[g][k][1]
+                head = tree_map(lambda v, w=width: v[:w], carry)
+                head, ys[g][k] = _lane_scan(step, head, xs[g][k], reverse, dtype)
+                carry = tree_map(lambda h, v, w=width: jnp.concatenate([h, v[w:]]), head, carry)
+            return carry
+
+        ys: list = [[None] * len(p) for p in lanes.phases]
+        groups = range(len(lanes.widths))
+        final: Any = None
+        if not reverse:
+            for g in groups:
+                parent = lanes.parent_lane[g]
+                if parent is None:
+                    carry = lane_arrays(init, lanes.widths[g])
+                else:
+                    carry = tree_map(lambda v, i=parent: v[i], final)
+                final = run_group(g, carry, range(len(lanes.phases[g])))
+            return init, ys
+        for g in reversed(groups):
+            carry = lane_arrays(init, lanes.widths[g])
+            if final is not None:  # the children lanes' final carries, summed
+                ids, width = lanes.parent_lane[g + 1], lanes.widths[g]
+                assert ids is not None
+                sums = tree_map(lambda v, i=ids, w=width: jax.ops.segment_sum(v, i, w), final)
+                carry = tree_map(jnp.add, carry, sums)
+            final = run_group(g, carry, reversed(range(len(lanes.phases[g]))))
+        return tree_map(lambda i, v: i + jnp.sum(v, axis=0), init, final), ys
+
     def split(self, ys: Any) -> tuple:
         """Per-body outputs that are tuples, as a tuple of per-body sequences."""
-        if self.scan:
+        if self.scan and self.lanes is None:
             return tuple(ys)
-        return tuple(list(c) for c in zip(*ys, strict=True))
+        if self.lanes is None:
+            return tuple(list(c) for c in zip(*ys, strict=True))
+        k = len(ys[0][0])
+        return tuple([[y[j] for y in group] for group in ys] for j in range(k))
+
+    def _bodies(self, ys: Any) -> jnp.ndarray:
+        """A scan's per-phase outputs (`(depth, W, …)` arrays, or Python floats for
+        `(depth, W)`) in body order, `(n, …)`."""
+        lanes = self.lanes
+        assert lanes is not None
+        flat = []
+        for group, phases in zip(ys, lanes.phases, strict=True):
+            for y, (*_, index) in zip(group, phases, strict=True):
+                if isinstance(y, float):
+                    y = jnp.full(index.shape, y, self.dtype)
+                flat.append(y.reshape(-1, *y.shape[2:]))
+        return jnp.concatenate(flat)[lanes.order]
 
     def column(self, ys: Any) -> Any:
         """Per-body vector outputs as an `(n, k)` array."""
-        if self.scan:
+        if self.scan and self.lanes is None:
             return jnp.stack(jax.tree_util.tree_leaves(ys), axis=-1).reshape(self.n, -1)
-        return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
+        if self.lanes is None:
+            return jnp.stack([jnp.stack([jnp.asarray(v, self.dtype) for v in y]) for y in ys])
+        dtype = self.dtype
+        stacked = [
+            [
+                jnp.stack([jnp.broadcast_to(jnp.asarray(v, dtype), index.shape) for v in y], -1)
+                for y, (*_, index) in zip(group, phases, strict=True)
+            ]
+            for group, phases in zip(ys, self.lanes.phases, strict=True)
+        ]
+        return self._bodies(stacked)
+
+    def vector(self, values: Any, like: Any) -> Any:
+        """Per-body scalar outputs (a list of scalars, some perhaps Python `0.0`, or a
+        scan's per-phase outputs) as an `(n,)` array of `like`'s dtype."""
+        if self.scan and self.lanes is None:
+            return values.astype(like.dtype)
+        if self.lanes is None:
+            return stack(values, like)
+        return self._bodies(values).astype(like.dtype)
 
 
 class Chain:
@@ -449,10 +684,8 @@ def rnea(chain: Chain, qd: Any, qdd: Any) -> Any:
 
 
 def stack(values: Any, like: Any) -> Any:
-    """Per-link scalars (a list, some perhaps Python `0.0`; or already an array from a
-    scan) as one array of `like`'s dtype."""
-    if not isinstance(values, (list, tuple)):
-        return values.astype(like.dtype)
+    """Per-link scalars of an unrolled pass (a list, some perhaps Python `0.0`) as one
+    array of `like`'s dtype (a scan's: `Passes.vector`)."""
     # Not ``jnp.stack``: XLA:CPU fuses the whole recursion into the concatenation and
     # recomputes it for every output element (measured 20-40x slower from n = 6 on).
     out = jnp.zeros(len(values), like.dtype)

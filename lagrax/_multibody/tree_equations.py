@@ -80,11 +80,17 @@ def planar_chain(n: int, q, params: Params, scan: bool | None = None) -> a.Chain
     return a.Chain(passes, a.PLANAR, s, inertia, (0.0, 0.0, g))
 
 
+def joint_trig(q) -> tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray]:
+    """`(q, sin q, 1 − cos q)` of joint angles `(n,)`, for `_spatial_link`: computed for
+    all joints at once, before a pass (XLA would otherwise repeat the sine and the cosine
+    in every fused loop that reads them, up to nine times a joint)."""
+    return q, jnp.sin(q), 1 - jnp.cos(q)
+
+
 def _spatial_link(carry, x):
     rot, origin = carry
-    q, big_a, big_b, big_c, slide, axis, rev, offset, com, inertia, m = x
+    (q, sn, cs), big_a, big_b, big_c, slide, axis, rev, offset, com, inertia, m = x
     origin = a.vadd(origin, a.matvec(rot, a.vadd(offset, a.vscale(slide, q))))
-    sn, cs = jnp.sin(q), 1 - jnp.cos(q)
     joint = tuple(
         tuple(
             a.add(big_a[r][k], a.add(a.mul(sn, big_b[r][k]), a.mul(cs, big_c[r][k])))
@@ -178,7 +184,7 @@ def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = 
     axes = np.asarray(chain.axes, float)
     rev = revolute_flags(chain.joint_types)
     values = (jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m"))
-    per_link = (q, big_a, big_b, big_c, slide, axes, rev, *values)
+    per_link = (joint_trig(q), big_a, big_b, big_c, slide, axes, rev, *values)
     eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(3)) for i in range(3))
     _, ys = passes.run(_spatial_link, (eye, (0.0, 0.0, 0.0)), passes.links(per_link))
     s, inertia = passes.split(ys)
@@ -208,7 +214,7 @@ class ChainEquations(AbstractEquations):
         chain = self.at(q, params)
         links = chain.passes.links
         f = None if force is None else links(jnp.asarray(force, q.dtype))
-        return a.stack(a.aba(chain, links(qd.astype(q.dtype)), f), q)
+        return chain.passes.vector(a.aba(chain, links(qd.astype(q.dtype)), f), q)
 
     def energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
         """`(T, V)` of a spatial chain or tree by one outward pass in link frames
@@ -224,14 +230,14 @@ class ChainEquations(AbstractEquations):
         """`M` and the bias `C q̇ + G` from one evaluation of the kinematics."""
         chain = self.at(q, params)
         bias = a.rnea(chain, chain.passes.links(qd.astype(q.dtype)), None)
-        return a.crba(chain), a.stack(bias, q)
+        return a.crba(chain), chain.passes.vector(bias, q)
 
     def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
         """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`)."""
         chain = self.at(q, params)
         links = chain.passes.links
         qdd = None if qdd is None else links(qdd.astype(q.dtype))
-        return a.stack(a.rnea(chain, links(qd.astype(q.dtype)), qdd), q)
+        return chain.passes.vector(a.rnea(chain, links(qd.astype(q.dtype)), qdd), q)
 
     def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
         """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`, analytically in

@@ -20,7 +20,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import ConfigurationError, ParameterError, URDFError, URDFWarning
+from .._core.errors import ParameterError, URDFError, URDFWarning
 from .common import about_centres, float_dtype, steiner
 from .inertia import check_inertia
 from .limits import with_limits
@@ -444,7 +444,9 @@ def from_urdf(
       the root link). A link fixed to the base whose own `<inertia>` is not
       positive-semidefinite (TIAGo's antennas) is merged with a
       [`lagrax.URDFWarning`][] naming it, when the base's merged inertia is. Mimic
-      joints are supported as on a fixed base.
+      joints are supported as on a fixed base, and so are `limits="impact"`
+      ([`lagrax.chains.limit_events`][] stops the joints `q[7:]`; a stop's impulse
+      acts on its joint alone, not on the base).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
@@ -483,14 +485,10 @@ def from_urdf(
     if not massless_links:
         _check_mass_matrix(tree, params, bodies)
     if floating_base:
-        if limits is not None:
-            raise ConfigurationError(
-                f"from_urdf: limits={limits!r} is not supported with floating_base=True yet "
-                "(the limit events index the joints of a fixed-base tree)"
-            )
         from .floating import base_from_urdf
 
-        return base_from_urdf(tree, params, place, order, links, root, _inertial)  # type: ignore[return-value]
+        robot, params = base_from_urdf(tree, params, place, order, links, root, _inertial)
+        return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
     return with_limits(tree, params, limits, restitution)
 
 
