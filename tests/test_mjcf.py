@@ -161,8 +161,34 @@ def test_free_joints_lagrax_cannot_load_are_named():
     damped = damped[: damped.index('<body name="b">')] + "</worldbody></mujoco>"
     with pytest.raises(lx.MJCFError, match="damping on the free joint 'fa'"):
         from_mjcf(damped)
-    with pytest.raises(lx.ConfigurationError, match="free joint"):
-        from_mjcf(HERE / "floating.xml", limits="impact")
+
+
+def test_floating_mjcf_stops_its_joints_at_their_limits():
+    """A free base with a limited knee (`limits="impact"`, restitution 0.5): the knee's
+    event sees the joint at `q[7 + 1]`; the knee, driven at its stop, hits it, never
+    passes it, and the hit leaves the momentum of the whole robot unchanged (zero
+    gravity)."""
+    text = (HERE / "floating.xml").read_text()
+    text = text.replace('ref="20"/>', 'ref="20" range="-30 30"/>')
+    text = text.replace('gravity="0 0 -9.81"', 'gravity="0 0 0"')
+    robot, params = from_mjcf(text, limits="impact", restitution=0.5)
+    assert float(params["restitution"][1]) == 0.5 and params["restitution"].shape == (4,)
+    [event] = lx.chains.limit_events(robot)
+    system = robot.system()
+    q = np.zeros(7 + robot.n)
+    q[6] = 1.0
+    q[8] = np.deg2rad(29.0)  # the knee just inside its upper stop (ref folded in)
+    v = np.zeros(6 + robot.n)
+    v[7] = 2.0  # the knee towards the stop
+    sol = lx.simulate(system, q, v, params, t1=0.2, events=[event], rtol=1e-10, atol=1e-10)
+    hit = sol.events[0]
+    assert int(hit.count) >= 1
+    t_hit = float(hit.times[0])
+    assert 0.0 < t_hit < 0.2
+    finite = np.isfinite(np.asarray(sol.q[:, 8]))
+    assert np.max(np.asarray(sol.q[:, 8])[finite]) <= np.deg2rad(30.0) + 1e-9
+    h = jax.vmap(lambda a, b: system.momentum(a, b, params))(sol.q, sol.qd)
+    assert rel_error(h[-1], h[0]) < 1e-8
 
 
 def test_a_body_with_two_joints_is_a_chain_of_tree_bodies():

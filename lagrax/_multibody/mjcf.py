@@ -31,7 +31,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import ConfigurationError, MJCFError
+from .._core.errors import MJCFError
 from .common import about_centres, float_dtype, steiner
 from .limits import with_limits
 from .trees import Tree
@@ -264,7 +264,7 @@ def from_mjcf(
     loss or gravity compensation, tendons, equality constraints or fluid forces, naming
     the first one and its value. `MJCFError` also when the `mujoco` package is not
     installed. `FileNotFoundError` for a missing file; `ConfigurationError` for a bad
-    `limits` or `restitution`, and for `limits` with a free joint (not supported yet).
+    `limits` or `restitution`.
 
     **Example:**
 
@@ -298,12 +298,8 @@ def from_mjcf(
     tree, params = _tree_and_params(model, bodies, dtype)
     if base is None:
         return with_limits(tree, params, limits, restitution)
-    if limits is not None:
-        raise ConfigurationError(
-            f"from_mjcf: limits={limits!r} is not supported with a free joint yet (the limit "
-            "events index the joints of a fixed-base tree)"
-        )
-    return _floating(tree, params, base)  # type: ignore[return-value]
+    robot, params = _floating(tree, params, base)
+    return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
 
 
 def _free_body(model, names: _Names) -> int | None:
