@@ -88,12 +88,12 @@ def test_lockstep_schedule_matches_queue(arm, arm_grid, arm_traj):
     np.testing.assert_allclose(ds.q.values, arm_traj.q.values, rtol=0, atol=1e-11)
     np.testing.assert_array_equal(ds.num_steps.values, arm_traj.num_steps.values)
     # lock-step pads the fast members: its idle share is at least the work queue's on
-    # the same chunk (its default eighth of the members on lanes)
+    # the same chunk (on its default lanes)
     size = arm_grid.size
     kw = dict(t1=2.0, keep="trajectory", n_save=11, chunk_size=size, progress=False)
     queue = lx.sweep(system, Q0_2R, [0.0, 0.0], arm_grid, **kw)
     lock = lx.sweep(system, Q0_2R, [0.0, 0.0], arm_grid, schedule="lockstep", **kw)
-    assert queue.attrs["n_lanes"] == max(1, size // 8) and lock.attrs["n_lanes"] == size
+    assert queue.attrs["n_lanes"] == min(16, size) and lock.attrs["n_lanes"] == size
     assert lock.attrs["lane_idle_fraction"] >= queue.attrs["lane_idle_fraction"]
 
 

@@ -23,19 +23,20 @@ ARM_LANE = lane_bytes(2, 9, 8)  # the 2R arm in float64
 ARM_MEMBER = 8 * (2 * 2 + 1 + 4 * 2 + 8)  # its final state kept
 
 
-def cpu_before(n_members, member_bytes, chunk_size, n_lanes, count):
-    """The chunk size and lane count sweep chose before the device defaults (its driver)."""
+def cpu_choice(n_members, member_bytes, chunk_size, n_lanes, count):
+    """The chunk size and lane count of one CPU core, written out: chunks of up to
+    8,192 members and 64 MiB of kept output, a whole number per device, 16 lanes."""
     if chunk_size is None:
         chunk_size = int(min(8192, max(64, (64 << 20) // member_bytes)))
     chunk_size = int(min(chunk_size, n_members))
     chunk_size = -(-chunk_size // count) * count
     per_device = chunk_size // count
-    lanes = n_lanes if n_lanes is not None else max(1, min(1024, per_device // 8))
+    lanes = n_lanes if n_lanes is not None else 16
     return chunk_size, min(lanes, per_device)
 
 
 @pytest.mark.parametrize("count", [1, 3])
-def test_cpu_choices_are_unchanged(count):
+def test_cpu_choices(count):
     for n_members in (1, 7, 64, 1000, 8192, 50_000, 10**6):
         for member_bytes in (56, 8 * 1000, 8 * 10**6):
             for chunk_size, n_lanes in [(None, None), (100, None), (None, 5), (64, 2)]:
@@ -47,7 +48,7 @@ def test_cpu_choices_are_unchanged(count):
                     chunk_size=chunk_size,
                     n_lanes=n_lanes,
                 )
-                chunk, lanes = cpu_before(n_members, member_bytes, chunk_size, n_lanes, count)
+                chunk, lanes = cpu_choice(n_members, member_bytes, chunk_size, n_lanes, count)
                 assert (cut.chunk_size, cut.n_lanes) == (chunk, lanes)
                 assert cut.refill == max(1, lanes // 16) and cut.tail_lanes == 0
 
@@ -132,7 +133,7 @@ def test_device_info_reads_platform_and_memory():
 @pytest.mark.parametrize("threads", [2, 3])
 def test_cpu_cores_get_equal_chunks(threads):
     """With several cores, the batch is cut into a multiple of the cores' count of
-    chunks of equal size (no chunk mostly padding); lanes follow the chunk as before."""
+    chunks of equal size (no chunk mostly padding), each on 16 lanes."""
     for n_members in (1, 7, 64, 1000, 8192, 50_000, 10**6):
         for member_bytes in (56, 8 * 10**6):
             one = plan(
@@ -154,7 +155,7 @@ def test_cpu_cores_get_equal_chunks(threads):
                 assert n_chunks >= threads
             # padding: less than a member per chunk
             assert n_chunks * cut.chunk_size - n_members < n_chunks
-            assert cut.n_lanes == max(1, min(1024, cut.chunk_size // 8))
+            assert cut.n_lanes == min(16, cut.chunk_size)
     # the user's chunk size is kept
     mine = plan(
         DeviceInfo("cpu", None, 1, threads),
@@ -189,12 +190,14 @@ def test_cpu_sweep_reports_its_cut_and_its_idle_count(arm_batch, monkeypatch):
     monkeypatch.setattr(_defaults, "host_cores", lambda: 1)
     ds = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, t1=2.0, progress=False)
     a = ds.attrs
-    assert (a["platform"], a["chunk_size"], a["n_lanes"]) == ("cpu", 96, 12)  # 96 // 8
+    assert (a["platform"], a["chunk_size"], a["n_lanes"]) == ("cpu", 96, 16)
     assert (a["refill_lanes"], a["tail_lanes"], a["threads"]) == (1, 0, 1)
     steps = ds.num_steps.values.ravel()
-    assert a["lane_idle_fraction"] == idle_fraction(steps, 96, 12, 1, 0)
-    # chunks of 40 (the last padded with copies of its first member)
-    ds = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, t1=2.0, chunk_size=40, progress=False)
+    assert a["lane_idle_fraction"] == idle_fraction(steps, 96, 16, 1, 0)
+    # chunks of 40 (the last padded with copies of its first member), 5 lanes
+    ds = lx.sweep(
+        system, Q0_2R, [0.0, 0.0], batch, t1=2.0, chunk_size=40, n_lanes=5, progress=False
+    )
     assert (ds.attrs["chunk_size"], ds.attrs["n_lanes"]) == (40, 5)
     assert ds.attrs["lane_idle_fraction"] == idle_fraction(steps, 40, 5, 1, 0)
 
@@ -253,7 +256,7 @@ def test_checkpoint_from_a_cpu_resumes_on_a_gpu(arm_batch, tmp_path, monkeypatch
     system, batch = arm_batch
     kw = dict(t1=1.0, chunk_size=48, checkpoint=tmp_path / "ckpt", progress=False)
     cpu = lx.sweep(system, Q0_2R, [0.0, 0.0], batch, **kw)
-    assert cpu.attrs["n_lanes"] == 6
+    assert cpu.attrs["n_lanes"] == 16
     calls = []
     monkeypatch.setattr(_driver, "solve_chunk", lambda *a, **k: calls.append(1))
     monkeypatch.setattr(_driver, "device_info", lambda devices: DeviceInfo("gpu", 8 << 30, 1))

@@ -119,7 +119,7 @@ def sweep(
       GPU or TPU, four members a lane (the whole batch when it is smaller), within half
       the device's memory.
     - `n_lanes`: members integrated at once inside a chunk, per device. Default, from
-      the device: on a CPU, an eighth of the chunk's members per device, at most 1,024;
+      the device: on a CPU, 16 per device (fewer for a smaller chunk);
       on a GPU or TPU, enough to fill it: as many as there are members, up to 131,072,
       fewer for a model whose lanes would not fit in a quarter of the device's memory.
       The result's `attrs` say what was chosen (`chunk_size`, `n_lanes`, and
