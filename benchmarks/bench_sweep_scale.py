@@ -17,7 +17,9 @@ Three sections, each measured in one run on this machine (pick with ``--sections
    sweep at a size that fits.
 3. ``dask``: a ``LocalCluster`` of 2 single-threaded worker processes against one process
    over both cores (``sweep`` runs a chunk per core), 65,536 members, final state, for the
-   2R arm and the 7-DOF arm; the results compared bitwise.
+   2R arm and the 7-DOF arm; the results compared bitwise. Twice: with each worker pinned
+   to its own core (what a batch system's one-core jobs get), and not pinned (each
+   worker's XLA then sizes its thread pool to every core, and the two compete).
 
     python benchmarks/bench_sweep_scale.py [--sections arm7 store dask] [--repeats 3]
         [--cap-mib 1024] [--quick]
@@ -89,7 +91,10 @@ def arm7(repeats, n):
 
     ref = final_state(run("dopri8", 1e-12)())
     runs = []
-    for solver, tols in (("dopri8", (1e-6, 1e-7, 1e-8, 1e-9)), ("tsit5", (1e-6, 1e-7, 1e-8))):
+    for solver, tols in (
+        ("dopri8", (1e-6, 1e-7, 1e-8, 1e-9, 1e-10)),
+        ("tsit5", (1e-6, 1e-7, 1e-8)),
+    ):
         for tol in tols:
             first, t, ds = median_time(run(solver, tol), repeats)
             err = float(np.max(np.abs(final_state(ds) - ref)))
@@ -256,9 +261,11 @@ def _models(n):
     )
 
 
-def dask_cluster(n, repeats):
+def dask_cluster(n, repeats, pinned):
+    where = "each pinned to a core" if pinned else "not pinned"
     print(
-        f"\n3. Dask: a LocalCluster of 2 single-threaded workers against one process, {n} members"
+        f"\n3. Dask: a LocalCluster of 2 single-threaded workers ({where}) against one "
+        f"process, {n} members"
     )
     if not available("distributed", "the Dask cluster (section 3)"):
         return
@@ -268,6 +275,11 @@ def dask_cluster(n, repeats):
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     )
     with Client(cluster) as client:
+        if pinned:  # each worker on its own core, as a batch job's cgroup would give it
+            cores = sorted(os.sched_getaffinity(0))
+            for i, worker in enumerate(sorted(client.scheduler_info()["workers"])):
+                core = cores[i % len(cores)]
+                client.run(lambda core=core: os.sched_setaffinity(0, {core}), workers=[worker])
         for label, system, q0, qd0, batch, t1 in _models(n):
 
             def run(c=None, system=system, q0=q0, qd0=qd0, batch=batch, t1=t1):
@@ -313,7 +325,8 @@ def main(argv=None):
     if "store" in args.sections:
         store(args.cap_mib, args.quick, args.folder)
     if "dask" in args.sections:
-        dask_cluster(4096 if args.quick else args.members, args.repeats)
+        for pinned in (True, False):
+            dask_cluster(4096 if args.quick else args.members, args.repeats, pinned)
 
 
 if __name__ == "__main__":

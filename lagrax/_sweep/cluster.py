@@ -2,16 +2,21 @@
 
 The client process plans the sweep and checks its checkpoint or store as without a
 cluster; the chunks not done are submitted as tasks (`solve_chunk` on a worker). The
-chunk program's definition (`ChunkSpec`: the system, solver, lanes, times) is scattered
-to every worker once, so that every task on a worker receives the same object, and the
-compiled program that `solve_chunk` caches for it is compiled once per worker and
-reused. Each finished chunk comes back to the client, which writes it (into the store,
+chunk program's definition (`ChunkSpec`: the system, solver, lanes, times) is pickled
+and scattered to every worker once, so that every task on a worker receives the same
+object, and the compiled program that `solve_chunk` caches for it is compiled once per
+worker and reused; a worker keeps the definitions it has seen by their digest, so a
+later sweep of the same definition (another batch) reuses its compiled program too.
+Each finished chunk comes back to the client, which writes it (into the store,
 the checkpoint directory, or the in-memory result) as it arrives: the only writer, so a
 task that Dask runs again after losing its worker changes nothing (a chunk is written
 once, by its index).
 """
 
+import collections
 import dataclasses
+import hashlib
+import pickle
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -59,9 +64,31 @@ def cluster_threads(client: Any) -> int:
         return 1
 
 
-def _solve(spec: ChunkSpec, params: Any, q0s: np.ndarray, qd0s: np.ndarray) -> ChunkResult:
-    """One chunk, on a worker (the task)."""
-    return solve_chunk(spec, params, q0s, qd0s)
+# On a worker: the chunk programs (`ChunkSpec`) it has received, by the SHA-256 of
+# their pickle, the latest last. A sweep that sends the same definition again (the same
+# model and settings, another batch) gets the object it compiled for, and with it the
+# compiled program: no tracing or compiling again.
+_SPECS: "collections.OrderedDict[str, ChunkSpec]" = collections.OrderedDict()
+_SPECS_KEPT = 8
+
+
+def _spec_on_worker(digest: str, payload: bytes) -> ChunkSpec:
+    """The chunk program of `payload` (its pickle, whose SHA-256 is `digest`): the one
+    this worker already holds for `digest`, else `payload` unpickled and kept."""
+    spec = _SPECS.get(digest)
+    if spec is None:
+        spec = pickle.loads(payload)
+        _SPECS[digest] = spec
+        while len(_SPECS) > _SPECS_KEPT:
+            _SPECS.popitem(last=False)
+    _SPECS.move_to_end(digest)
+    return spec
+
+
+def _solve(spec: tuple[str, bytes], params: Any, q0s: np.ndarray, qd0s: np.ndarray) -> ChunkResult:
+    """One chunk, on a worker (the task): `spec` is the chunk program's `(digest,
+    pickle)` (see `_spec_on_worker`)."""
+    return solve_chunk(_spec_on_worker(*spec), params, q0s, qd0s)
 
 
 def run_on_cluster(
@@ -77,6 +104,7 @@ def run_on_cluster(
     """As the driver's `_run`, the chunks not in `loaded` solved as tasks on `client`'s
     workers; each is passed to `save` as it completes (in any order), with a progress
     bar of members. **Returns:** with `collect`, every chunk's `ChunkResult` in order."""
+    import cloudpickle
     from distributed import as_completed
 
     size, n_members = spec.size, members.size
@@ -95,7 +123,9 @@ def run_on_cluster(
             bar.update(min((c + 1) * size, n_members) - c * size)
         todo = [c for c in range(n_chunks) if c not in loaded]
         if todo:
-            [remote_spec] = client.scatter([spec], broadcast=True, hash=False)
+            payload = cloudpickle.dumps(spec)
+            digest = hashlib.sha256(payload).hexdigest()
+            [remote_spec] = client.scatter([(digest, payload)], broadcast=True, hash=False)
             for c in todo:
                 a, b = c * size, min((c + 1) * size, n_members)
                 params = jtu.tree_map(np.asarray, members.params_of(a, b))
