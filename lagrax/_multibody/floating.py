@@ -489,12 +489,22 @@ def base_from_urdf(
     com = moment / mass
     inertia = inertia_o - steiner(mass, com)
     inertia = 0.5 * (inertia + inertia.T)
-    robot = FloatingTree(tree, base_name=root)
+    return on_base(tree, params, (mass, com, inertia), root, f"link {root!r}")
+
+
+def on_base(
+    tree: Tree, params: dict, base: tuple, name: str, what: str
+) -> tuple[FloatingTree, dict]:
+    """The [`FloatingTree`][lagrax.chains.FloatingTree] of `tree` on a base named `name`
+    whose `(mass, com, inertia)` (the inertia about the centre of mass, base frame) a
+    loader merged, and `params` plus `base_m`, `base_com`, `base_inertia` (the inertia
+    checked, named `what` in its error)."""
+    mass, com, inertia = base
     dtype = params["m"].dtype
     out = dict(params)
     out["base_m"] = jnp.asarray(mass, dtype)
     out["base_com"] = jnp.asarray(com, dtype)
     out["base_inertia"] = check_inertia(
-        jnp.asarray(inertia, dtype)[None], name=f"link {root!r} inertia", semidefinite=True
+        jnp.asarray(inertia, dtype)[None], name=f"{what} inertia", semidefinite=True
     )[0]
-    return robot, out
+    return FloatingTree(tree, base_name=name), out

@@ -342,8 +342,7 @@ def _free_body(model, names: _Names) -> int | None:
 def _floating(tree: Tree, params: dict, base: "_Body"):
     """The [`FloatingTree`][lagrax.chains.FloatingTree] on `base` (the free body, with
     the bodies welded to it) and its params."""
-    from .floating import FloatingTree
-    from .inertia import check_inertia
+    from .floating import on_base
 
     if not base.mass > 0:
         raise MJCFError(
@@ -351,14 +350,7 @@ def _floating(tree: Tree, params: dict, base: "_Body"):
             f"{base.mass:g}: a floating base needs a positive mass"
         )
     (mass,), (com,), (inertia,) = about_centres([base])
-    dtype = params["m"].dtype
-    out = dict(params)
-    out["base_m"] = jnp.asarray(mass, dtype)
-    out["base_com"] = jnp.asarray(com, dtype)
-    out["base_inertia"] = check_inertia(
-        jnp.asarray(inertia, dtype)[None], name=f"body {base.name!r} inertia", semidefinite=True
-    )[0]
-    return FloatingTree(tree, base_name=base.name), out
+    return on_base(tree, params, (mass, com, inertia), base.name, f"body {base.name!r}")
 
 
 _WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
