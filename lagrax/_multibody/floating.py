@@ -24,6 +24,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.blocking import blocked
 from .._core.checks import coords, finite, finite_params, is_traced, physical
 from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
@@ -119,6 +120,12 @@ class FloatingTree(eqx.Module):
     def system(self) -> "FloatingBaseSystem":
         """The robot's [`FloatingBaseSystem`][lagrax.chains.FloatingBaseSystem]."""
         return FloatingBaseSystem(self)
+
+
+def _aba(system: Any, q: Any, v: Any, params: Params, force: Any) -> jnp.ndarray:
+    """`v̇` by the articulated-body algorithm with a free root (`force`: the generalized
+    force, damping included)."""
+    return fr.aba(system._at(q, params), v, force)
 
 
 def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
@@ -307,9 +314,9 @@ class FloatingBaseSystem(AbstractSystem):
         force = -_joint_damping(self.robot.tree, params, qd)
         if tau is not None:
             force = force + jnp.asarray(tau, qd.dtype)
-        fc = self._at(q, params)
         if not self.robot.tree.mimic:
-            return fr.aba(fc, qd, force)
+            return blocked(_aba)(self, q, qd, params, force)
+        fc = self._at(q, params)
         return cholesky_solve(self._mass(fc)[0], force - self._rnea(fc, qd, None))
 
     def forward_dynamics(

@@ -4,13 +4,14 @@ or a tree (`AbstractArticulated`), their kinematics as a `recursions.Chain`, and
 its energies (see `lagrax._multibody.recursions`)."""
 
 import abc
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.blocking import BLOCK
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
 from .._core.linalg import cholesky_solve
@@ -29,6 +30,10 @@ class AbstractArticulated(eqx.Module):
     ([`AbstractTree`][lagrax.chains.AbstractTree]: a spatial chain or a
     [`Tree`][lagrax.chains.Tree]). Structure only (static fields); the numbers are in
     `params`."""
+
+    # whether a large vmapped batch of its derivatives runs in blocks (see
+    # `ChainEquations.blocks`)
+    block_derivatives: ClassVar[bool] = True
 
     n: eqx.AbstractVar[int]  # the number of joints (and bodies)
     parents: eqx.AbstractVar[tuple[int, ...]]  # each body's parent (−1: the base)
@@ -208,6 +213,12 @@ class ChainEquations(AbstractEquations):
         """The chain's motion subspaces and inertias at `q`."""
         return self.chain.articulated(q, params, self.scan)
 
+    def blocks(self) -> tuple[int | None, int | None]:
+        """Blocks of `BLOCK` states for the articulated-body algorithm, and for the
+        derivatives of a spatial chain or tree (a planar chain's derivatives, a few
+        scalars a body, run fastest over the whole batch)."""
+        return BLOCK, BLOCK if self.chain.block_derivatives else None
+
     def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
         """`q̈` solving `M q̈ + C q̇ + G = force` (`force` `None` means zero); NaN
         where the chain's articulated inertias are not positive."""
@@ -265,6 +276,10 @@ class CoupledEquations(AbstractEquations):
 
     def _full(self) -> ChainEquations:
         return ChainEquations(self.chain, self.scan)
+
+    def blocks(self) -> tuple[int | None, int | None]:
+        """As the full tree's (see `ChainEquations.blocks`)."""
+        return self._full().blocks()
 
     def _j(self, dtype) -> jnp.ndarray:
         return jnp.asarray(self.chain.coupling_matrix(), dtype)

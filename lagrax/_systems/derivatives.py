@@ -62,6 +62,11 @@ class AbstractEquations(eqx.Module):
     def energies(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any] | None:
         """`(T, V)` from the structure, or `None`: from the energy functions."""
 
+    def blocks(self) -> tuple[int | None, int | None]:
+        """States per block of a large vmapped batch (`lagrax._core.blocking`) for the
+        accelerations and for their derivatives; `None`: not blocked."""
+        return None, None
+
 
 class Energies(Protocol):
     """What the kernels read: the user's energy and force functions (or `None`), and
