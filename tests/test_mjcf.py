@@ -9,8 +9,8 @@
   against ``mj_fullM`` and ``q̈`` against ``mj_forward``'s ``qacc`` (contacts, limits and
   actuators off, ``qfrc_applied = τ``) at random states, in MuJoCo's own coordinates.
 - A URDF read by MuJoCo equals the same URDF read by ``from_urdf``.
-- A free joint makes a floating base (``tests/mjcf/floating.xml``), against MuJoCo through
-  the state conversions.
+- A free joint makes a floating base (``tests/mjcf/floating.xml``; and a lone free body,
+  with no joints), against MuJoCo through the state conversions.
 - Constructs lagrax does not model raise ``MJCFError`` naming them.
 """
 
@@ -97,22 +97,15 @@ def test_mass_matrix_and_accelerations_match_mujoco(name):
     assert worst_m < RTOL and worst_a < RTOL, (worst_m, worst_a)
 
 
-def test_free_joint_is_a_floating_base_matching_mujoco():
-    """``floating.xml``: a free torso (a welded head, legs of hinges and a slide, a floor
-    welded to the world) is a `FloatingTree`. At random states (random unit quaternions
-    and base positions, contacts off): `M` equals `Tᵀ M_mj T` (`T` takes the base's
-    linear velocity from the base frame to MuJoCo's world frame) and `q̈` MuJoCo's
-    `qacc` through `from_mujoco_state`; the conversions are inverse to each other."""
-    robot, params = from_mjcf(HERE / "floating.xml")
-    assert isinstance(robot, lx.chains.FloatingTree)
-    assert robot.joint_names == ("l_hip", "l_knee", "r_hip", "r_ankle")
-    model = _model("floating")
+def _check_floating_against_mujoco(robot, params, model, base: int, seed: int) -> None:
+    """At random states (random unit quaternions and base positions, contacts off): `M`
+    equals `Tᵀ M_mj T` (`T` takes the base's linear velocity from the base frame to
+    MuJoCo's world frame) and `q̈` MuJoCo's `qacc` through `from_mujoco_state`; the
+    conversions are inverse to each other (`base`: the free body's MuJoCo index)."""
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    # the base carries the torso and the head, not the floor
-    assert float(params["base_m"]) == pytest.approx(model.body_mass[2] + model.body_mass[3])
     system = robot.system()
     data = mujoco.MjData(model)
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(seed)
     for _ in range(N_STATES):
         qpos = np.array(model.qpos0)
         qpos[:3] += rng.normal(size=3)
@@ -126,7 +119,7 @@ def test_free_joint_is_a_floating_base_matching_mujoco():
         back = lx.chains.to_mujoco_state(q, v)
         np.testing.assert_allclose(back[0], qpos, rtol=0, atol=1e-15)
         np.testing.assert_allclose(back[1], qvel, rtol=0, atol=1e-14)
-        rot = data.xmat[2].reshape(3, 3)  # the torso's (body 1 is the floor)
+        rot = data.xmat[base].reshape(3, 3)
         np.testing.assert_allclose(v[:3], rot.T @ qvel[:3], rtol=0, atol=1e-14)
         tau = np.concatenate([rot.T @ force[:3], force[3:]])  # a force converts like v
         a = np.asarray(system.forward_dynamics(jnp.asarray(q), jnp.asarray(v), params, tau))
@@ -138,6 +131,40 @@ def test_free_joint_is_a_floating_base_matching_mujoco():
         t[:3, :3] = rot
         m_lx = np.asarray(system.mass_matrix(jnp.asarray(q), params))
         assert _rel(m_lx, t.T @ m_mj @ t) < RTOL
+
+
+def test_free_joint_is_a_floating_base_matching_mujoco():
+    """``floating.xml``: a free torso (a welded head, legs of hinges and a slide, a floor
+    welded to the world) is a `FloatingTree` equal to MuJoCo's model
+    (`_check_floating_against_mujoco`)."""
+    robot, params = from_mjcf(HERE / "floating.xml")
+    assert isinstance(robot, lx.chains.FloatingTree)
+    assert robot.joint_names == ("l_hip", "l_knee", "r_hip", "r_ankle")
+    model = _model("floating")
+    # the base carries the torso and the head, not the floor
+    assert float(params["base_m"]) == pytest.approx(model.body_mass[2] + model.body_mass[3])
+    _check_floating_against_mujoco(robot, params, model, base=2, seed=5)  # body 1: the floor
+
+
+FREE_BODY = (
+    "<mujoco><worldbody>"
+    '<body name="drone" pos="0 0 1"><freejoint name="root"/>'
+    '<geom type="box" size="0.3 0.2 0.05" pos="0.05 -0.02 0.01" euler="10 5 0" mass="1.5"/>'
+    '<body name="camera" pos="0.25 0.1 -0.05"><geom size="0.04" mass="0.2"/></body>'
+    "</body></worldbody></mujoco>"
+)
+
+
+def test_a_lone_free_body_is_a_floating_base_with_no_joints():
+    """One body with only a free joint (a welded camera merged into it): a
+    `FloatingTree` of no joints (`q` of size 7, `v` of size 6) equal to MuJoCo's model."""
+    robot, params = from_mjcf(FREE_BODY)
+    assert isinstance(robot, lx.chains.FloatingTree) and robot.n == 0
+    assert robot.base_name == "drone" and robot.joint_names == ()
+    assert float(params["base_m"]) == pytest.approx(1.7)
+    model = mujoco.MjModel.from_xml_string(FREE_BODY)
+    assert model.nq == 7 and model.nv == 6
+    _check_floating_against_mujoco(robot, params, model, base=1, seed=6)
 
 
 def test_free_joints_lagrax_cannot_load_are_named():
@@ -155,8 +182,6 @@ def test_free_joints_lagrax_cannot_load_are_named():
     )
     with pytest.raises(lx.MJCFError, match="'fixed_arm'.*not below the floating base"):
         from_mjcf(beside)
-    with pytest.raises(lx.MJCFError, match="nothing to move.*rigid_body"):
-        from_mjcf(BAD["free joint"][0])
     damped = two.replace('<freejoint name="fa"/>', '<joint name="fa" type="free" damping="1"/>')
     damped = damped[: damped.index('<body name="b">')] + "</worldbody></mujoco>"
     with pytest.raises(lx.MJCFError, match="damping on the free joint 'fa'"):
@@ -257,10 +282,6 @@ def _xml(body: str, extra: str = "") -> str:
 
 ARM = '<body name="b1"><joint name="j1" axis="0 1 0"/><geom size="0.1" mass="1"/></body>'
 BAD = {
-    "free joint": (  # a free body alone: nothing for a tree to move
-        _xml('<body name="torso"><freejoint name="root"/><geom size="0.1"/></body>'),
-        ["no hinge or slide joint", "lagrax.rigid_body"],
-    ),
     "ball joint": (
         _xml('<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'),
         ["ball joint", "'hip'"],
@@ -289,7 +310,10 @@ BAD = {
         ["equality constraint", "'couple'"],
     ),
     "gravcomp": (_xml(ARM.replace('name="b1"', 'name="b1" gravcomp="1"')), ["gravity comp"]),
-    "no joint": (_xml('<body name="b"><geom size="0.1"/></body>'), ["no hinge or slide"]),
+    "no joint": (
+        _xml('<body name="b"><geom size="0.1"/></body>'),
+        ["no hinge or slide joint and no free joint"],
+    ),
     "mujoco refuses": (
         "<mujoco><worldbody><body><joint type='twist'/></body></worldbody></mujoco>",
         ["twist"],

@@ -20,8 +20,10 @@ joint there, and the reference is its reduction by hand: ``Jᵀ M J`` and ``Jᵀ
 mimic map (``_helpers.pin_coupling``), the accelerations by solving the reduced equations.
 
 The few files that cannot be a fixed-base robot fail with a ``URDFError`` naming why
-(``FAILS``); the files whose inertias violate the triangle inequality or whose mimic joints
-name a missing master load with a ``URDFWarning`` (``WARNS``).
+(``FAILS``; the two single rigid bodies among them, ``FREE_BODIES``, load with a floating
+base and are held to Pinocchio's free flyer there); the files whose inertias violate the
+triangle inequality or whose mimic joints name a missing master load with a
+``URDFWarning`` (``WARNS``).
 
 With a floating base (``BASES``: ``from_urdf(..., floating_base=True)``) the reference
 is Pinocchio's free-flyer model of the same file (``buildModelFromUrdf(path,
@@ -37,8 +39,10 @@ Each robot's three functions are compiled once, as one program vmapped over the 
 (XLA, whatever its size: the recursions loop over bodies), so the robots outside
 ``QUICK`` (one of each kind: mimic joints, massless links, continuous and prismatic joints,
 inconsistent inertias, ill-conditioned ``M``) and ``QUICK_FLOATING`` (a quadruped, a
-humanoid with mimic grippers, TIAGo's warned antennas) are marked ``slow``: ``-m 'not
-slow'`` runs eleven of them, the full run all 64 on both bases.
+humanoid with mimic grippers, TIAGo's warned antennas, the Panda's mimic finger, the two
+single rigid bodies) are marked ``slow``: ``-m 'not slow'`` runs fourteen robot–base
+pairs (eight fixed, six floating), the full run all 64 on both bases and the two free
+bodies.
 """
 
 import importlib.metadata
@@ -86,11 +90,15 @@ ROBOTS = SHARE / "robots"
 URDFS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.urdf"))
 XACROS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.xacro"))
 
-# Files that are not a fixed-base robot, with what the URDFError says.
-FAILS = {
-    # a single rigid body (only fixed joints): it needs a floating base
+# Single rigid bodies (only fixed joints): refused on a fixed base (what the URDFError
+# says), loaded on a floating base (a free body: `q` of size 7, `v` of size 6).
+FREE_BODIES = {
     "hector_description/robots/quadrotor_base.urdf": "no revolute, continuous or prismatic",
     "iris_description/robots/iris_simple.urdf": "no revolute, continuous or prismatic",
+}
+# Files that are not a fixed-base robot, with what the URDFError says.
+FAILS = {
+    **FREE_BODIES,
     # the hand joints move only massless finger links (mimic joints): M is singular
     "romeo_description/urdf/romeo.urdf": "joint 'LHand' moves no mass",
     # a principal moment of -0.0027 kg m² (5 % of the largest): not an inertia
@@ -124,6 +132,7 @@ QUICK_FLOATING = {
     "talos_data/robots/talos_full_v2_box.urdf",  # a humanoid with mimic grippers
     "tiago_description/robots/tiago_no_hand.urdf",  # antennas with bad inertias on the base
     "panda_description/urdf/panda.urdf",  # a mimic finger
+    *FREE_BODIES,  # no joints: the base alone
 }
 
 
@@ -156,7 +165,11 @@ def _robot_param(rel: str, base: str):
     return pytest.param((rel, base), marks=marks, id=f"{Path(rel).stem}-{base}")
 
 
-@pytest.fixture(scope="module", params=[_robot_param(u, b) for u in LOADS for b in BASES])
+@pytest.fixture(
+    scope="module",
+    params=[_robot_param(u, b) for u in LOADS for b in BASES]
+    + [_robot_param(u, "floating") for u in sorted(FREE_BODIES)],
+)
 def robot(request):
     rel, base = request.param
     if base == "floating":
@@ -252,9 +265,11 @@ def test_xacro_files_are_not_robots(rel):
 
 
 def test_most_files_load():
-    """The package ships 69 URDF files; all but the five in ``FAILS`` load."""
+    """The package ships 69 URDF files; all but the five in ``FAILS`` load, and two of
+    those five (``FREE_BODIES``) load with a floating base."""
     assert len(URDFS) >= 60 and len(FAILS) <= 5
     assert set(FAILS) <= set(URDFS) and set(WARNS) <= set(LOADS)
+    assert set(FREE_BODIES) <= set(FAILS)
 
 
 # ------------------------------------------------------------------ options on shipped robots

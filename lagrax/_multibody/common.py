@@ -161,6 +161,8 @@ def about_centres(bodies: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`(masses, coms, inertias)` of bodies merged as sums (each with `mass`, the first
     moment `moment` and the inertia about its origin `inertia_o`): the centre of mass
     (the origin for a massless body) and the symmetrized inertia about it."""
+    if not bodies:  # a floating base alone: no bodies below it
+        return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3, 3))
     masses = np.array([b.mass for b in bodies])
     coms = np.stack([b.moment / b.mass if b.mass > 0 else np.zeros(3) for b in bodies])
     inertias = np.stack(

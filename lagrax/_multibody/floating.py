@@ -52,7 +52,8 @@ class FloatingTree(eqx.Module):
     **Arguments:**
 
     - `tree`: the joints, a [`Tree`][lagrax.chains.Tree] whose bodies with parent `−1` hang
-      from the base.
+      from the base; `Tree("", ())`, with no joints, makes the base a single free rigid
+      body (`n = 0`: a quadrotor, a satellite), `q` of size 7 and `v` of size 6.
     - `base_name`: a label for the base body (a URDF's root link).
 
     **Example:** a satellite with a two-joint arm, in zero gravity:

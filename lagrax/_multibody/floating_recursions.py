@@ -31,6 +31,10 @@ world origin, the potential energy).
   on the base about its origin in the base frame (force, torque).
 - CRBA: `M_BB = S_Bᵀ I^c_B S_B` (`I^c_B` the whole robot's inertia), `M_Bj = S_Bᵀ I^c_j S_j`,
   and the joints' block as for a fixed base.
+
+A tree with no joints (a single rigid body: `q` of size 7, `v` of size 6) runs the same
+code with passes over no bodies: ABA is the base's 6×6 solve `I_B a'_B = S_B⁻ᵀ τ_B −
+v_B ×* I_B v_B` (Newton–Euler for one body), RNEA its wrench, CRBA `M = S_Bᵀ I_B S_B`.
 """
 
 from typing import Any
@@ -128,16 +132,19 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     n, dtype = tree.n_bodies, q.dtype
     position, rot = q[:3], quaternion_rotation(q[3:7])
     p = jnp.zeros_like(position)  # the recursions' origin: the base origin
-    joints = tree.joint_angles(q[7:])
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
-    passes = a.Passes(n, scan, dtype, tree.parents)
-    big_a, big_b, big_c, slide = tree.joint_constants()
-    axes = np.asarray(tree.axes, float)
-    rev = revolute_flags(tree.joint_types)
-    values = (jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m"))
-    per_link = (joint_trig(joints), big_a, big_b, big_c, slide, axes, rev, *values)
-    _, ys = passes.run(_spatial_link, (_tuples(rot), _tuples(p)), passes.links(per_link))
-    s, inertia = passes.split(ys)
+    passes = a.Passes(n, bool(scan) and n > 0, dtype, tree.parents)
+    if n == 0:  # a single rigid body: the base alone, its passes over no bodies
+        s, inertia = [], []
+    else:
+        joints = tree.joint_angles(q[7:])
+        big_a, big_b, big_c, slide = tree.joint_constants()
+        axes = np.asarray(tree.axes, float)
+        rev = revolute_flags(tree.joint_types)
+        values = (jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m"))
+        per_link = (joint_trig(joints), big_a, big_b, big_c, slide, axes, rev, *values)
+        _, ys = passes.run(_spatial_link, (_tuples(rot), _tuples(p)), passes.links(per_link))
+        s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], dtype)
     a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in tree.up)
     chain = a.Chain(passes, a.SPATIAL, s, inertia, a0)
@@ -258,7 +265,10 @@ def crba(fc: FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:
     comp_sub, f = passes.run(
         inward, chain._zero_matrix(), passes.zip(chain.s, chain.inertia), reverse=True
     )
-    s_arr, f_arr = passes.column(chain.s), passes.column(f)
+    if passes.n:
+        s_arr, f_arr = passes.column(chain.s), passes.column(f)
+    else:  # a single rigid body: no joint columns
+        s_arr = f_arr = jnp.zeros((0, 6), dtype)
     g = s_arr @ f_arr.T  # g[j, i] = S_j · I^c_i S_i
     above = passes.ancestors()
     if passes.parents is None:

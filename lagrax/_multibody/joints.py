@@ -25,17 +25,21 @@ KINDS: Mapping[str, str] = {"R": "revolute", "P": "prismatic"}
 """The joint kinds, by letter."""
 
 
-def parse_joint_types(joint_types: Any, aliases: Mapping[str, str] | None = None) -> str:
+def parse_joint_types(
+    joint_types: Any, aliases: Mapping[str, str] | None = None, *, empty: bool = False
+) -> str:
     """`joint_types` upper-cased, with `aliases` (e.g. `{"C": "R"}`: continuous is
-    revolute) replaced; `ConfigurationError` for an empty string or an unknown letter."""
+    revolute) replaced; `ConfigurationError` for an unknown letter, or an empty string
+    unless `empty` (a tree with no joints: a floating base's single rigid body)."""
     types = str(joint_types).upper()
     for alias, kind in (aliases or {}).items():
         types = types.replace(alias, kind)
-    if not types or set(types) - set(KINDS):
+    if (not types and not empty) or set(types) - set(KINDS):
         names = [f"'{k}' ({v})" for k, v in KINDS.items()]
         names += [f"'{a}' ({KINDS[k]})" for a, k in (aliases or {}).items()]
+        kind = "a string" if empty else "a non-empty string"
         raise ConfigurationError(
-            f"joint_types must be a non-empty string of {', '.join(names)}, got {joint_types!r}"
+            f"joint_types must be {kind} of {', '.join(names)}, got {joint_types!r}"
         )
     return types
 
@@ -81,4 +85,6 @@ def joint_constants(types: str, axes: Any, rotations: Any) -> tuple[np.ndarray, 
         _CONSTANTS[kind](np.asarray(axis), np.asarray(fixed))
         for kind, axis, fixed in zip(types, axes, rotations, strict=True)
     ]
+    if not consts:  # no joints (a floating base alone)
+        return np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3))
     return tuple(np.stack(c) for c in zip(*consts, strict=True))

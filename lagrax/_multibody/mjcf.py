@@ -207,7 +207,9 @@ def from_mjcf(
     `(q, v)`, not MuJoCo's `(qpos, qvel)`: the quaternion's order and the frame of the
     base's linear velocity differ ([`from_mujoco_state`][lagrax.chains.from_mujoco_state]
     and [`to_mujoco_state`][lagrax.chains.to_mujoco_state] convert). The bodies welded
-    to the free body are merged into the base; bodies welded to the world are dropped.
+    to the free body are merged into the base; bodies welded to the world are dropped. A
+    model whose only joint is the free joint (a single rigid body) is the base alone: a
+    `FloatingTree` with no joints, `q` of size 7 and `v` of size 6.
 
     A body with several joints becomes a chain of massless tree bodies (its inertia on
     the last); a body with no joint is merged into the body it is welded to (mass,
@@ -259,7 +261,7 @@ def from_mjcf(
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
     message); for a ball joint, naming the joint and its body; for more than one free
     joint, a free body with other joints, a joint not below the free body, or a
-    massless floating base; for a model with no hinge or slide joint;
+    massless floating base; for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for nonzero armature, joint stiffness, friction
     loss or gravity compensation, tendons, equality constraints or fluid forces, naming
     the first one and its value. `MJCFError` also when the `mujoco` package is not
@@ -292,9 +294,10 @@ def from_mjcf(
         )
     free = _free_body(model, names)
     bodies, base = _bodies(model, names, free)
-    if not bodies:
-        extra = " (a single free body: see lagrax.rigid_body)" if free is not None else ""
-        raise MJCFError(f"the model has no hinge or slide joint: there is nothing to move{extra}")
+    if not bodies and base is None:
+        raise MJCFError(
+            "the model has no hinge or slide joint and no free joint: there is nothing to move"
+        )
     tree, params = _tree_and_params(model, bodies, dtype)
     if base is None:
         return with_limits(tree, params, limits, restitution)
@@ -465,7 +468,7 @@ def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict
     )
     params = tree.params(
         m=masses,
-        offset=np.stack([b.offset for b in bodies]),
+        offset=np.reshape([b.offset for b in bodies], (-1, 3)),
         com=coms,
         inertia=inertias,
         damping=damping,

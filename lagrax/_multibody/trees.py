@@ -75,6 +75,8 @@ def _limits(values: Any, n: int) -> tuple[tuple[float, float], ...]:
     if values is None:
         return tuple((-math.inf, math.inf) for _ in range(n))
     arr = np.asarray(values, float)
+    if arr.size == 0:  # no pairs (a tree with no joints)
+        arr = arr.reshape(0, 2)
     if arr.shape != (n, 2) or np.any(np.isnan(arr)) or np.any(arr[:, 0] > arr[:, 1]):
         raise ConfigurationError(f"limits must be {n} pairs (lower <= upper), got {values!r}")
     return tuple((float(lo), float(hi)) for lo, hi in arr)
@@ -202,7 +204,7 @@ class AbstractTree(AbstractArticulated):
         index, `a = 1`, `b = 0`; a mimic body: its master's coordinate, the URDF
         `<mimic multiplier offset>`)."""
         index = {body: k for k, body in enumerate(self.coordinates)}
-        k = np.array([index.get(i, -1) for i in range(self.n_bodies)])
+        k = np.array([index.get(i, -1) for i in range(self.n_bodies)], int)
         a, b = np.ones(self.n_bodies), np.zeros(self.n_bodies)
         for body, master, multiplier, offset in self.mimic:
             k[body], a[body], b[body] = index[master], multiplier, offset
@@ -353,11 +355,24 @@ class AbstractTree(AbstractArticulated):
         all bodies (see `lagrax._multibody.tree_equations.spatial_energies`)."""
         return spatial_energies(self, q, qd, params)
 
+    def _check_moves(self) -> None:
+        """`ConfigurationError` for a tree with no joints: fixed to the world, it has no
+        coordinates (it is a floating base's single rigid body)."""
+        if self.n_bodies == 0:
+            raise ConfigurationError(
+                "the tree has no joints: fixed to the world, nothing moves. A single "
+                "rigid body moves on a floating base: lagrax.chains.FloatingTree(tree)"
+            )
+
     def scene(self) -> Scene:
         """The tree as a [`lagrax.bodies.Scene`][]: one batched
         [`SpatialBody`][lagrax.bodies.SpatialBody] for all bodies, gravity `−g up`, and
         the tree's [`dissipation`][lagrax.chains.AbstractTree.dissipation] (a tree's joint
-        damping, `½ Σ b_i q̇_i²`)."""
+        damping, `½ Σ b_i q̇_i²`).
+
+        **Raises:** `ConfigurationError` for a tree with no joints (see
+        [`FloatingTree`][lagrax.chains.FloatingTree])."""
+        self._check_moves()
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         return Scene(
             [body],
@@ -373,7 +388,11 @@ class AbstractTree(AbstractArticulated):
         O(n); `M` by the composite-rigid-body algorithm), its coordinates named by
         [`coordinate_names`][lagrax.chains.AbstractTree.coordinate_names].
         `dataclasses.replace(system, equations=None)` differentiates the energies
-        instead (the definition)."""
+        instead (the definition).
+
+        **Raises:** `ConfigurationError` for a tree with no joints: fixed to the world it
+        cannot move (put it on a floating base, [`FloatingTree`][lagrax.chains.FloatingTree])."""
+        self._check_moves()
         equations = CoupledEquations(self) if self.mimic else ChainEquations(self)
         return dataclasses.replace(
             self.scene().system(),
@@ -439,6 +458,9 @@ class Tree(AbstractTree):
     **Arguments:**
 
     - `joint_types`: a string such as `"RRPR"` (`"C"`, continuous, is read as `"R"`).
+      An empty string (with `parents=()`) is a tree with no joints: the joint tree of
+      a [`FloatingTree`][lagrax.chains.FloatingTree] that is a single rigid body (a
+      quadrotor); fixed to the world it has no system.
     - `parents`: `n` parent indices (`−1`: the base; `parents[i] < i`).
     - `axes`: `n` joint axes (normalized here); default z.
     - `rotations`: `n` fixed rotations `S_i`; default the identity.
@@ -492,7 +514,7 @@ class Tree(AbstractTree):
         effort_limits: Any = None,
         mimic: Any = None,
     ):
-        types = parse_joint_types(joint_types, aliases={"C": "R"})
+        types = parse_joint_types(joint_types, aliases={"C": "R"}, empty=True)
         n = len(types)
         parents = tuple(int(p) for p in parents)
         if len(parents) != n:

@@ -446,7 +446,10 @@ def from_urdf(
       [`lagrax.URDFWarning`][] naming it, when the base's merged inertia is. Mimic
       joints are supported as on a fixed base, and so are `limits="impact"`
       ([`lagrax.chains.limit_events`][] stops the joints `q[7:]`; a stop's impulse
-      acts on its joint alone, not on the base).
+      acts on its joint alone, not on the base). A robot with no moving joint (a single
+      rigid body: a quadrotor, every link fixed to the root) is the base alone, a
+      `FloatingTree` of a [`Tree`][lagrax.chains.Tree] with no joints: `q = (x, y, z,
+      qx, qy, qz, qw)`, `v = (v_b, ω_b)`.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
@@ -460,7 +463,8 @@ def from_urdf(
     without `root=`, an unknown joint type, a floating or planar joint (not supported), a
     mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
     loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
-    that is not finite, a robot with no moving joint below `root`. `FileNotFoundError`
+    that is not finite, a robot with no moving joint below `root` on a fixed base (a
+    single rigid body needs `floating_base=True`). `FileNotFoundError`
     for a missing file. Warns [`lagrax.URDFWarning`][] for an inertia that violates the
     triangle inequality (unless `strict_inertia`).
 
@@ -479,10 +483,16 @@ def from_urdf(
     root, parent_of, children = _structure(links, joints, root)
     keep = _keep(root, tip, links, parent_of, children)
     bodies, place, order = _place_bodies(root, keep, children)
+    if not bodies and not floating_base:
+        raise URDFError(
+            f"the robot has no revolute, continuous or prismatic joint below {root!r} (none "
+            "that is not locked): fixed to the world, it cannot move. A single rigid body "
+            "(a quadrotor) moves on a floating base: pass floating_base=True"
+        )
     mimic = _mimic_map(bodies, joints)
     _merge_inertials(bodies, place, order, links, strict_inertia)
     tree, params = _tree_and_params(bodies, mimic, up, g, dtype)
-    if not massless_links:
+    if not massless_links and bodies:
         _check_mass_matrix(tree, params, bodies)
     if floating_base:
         from .floating import base_from_urdf
@@ -626,12 +636,6 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _P
                 place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))
         order.append(link)
         stack.extend((c.child, c) for c in reversed(children[link]) if c.child in keep)
-    if not bodies:
-        raise URDFError(
-            f"the robot has no revolute, continuous or prismatic joint below {root!r} (none "
-            "that is not locked): fixed to the world, it cannot move (a single rigid body "
-            "needs a floating base, which is not supported yet)"
-        )
     return bodies, place, order
 
 
@@ -680,7 +684,7 @@ def _tree_and_params(
     )
     params = tree.params(
         m=masses,
-        offset=np.stack([b.offset for b in bodies]),
+        offset=np.reshape([b.offset for b in bodies], (-1, 3)),
         com=coms,
         damping=np.array([j.damping for j in joint_list]),
         inertia=np.zeros_like(inertias),
