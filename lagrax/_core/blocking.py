@@ -46,9 +46,12 @@ states, unblocked / blocks of 16, 32, 64, 128, 256 (2-core CPU): G1 humanoid 9.8
 def _batch_size(x: Any) -> int:
     """The size of the vmap axis of `x` at the innermost batching level, or 0."""
     dim = getattr(x, "batch_dim", None)
-    if isinstance(x, BatchTracer) and isinstance(dim, int):
+    if not (isinstance(x, BatchTracer) and isinstance(dim, int)):
+        return 0
+    try:
         return int(x.val.shape[dim])
-    return 0
+    except (AttributeError, IndexError, TypeError):  # another JAX's tracer: not blocked
+        return 0
 
 
 def blocked(fn: Callable[..., Any], size: int | None = BLOCK) -> Callable[..., Any]:
