@@ -1,5 +1,9 @@
-"""Helpers shared by the tests: relative comparisons, random rotations and a central
-difference against which gradients are checked."""
+"""Helpers shared by the tests: relative comparisons, random rotations, a central
+difference against which gradients are checked, example-robot-data's folder and the
+conservation checks of a free floating motion."""
+
+import importlib.metadata
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -67,3 +71,31 @@ def pin_coupling(pin, model, tree):
     for body, name in enumerate(tree.joint_names):
         out[model.joints[model.getJointId(name)].idx_v, index[body]] = a[body]
     return out
+
+
+def example_robot_data() -> Path | None:
+    """example-robot-data's folder (``…/share/example-robot-data``, holding ``robots``),
+    or ``None`` when it is not installed."""
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    for f in dist.files or ():
+        if f.name == "package.xml" and "example-robot-data" in f.parts:
+            return Path(str(dist.locate_file(f))).parent
+    return None
+
+
+def assert_free_motion_conserved(system, params, sol, tol=1e-10):
+    """A floating base's free motion (zero gravity, no inputs) in `sol`: the spatial
+    momentum (angular about the world origin, and linear) and the energy constant to
+    `tol` relative over the saves, the quaternion on the unit sphere at the saves (to
+    1e-12) and at the end (projected each step, to 1e-14)."""
+    h = np.asarray(jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd))
+    for part in (slice(0, 3), slice(3, 6)):  # angular (about the world origin), linear
+        drift = np.max(np.abs(h[:, part] - h[:1, part])) / np.linalg.norm(h[0, part])
+        assert drift < tol, (part, drift)
+    assert np.max(np.abs(sol.energy_error)) < tol
+    assert sol.constraint_violation is not None
+    assert np.max(np.abs(sol.constraint_violation)) < 1e-12  # |q_quat| − 1 at the saves
+    assert abs(float(np.linalg.norm(np.asarray(sol.q_end[3:7]))) - 1.0) < 1e-14

@@ -14,7 +14,6 @@ whose joint tree has no joints (``n = 0``: ``q`` of size 7, ``v`` of size 6).
   system. MJCF: a lone ``<freejoint/>`` body loads as the same free body.
 """
 
-import importlib.metadata
 from pathlib import Path
 
 import jax
@@ -23,7 +22,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import rel_error
+from _helpers import assert_free_motion_conserved, example_robot_data, rel_error
 
 pin = pytest.importorskip(
     "pinocchio", reason="Pinocchio (pip install pin) is the reference for floating-base dynamics"
@@ -38,23 +37,11 @@ BASE_V = ("base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz")
 INERTIA = np.array([[0.30, 0.02, -0.01], [0.02, 0.45, 0.03], [-0.01, 0.03, 0.60]])
 
 
-def _robots() -> Path | None:
-    """example-robot-data's ``robots`` folder, or ``None`` (as tests/test_robot_zoo.py)."""
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in dist.files or ():
-        if f.name == "package.xml" and "example-robot-data" in f.parts:
-            return Path(str(dist.locate_file(f))).parent / "robots"
-    return None
-
-
 def _urdf(rel: str) -> Path:
-    robots = _robots()
-    if robots is None:
+    share = example_robot_data()
+    if share is None:
         pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
-    return robots / rel
+    return share / "robots" / rel
 
 
 def _random_states(rng, k: int):
@@ -209,14 +196,7 @@ def test_tumbling_body_conserves_energy_and_momentum():
         system, q0, v0, params, t1=4.0, solver="dopri8", rtol=1e-14, atol=1e-14, n_save=41
     )
     assert sol.q.shape == (41, 7) and sol.qd.shape == (41, 6)
-    h = np.asarray(jax.vmap(lambda q, v: system.momentum(q, v, params))(sol.q, sol.qd))
-    for part in (slice(0, 3), slice(3, 6)):  # angular (about the world origin), linear
-        drift = np.max(np.abs(h[:, part] - h[:1, part])) / np.linalg.norm(h[0, part])
-        assert drift < 1e-10, (part, drift)
-    assert np.max(np.abs(sol.energy_error)) < 1e-10
-    assert sol.constraint_violation is not None
-    assert np.max(np.abs(sol.constraint_violation)) < 1e-12
-    assert abs(float(jnp.linalg.norm(sol.q_end[3:7])) - 1.0) < 1e-14
+    assert_free_motion_conserved(system, params, sol)
     omega = np.asarray(sol.qd[:, 3:])
     assert np.ptp(omega[:, 1]) > 0.1  # it tumbles: the body-frame spin changes
 

@@ -45,7 +45,6 @@ pairs (eight fixed, six floating), the full run all 64 on both bases and the two
 bodies.
 """
 
-import importlib.metadata
 import warnings
 from pathlib import Path
 
@@ -55,7 +54,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import pin_coupling, pin_state, rel_error
+from _helpers import example_robot_data, pin_coupling, pin_state, rel_error
 from lagrax.chains import from_urdf
 
 RTOL = 1e-12
@@ -67,19 +66,7 @@ pin = pytest.importorskip(
 )
 
 
-def _share() -> Path | None:
-    """example-robot-data's folder (``…/share/example-robot-data``), or ``None``."""
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in dist.files or ():
-        if f.name == "package.xml" and "example-robot-data" in f.parts:
-            return Path(str(dist.locate_file(f))).parent
-    return None
-
-
-SHARE = _share()
+SHARE = example_robot_data()
 if SHARE is None:
     pytest.skip(
         "example-robot-data is not installed (pip install example-robot-data)",

@@ -15,7 +15,7 @@ import numpy as np
 from .._core.blocking import blocked
 from .._core.checks import finite, is_traced
 from .._core.errors import LagraxError
-from . import sensitivity
+from . import implicit, sensitivity
 from .lagrangian_checks import finite_derivatives, float_arrays
 from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
 
@@ -29,7 +29,7 @@ def forward_dynamics_derivatives(
     """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
     eager = not is_traced(q, qd, tau, params, t)
-    out = blocked(_forward_derivatives, _derivative_block(system))(
+    out = blocked(_forward_derivatives, implicit.blocks(system)[1])(
         system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
     )
     return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
@@ -41,15 +41,10 @@ def inverse_dynamics_derivatives(
     """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
     q, qd, qdd = system._state(q, qd, qdd=qdd)
     eager = not is_traced(q, qd, qdd, params, t)
-    out = blocked(_inverse_derivatives, _derivative_block(system))(
+    out = blocked(_inverse_derivatives, implicit.blocks(system)[1])(
         system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
     )
     return finite_derivatives(system, out, q, qd, params, None, t, "inverse_dynamics")
-
-
-def _derivative_block(system: LagrangianSystem) -> int | None:
-    """States per block of a large vmapped batch of derivatives (`None`: not blocked)."""
-    return None if system.equations is None else system.equations.blocks()[1]
 
 
 def linearize(

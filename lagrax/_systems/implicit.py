@@ -160,7 +160,7 @@ def _with_rule(e, scalar, t, q, qd, params, tau):
 def _tangent(primals, tangents):
     e, scalar, t, q, qd, params, tau = primals
     _, _, dt, dq, dqd, dparams, dtau = tangents
-    qdd = blocked(_raw, _blocks(e)[0])(e, scalar, t, q, qd, params, tau)
+    qdd = blocked(_raw, blocks(e)[0])(e, scalar, t, q, qd, params, tau)
     rhs = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
     if e.equations is None and d.use_scalar(q.shape[0], scalar):
         rows, _ = d.eom_small(e, q, qd, params, t)
@@ -172,7 +172,7 @@ def _tangent(primals, tangents):
         if rest is not None:
             rhs = rhs - rest
         return qdd, jnp.stack(d.solve_spd_unrolled(rows, [rhs[i] for i in range(q.shape[0])]))
-    jq, jqd, m_inv = blocked(_jacobians, _blocks(e)[1])(e, scalar, t, q, qd, qdd, params)
+    jq, jqd, m_inv = blocked(_jacobians, blocks(e)[1])(e, scalar, t, q, qd, qdd, params)
     if dq is not None:
         rhs = rhs - jq @ dq
     if dqd is not None:
@@ -194,10 +194,10 @@ def accelerations(e: d.Energies, scalar: bool | None, t, q, qd, params, tau) -> 
     derivatives go through the inverse dynamics (see the module docstring)."""
     if not _RULE["on"]:
         return _raw(e, scalar, t, q, qd, params, tau)
-    return blocked(_with_rule, _blocks(e)[0])(e, scalar, t, q, qd, params, tau)
+    return blocked(_with_rule, blocks(e)[0])(e, scalar, t, q, qd, params, tau)
 
 
-def _blocks(e: d.Energies) -> tuple[int | None, int | None]:
+def blocks(e: d.Energies) -> tuple[int | None, int | None]:
     """States per block of a large vmapped batch, for the accelerations and for their
     derivatives (`lagrax._core.blocking`): the structure-aware equations' choice; the
     energies' straight-line code is never blocked."""
