@@ -531,6 +531,27 @@ def test_non_polynomial_energy_past_the_time_budget():
     )
 
 
+def test_time_budget_interrupts_only_sympy():
+    # The alarm raises only in SymPy's (or lagrax.symbolic's) code: raised in anything the
+    # interpreter runs in between (a garbage-collector callback, a `__del__`), it would be
+    # printed and dropped. Past the deadline, code here runs on; the next SymPy call stops.
+    import time
+
+    from lagrax._symbolic.simplification import Budget, Deadline
+
+    x = sp.Symbol("x")
+    deadline = Deadline(Budget(timeout=0.05))
+    with pytest.raises(sym.ExpressionSizeError, match="time budget"):
+        with deadline.running():
+            end = time.perf_counter() + 0.4
+            while time.perf_counter() < end:  # four alarms pass here
+                pass
+            survived = True
+            while True:
+                sp.expand((x + 1) ** 30)
+    assert survived
+
+
 class _Params(NamedTuple):
     m: float
 

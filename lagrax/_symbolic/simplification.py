@@ -21,6 +21,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+from .. import _symbolic as _symbolic_package
 from .conversions import load_sympy, tree_size
 from .errors import ExpressionSizeError
 from .trigonometry import fourier
@@ -46,6 +47,15 @@ class Budget:
 class _Expired(BaseException):
     """Raised by the alarm inside SymPy. A `BaseException`, so that SymPy's own
     `except Exception` (it tries one method, then another) does not swallow it."""
+
+
+def _package_folder(module: Any) -> str:
+    return os.path.dirname(os.path.abspath(module.__file__)) + os.sep
+
+
+def _interruptible_folders() -> tuple[str, ...]:
+    """Where the alarm may raise: SymPy's code and lagrax.symbolic's."""
+    return (_package_folder(load_sympy()), _package_folder(_symbolic_package))
 
 
 class Deadline:
@@ -87,9 +97,18 @@ class Deadline:
         assert timeout is not None
 
         caught = []
+        folders = _interruptible_folders()
 
         def expire(signum, frame):
-            if not caught:
+            # Raise only where the interrupted code is SymPy's or this package's: an
+            # exception raised inside a callback the interpreter runs in between (a garbage
+            # collector callback, a `__del__`) is printed and dropped rather than
+            # propagated. Elsewhere, the timer fires again 0.1 s later.
+            if (
+                not caught
+                and frame is not None
+                and os.path.abspath(frame.f_code.co_filename).startswith(folders)
+            ):
                 raise _Expired
 
         previous = signal.signal(signal.SIGALRM, expire)
