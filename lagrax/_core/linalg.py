@@ -22,6 +22,7 @@ import jax.scipy.linalg as jsl
 from jaxtyping import Array, Float
 
 _UNROLL_MAX = 8
+_SMALL_MATMUL_MAX = 32
 PIVOT_RTOL = 64.0  # in units of machine epsilon
 
 
@@ -181,3 +182,21 @@ def cholesky_solve_many(m: Float[Array, "n n"], b: Float[Array, "n k"]) -> Float
     pivots = jnp.diagonal(factor) ** 2
     bound = _tol(m) * jnp.max(jnp.abs(jnp.diagonal(m)))
     return jnp.where(jnp.min(pivots) > bound, x, jnp.nan)
+
+
+def small_matmul(a: Float[Array, "n k"], b: Float[Array, "k ..."]) -> Float[Array, "n ..."]:
+    """`a @ b` for a matrix `a` and a vector or matrix `b`, written as a sum of `k`
+    outer products (`Σ_c a[:, c] ⊗ b[c]`) where `k <= _SMALL_MATMUL_MAX`, else `a @ b`.
+
+    Under `vmap` over many states XLA:CPU runs a batched product of small matrices as a
+    loop of tiny matrix calls (0.27 µs for `7 × 7` on the development CPU); the sum of
+    outer products is elementwise over the batch and fuses with the code around it
+    (0.055 µs).
+    """
+    k = a.shape[1]
+    if k > _SMALL_MATMUL_MAX or b.ndim not in (1, 2):
+        return a @ b
+    if b.ndim == 1:
+        return jnp.stack([sum((a[i, c] * b[c] for c in range(k)), start=0.0) for i in range(a.shape[0])])
+    rows = [b[c] for c in range(k)]
+    return jnp.stack([sum((a[i, c] * rows[c] for c in range(k)), start=0.0) for i in range(a.shape[0])])

@@ -160,8 +160,12 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
     )
     up = passes.ancestors()  # [j, i]: j on i's path to the base (j ≼ i)
     down = up.T & ~np.eye(passes.n, dtype=bool)  # [j, i]: j in i's subtree, j ≠ i
-    dtau_dq = jnp.where(up, s_a @ pq_a.T, jnp.where(down, u_a @ psi_a.T + bt_a @ d_a.T, 0.0))
-    dtau_dqd = jnp.where(up, s_a @ pv_a.T, jnp.where(down, 2.0 * (u_a @ d_a.T) + bt_a @ s_a.T, 0.0))
-    g = s_a @ u_a.T  # g[j, i] = S_j · Y_i S_i
+    dtau_dq = jnp.where(up, r.rows_dot(s_a, pq_a), r.rows_dot(u_a, psi_a) + r.rows_dot(bt_a, d_a))
+    dtau_dq = jnp.where(up | down, dtau_dq, 0.0)
+    dtau_dqd = jnp.where(
+        up, r.rows_dot(s_a, pv_a), 2.0 * r.rows_dot(u_a, d_a) + r.rows_dot(bt_a, s_a)
+    )
+    dtau_dqd = jnp.where(up | down, dtau_dqd, 0.0)
+    g = r.rows_dot(s_a, u_a)  # g[j, i] = S_j · Y_i S_i
     mass = jnp.where(up, g, jnp.where(up.T, g.T, 0.0))
     return passes.vector(tau, s_a), dtau_dq, dtau_dqd, mass

@@ -683,6 +683,16 @@ def rnea(chain: Chain, qd: Any, qdd: Any) -> Any:
     return passes.run(inward, chain._zero(), passes.zip(chain.s, forces), reverse=True)[1]
 
 
+def rows_dot(a: jax.Array, b: jax.Array) -> jax.Array:
+    """`a @ bᵀ` (`[j, i] = a_j · b_i`) for per-body vectors `(n, k)` with `k` of 3 or 6,
+    as a sum of `k` outer products: elementwise code. Under `vmap` over many states,
+    XLA:CPU runs the matrix product as a loop of tiny matrix calls, several times slower."""
+    out = a[:, 0, None] * b[None, :, 0]
+    for c in range(1, a.shape[1]):
+        out = out + a[:, c, None] * b[None, :, c]
+    return out
+
+
 def stack(values: Any, like: Any) -> Any:
     """Per-link scalars of an unrolled pass (a list, some perhaps Python `0.0`) as one
     array of `like`'s dtype (a scan's: `Passes.vector`)."""

@@ -84,7 +84,8 @@ def forward(e: d.Energies, scalar: bool | None, t, q, qd, params: Params, tau, w
         dparams = _jacobian_wrt_params(
             lambda p: implicit.accelerations(e, scalar, t, q, qd, p, tau), params
         )
-    return ForwardDynamicsDerivatives(qdd, -(m_inv @ jq), -(m_inv @ jqd), m_inv, dparams)
+    mm = implicit.matmul(e)
+    return ForwardDynamicsDerivatives(qdd, -mm(m_inv, jq), -mm(m_inv, jqd), m_inv, dparams)
 
 
 def inverse(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params: Params, wrt_params: bool):
