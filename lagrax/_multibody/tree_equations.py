@@ -260,6 +260,16 @@ class ChainEquations(AbstractEquations):
         )
         return dq, dqd, mass
 
+    def accelerations_and_derivatives(self, q, qd, params: Params, force):
+        """`(q̈, ∂τ/∂q, ∂τ/∂q̇, M)` from one evaluation of the kinematics."""
+        chain = self.at(q, params)
+        links = chain.passes.links
+        qd_links = links(qd.astype(q.dtype))
+        f = None if force is None else links(jnp.asarray(force, q.dtype))
+        qdd = chain.passes.vector(a.aba(chain, qd_links, f), q)
+        _, dq, dqd, mass = rnea_derivatives(chain, qd_links, links(qdd))
+        return qdd, dq, dqd, mass
+
 
 class CoupledEquations(AbstractEquations):
     """The equations of a tree with mimic joints (see [`Tree`][lagrax.chains.Tree]): the

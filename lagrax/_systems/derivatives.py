@@ -62,6 +62,14 @@ class AbstractEquations(eqx.Module):
     def energies(self, q: Any, qd: Any, params: Any) -> tuple[Any, Any] | None:
         """`(T, V)` from the structure, or `None`: from the energy functions."""
 
+    def accelerations_and_derivatives(
+        self, q: Any, qd: Any, params: Any, force: Any
+    ) -> tuple[Any, Any, Any, Any]:
+        """`(q̈, ∂τ/∂q, ∂τ/∂q̇, M)`: `accelerations`, then `derivatives` at that `q̈` (what
+        the custom JVP of the accelerations needs; a chain shares its kinematics)."""
+        qdd = self.accelerations(q, qd, params, force)
+        return (qdd, *self.derivatives(q, qd, qdd, params))
+
     def blocks(self) -> tuple[int | None, int | None]:
         """States per block of a large vmapped batch (`lagrax._core.blocking`) for the
         accelerations and for their derivatives; `None`: not blocked."""

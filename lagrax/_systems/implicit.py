@@ -113,12 +113,7 @@ def residual_jacobians(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params
     """
     if e.equations is not None:
         jq, jqd, mass = e.equations.derivatives(q, qd, qdd, params)
-        if e.force is not None or e.dissipation is not None:
-            aq, aqd = jax.jacfwd(lambda a, b: d.applied(e, t, a, b, params, None), argnums=(0, 1))(
-                q, qd
-            )
-            jq, jqd = jq - aq, jqd - aqd
-        return jq, jqd, mass
+        return (*_less_applied(e, t, q, qd, params, jq, jqd), mass)
     if d.use_scalar(q.shape[0], scalar):
         jq, jqd = jax.jacfwd(lambda a, b: residual_small(e, t, a, b, qdd, params), argnums=(0, 1))(
             q, qd
@@ -160,7 +155,13 @@ def _with_rule(e, scalar, t, q, qd, params, tau):
 def _tangent(primals, tangents):
     e, scalar, t, q, qd, params, tau = primals
     _, _, dt, dq, dqd, dparams, dtau = tangents
-    qdd = blocked(_raw, blocks(e)[0])(e, scalar, t, q, qd, params, tau)
+    sizes = blocks(e)
+    if e.equations is not None and sizes[0] == sizes[1]:
+        # one evaluation of the structure's kinematics for q̈ and the Jacobians
+        qdd, jq, jqd, m_inv = blocked(_primal_and_jacobians, sizes[0])(e, t, q, qd, params, tau)
+    else:
+        qdd = blocked(_raw, sizes[0])(e, scalar, t, q, qd, params, tau)
+        jq = None
     rhs = jnp.zeros_like(qdd) if dtau is None else dtau.astype(qdd.dtype)
     if e.equations is None and d.use_scalar(q.shape[0], scalar):
         rows, _ = d.eom_small(e, q, qd, params, t)
@@ -172,7 +173,8 @@ def _tangent(primals, tangents):
         if rest is not None:
             rhs = rhs - rest
         return qdd, jnp.stack(d.solve_spd_unrolled(rows, [rhs[i] for i in range(q.shape[0])]))
-    jq, jqd, m_inv = blocked(_jacobians, blocks(e)[1])(e, scalar, t, q, qd, qdd, params)
+    if jq is None:
+        jq, jqd, m_inv = blocked(_jacobians, sizes[1])(e, scalar, t, q, qd, qdd, params)
     mm = matmul(e)
     if dq is not None:
         rhs = rhs - mm(jq, dq)
@@ -182,6 +184,23 @@ def _tangent(primals, tangents):
     if rest is not None:
         rhs = rhs - rest
     return qdd, mm(m_inv, rhs)
+
+
+def _primal_and_jacobians(e, t, q, qd, params, tau):
+    """`(q̈, ∂r/∂q, ∂r/∂q̇, M⁻¹)` from structure-aware equations (`_raw` and `_jacobians`
+    with the kinematics evaluated once)."""
+    f = d.applied(e, t, q, qd, params, tau) if d.has_applied(e, tau) else None
+    qdd, jq, jqd, mass = e.equations.accelerations_and_derivatives(q, qd, params, f)
+    return (qdd, *_less_applied(e, t, q, qd, params, jq, jqd), spd_inverse(mass))
+
+
+def _less_applied(e: d.Energies, t, q, qd, params, jq, jqd):
+    """`(∂r/∂q, ∂r/∂q̇)` from the inverse dynamics' Jacobians: less those of the applied
+    forces and dissipation, where there are any."""
+    if e.force is None and e.dissipation is None:
+        return jq, jqd
+    aq, aqd = jax.jacfwd(lambda a, b: d.applied(e, t, a, b, params, None), argnums=(0, 1))(q, qd)
+    return jq - aq, jqd - aqd
 
 
 def _jacobians(e, scalar, t, q, qd, qdd, params):
