@@ -182,19 +182,22 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     h = jnp.diff(ts_s)
     # P̈ = dṖ/dt along the motion: a central difference of Ṗ along the flow,
     # (t, q, q̇) ± ε (1, q̇, q̈), with ε = ε_mach^(1/3) times the local save spacing (the
-    # time scale the saves resolve); one batch of 2N states
+    # time scale the saves resolve)
     forward = jnp.concatenate([h, h[-1:]]) if h.shape[0] else jnp.ones_like(ts_s)
     backward = jnp.concatenate([h[:1], h]) if h.shape[0] else jnp.ones_like(ts_s)
     spacing = jnp.where(forward > 0, forward, jnp.where(backward > 0, backward, 1.0))
     eps = jnp.finfo(ts_s.dtype).eps ** (1 / 3) * spacing
-    step_t = jnp.concatenate([eps, -eps])
-    _, dp_pm, _, _ = jax.vmap(rate)(
-        jnp.concatenate([ts_s, ts_s]) + step_t,
-        jnp.concatenate([q_s, q_s]) + step_t[:, None] * jnp.concatenate([qrate, qrate]),
-        jnp.concatenate([qd_s, qd_s]) + step_t[:, None] * jnp.concatenate([qdd, qdd]),
-    )
-    n = ts_s.shape[0]
-    ddp = (dp_pm[:n] - dp_pm[n:]) / (2 * eps)
+
+    def rate_pm(t, a, b, a_rate, b_rate, e):  # Ṗ at (t, q, q̇) ± ε (1, q̇, q̈)
+        plus = rate(t + e, a + e * a_rate, b + e * b_rate)[1]
+        minus = rate(t + (-e), a + (-e) * a_rate, b + (-e) * b_rate)[1]
+        return plus, minus
+
+    # vmapped over the saves as the first batch was, so that JAX reuses the batched
+    # vector field it formed there (a batch of 2N would batch it afresh: 0.15-0.3 s of
+    # tracing for a 7-joint arm, 0.9 s under `jax.grad`)
+    dp_plus, dp_minus = jax.vmap(rate_pm)(ts_s, q_s, qd_s, qrate, qdd, eps)
+    ddp = (dp_plus - dp_minus) / (2 * eps)
     step = (
         0.5 * h * (p[:-1] + p[1:])
         + h**2 / 10.0 * (dp[:-1] - dp[1:])
