@@ -327,6 +327,10 @@ def test_derivatives_match_pinocchio(robot):
             "dtau_dv": (inv.dqd[k], data.dtau_dv[ix]),
             "M": (inv.dqdd[k], m[ix]),
         }
+        if k == 0:  # an eager linearize: the one-state program (M⁻¹ by one LAPACK solve)
+            a_mat, b_mat = system.linearize(q[0], qd[0], params, tau[0])
+            pairs["linearize A"] = (a_mat[n:], np.hstack([data.ddq_dq[ix], data.ddq_dv[ix]]))
+            pairs["linearize B"] = (b_mat[n:], m_inv[ix])
         for key, (ours, theirs) in pairs.items():
             worst[key] = max(worst.get(key, 0.0), rel_error(ours, theirs))
     assert max(worst.values()) <= 1e-10, worst
