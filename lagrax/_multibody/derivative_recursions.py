@@ -35,6 +35,9 @@ Then `D_i f_k = I_k ψ_i + B_k d_i` with the Coriolis-like map
 symmetric matrix `Σ_k = crf(v_k) I_k + (crf(v_k) I_k)ᵀ` and the skew-symmetric map
 `x ↦ x ×^* h_k` of the momentum `h_k = I_k v_k`. Summed over a subtree these give the
 composite inertia `Y_j = Σ I_k`, the composite `Σ^c_j` and the composite momentum `h^c_j`.
+`Σ_k = v_k ×^* I_k − I_k v_k×` is the rate `İ_k` of the body's inertia as it moves, so
+it is a rigid-body inertia's ten numbers too (with `ṁ = 0`): every inertia here, composite
+or not, is carried and applied as those numbers (`Rigid`), not as a `6 × 6` matrix.
 
 **The result.** For `j` on the path from `i` to the base (`j ≼ i`, `i` itself included)
 and for `j` in the subtree of `i` (`i ≺ j`):
@@ -53,7 +56,7 @@ $$
 with `B^c = Σ^c + (· ×^* h^c)` and zero for bodies on other branches. `Y_j S_j` are also
 the columns of the composite-rigid-body algorithm, so `M_ji = S_jᵀ Y_i S_i` (`j ≼ i`)
 comes for free. One outward and one inward pass compute the per-body vectors (a few
-hundred flops per body), and the `n × n` matrices are four small products: `O(n²)` in
+hundred flops per body), and the `n × n` matrices are dot products of them: `O(n²)` in
 all, with no second derivative and no matrix of the chain factored. The same formulas hold
 for planar chains in the planar algebra (3-vectors).
 
@@ -68,40 +71,72 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import recursions as r
-from .recursions import Chain, add, dot, matvec, vadd, vscale
+from .recursions import Chain, add, dot, mul, vadd, vscale
 
-Packed = tuple[Any, ...]  # the upper triangle of a symmetric matrix, row by row
-
-
-def _pack(m: r.Mat) -> Packed:
-    k = len(m)
-    return tuple(m[i][j] for i in range(k) for j in range(i, k))
-
-
-def _packed_index(k: int) -> list[list[int]]:
-    index = [[0] * k for _ in range(k)]
-    p = 0
-    for i in range(k):
-        for j in range(i, k):
-            index[i][j] = index[j][i] = p
-            p += 1
-    return index
+Rigid = tuple[Any, ...]
+"""A rigid-body inertia at the origin as the numbers that define it: spatial
+`(m, h_x, h_y, h_z, I_xx, I_xy, I_xz, I_yy, I_yz, I_zz)` (mass, first moment `h = m c`,
+rotational inertia about the origin `I_O`, for `I = [[I_O, [h]×], [[h]×ᵀ, m 1]]`),
+planar `(m, h_x, h_y, I_O)`. Ten (four) numbers where the matrix has 36 (9) entries."""
 
 
-def _sym_matvec(p: Packed, x: r.Vec, index: list[list[int]]) -> r.Vec:
-    k = len(x)
-    return tuple(dot(tuple(p[index[i][j]] for j in range(k)), x) for i in range(k))
+def _neg(x: Any) -> Any:
+    return x if r._zero(x) else -x
 
 
-def _sym_add(a: Packed, b: Packed) -> Packed:
+def _rigid(inertia: r.Mat) -> Rigid:
+    """The numbers of a rigid-body inertia matrix (`recursions.spatial_inertia` or
+    `planar_inertia`), read off its entries."""
+    i = inertia
+    if len(i) == 6:
+        h = (_neg(i[1][5]), i[0][5], _neg(i[0][4]))
+        return (i[3][3], *h, i[0][0], i[0][1], i[0][2], i[1][1], i[1][2], i[2][2])
+    return (i[1][1], i[0][2], _neg(i[0][1]), i[0][0])
+
+
+def _rigid_mul(p: Rigid, x: r.Vec) -> r.Vec:
+    """`I x` of a motion vector `x`: `(I_O ω + h × v_O, m v_O − h × ω)`."""
+    if len(x) == 6:
+        m, h, io = p[0], p[1:4], p[4:]
+        w, u = x[:3], x[3:]
+        iw = (dot(io[0:3], w), dot((io[1], io[3], io[4]), w), dot((io[2], io[4], io[5]), w))
+        hu, hw = r.cross(h, u), r.cross(h, w)
+        return vadd(iw, hu) + tuple(r.sub(mul(m, a), b) for a, b in zip(u, hw, strict=True))
+    m, hx, hy, io = p
+    w, vx, vy = x
+    return (
+        add(mul(io, w), r.sub(mul(hx, vy), mul(hy, vx))),
+        r.sub(mul(m, vx), mul(hy, w)),
+        add(mul(m, vy), mul(hx, w)),
+    )
+
+
+def _rigid_rate(p: Rigid, v: r.Vec) -> Rigid:
+    """`İ = v ×* I − I v×`, the rate of change of the inertia of a body moving with
+    velocity `v`: the symmetric part `crf(v) I + (crf(v) I)ᵀ` of the Coriolis-like map
+    `B` below, itself a rigid inertia's numbers with `ṁ = 0`: `ḣ = m v_O + ω × h`,
+    `İ_O = [ω]× I_O − I_O [ω]× − h v_Oᵀ − v_O hᵀ + 2 (h · v_O) 1` (planar:
+    `İ_O = 2 h · v_O`)."""
+    if len(v) == 6:
+        m, h, io = p[0], p[1:4], p[4:]
+        w, u = v[:3], v[3:]
+        h_dot = vadd(vscale(u, m), r.cross(w, h))
+        cols = [r.cross(w, c) for c in (io[0:3], (io[1], io[3], io[4]), (io[2], io[4], io[5]))]
+        hu2 = mul(2.0, dot(h, u))
+        rate = []
+        for i in range(3):
+            for j in range(i, 3):
+                val = r.sub(add(cols[j][i], cols[i][j]), add(mul(h[i], u[j]), mul(u[i], h[j])))
+                rate.append(add(val, hu2) if i == j else val)
+        return (0.0, *h_dot, *rate)
+    m, hx, hy, _ = p
+    w, vx, vy = v
+    h_dot = (r.sub(mul(m, vx), mul(w, hy)), add(mul(m, vy), mul(w, hx)))
+    return (0.0, *h_dot, mul(2.0, add(mul(hx, vx), mul(hy, vy))))
+
+
+def _rigid_add(a: Rigid, b: Rigid) -> Rigid:
     return tuple(add(x, y) for x, y in zip(a, b, strict=True))
-
-
-def _coriolis_sym(alg: r.Algebra, v: r.Vec, inertia: r.Mat) -> Packed:
-    """The symmetric part `crf(v) I + (crf(v) I)ᵀ` of `B`, packed."""
-    k = len(v)
-    cols = [alg.crf(v, tuple(inertia[i][j] for i in range(k))) for j in range(k)]
-    return tuple(add(cols[j][i], cols[i][j]) for i in range(k) for j in range(i, k))
 
 
 def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
@@ -115,7 +150,6 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
     """
     alg, passes = chain.algebra, chain.passes
     k = len(chain.a0)
-    index = _packed_index(k)
     zero = tuple(0.0 for _ in range(k))
 
     def outward(carry, x):
@@ -125,35 +159,37 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
         d = alg.crm(v, s)  # = v_parent × S_i
         psi = vadd(alg.crm(a_parent, s), alg.crm(v_parent, d))
         a = vadd(vadd(a_parent, vscale(d, qd_i)), vscale(s, qdd_i))
-        h = matvec(inertia, v)
-        f = vadd(matvec(inertia, a), alg.crf(v, h))
-        return (v, a), (d, psi, f, h, _coriolis_sym(alg, v, inertia), _pack(inertia))
+        rigid = _rigid(inertia)
+        h = _rigid_mul(rigid, v)
+        f = vadd(_rigid_mul(rigid, a), alg.crf(v, h))
+        return (v, a), (d, psi, f, h, _rigid_rate(rigid, v)[1:], rigid)
 
     xs = passes.zip(chain.s, chain.inertia, qd, qdd)
     _, ys = passes.run(outward, (zero, chain.a0), xs)
-    d, psi, f, h, sym, packed = passes.split(ys)
+    d, psi, f, h, sym, rigid = passes.split(ys)
 
     def inward(carry, x):
         y_c, sym_c, f_c, h_c = carry
-        s, inertia, d_i, psi_i, f_i, h_i, sym_i = x
+        s, rigid, d_i, psi_i, f_i, h_i, sym_i = x
         y, sym_c, f_c, h_c = (
-            _sym_add(inertia, y_c),
-            _sym_add(sym_i, sym_c),
+            _rigid_add(rigid, y_c),
+            _rigid_add(sym_i, sym_c),
             vadd(f_i, f_c),
             vadd(h_i, h_c),
         )
-        u = _sym_matvec(y, s, index)  # Y S: a column of M
-        sym_s = _sym_matvec(sym_c, s, index)
+        sym = (0.0, *sym_c)
+        u = _rigid_mul(y, s)  # Y S: a column of M
+        sym_s = _rigid_mul(sym, s)
         s_h = alg.crf(s, h_c)  # S ×* h^c
         bt_s = vadd(sym_s, vscale(s_h, -1.0))  # B^cᵀ S (the momentum part is skew)
-        b_d = vadd(_sym_matvec(sym_c, d_i, index), alg.crf(d_i, h_c))  # B^c d
-        pq = vadd(vadd(_sym_matvec(y, psi_i, index), b_d), alg.crf(s, f_c))
-        pv = vadd(vscale(_sym_matvec(y, d_i, index), 2.0), vadd(sym_s, s_h))  # 2 Y d + B^c S
+        b_d = vadd(_rigid_mul(sym, d_i), alg.crf(d_i, h_c))  # B^c d
+        pq = vadd(vadd(_rigid_mul(y, psi_i), b_d), alg.crf(s, f_c))
+        pv = vadd(vscale(_rigid_mul(y, d_i), 2.0), vadd(sym_s, s_h))  # 2 Y d + B^c S
         return (y, sym_c, f_c, h_c), (dot(s, f_c), u, bt_s, pq, pv)
 
-    zp = tuple(0.0 for _ in range(k * (k + 1) // 2))
-    xs = passes.zip(chain.s, packed, d, psi, f, h, sym)
-    _, outs = passes.run(inward, (zp, zp, zero, zero), xs, reverse=True)
+    zr = tuple(0.0 for _ in range(10 if k == 6 else 4))
+    xs = passes.zip(chain.s, rigid, d, psi, f, h, sym)
+    _, outs = passes.run(inward, (zr, zr[1:], zero, zero), xs, reverse=True)
     tau, u, bt_s, pq, pv = passes.split(outs)
     s_a, u_a, bt_a, pq_a, pv_a, d_a, psi_a = (
         passes.column(x) for x in (chain.s, u, bt_s, pq, pv, d, psi)
