@@ -222,10 +222,7 @@ class ChainEquations(AbstractEquations):
     def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
         """`q̈` solving `M q̈ + C q̇ + G = force` (`force` `None` means zero); NaN
         where the chain's articulated inertias are not positive."""
-        chain = self.at(q, params)
-        links = chain.passes.links
-        f = None if force is None else links(jnp.asarray(force, q.dtype))
-        return chain.passes.vector(a.aba(chain, links(qd.astype(q.dtype)), f), q)
+        return _accelerations_of(self.at(q, params), q, qd, force)
 
     def energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
         """`(T, V)` of a spatial chain or tree by one outward pass in link frames
@@ -253,22 +250,29 @@ class ChainEquations(AbstractEquations):
     def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
         """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`, analytically in
         `O(n²)` (see `lagrax._multibody.derivative_recursions`)."""
-        chain = self.at(q, params)
-        links = chain.passes.links
-        _, dq, dqd, mass = rnea_derivatives(
-            chain, links(qd.astype(q.dtype)), links(qdd.astype(q.dtype))
-        )
-        return dq, dqd, mass
+        return _derivatives_of(self.at(q, params), q, qd, qdd)
 
     def accelerations_and_derivatives(self, q, qd, params: Params, force):
         """`(q̈, ∂τ/∂q, ∂τ/∂q̇, M)` from one evaluation of the kinematics."""
         chain = self.at(q, params)
-        links = chain.passes.links
-        qd_links = links(qd.astype(q.dtype))
-        f = None if force is None else links(jnp.asarray(force, q.dtype))
-        qdd = chain.passes.vector(a.aba(chain, qd_links, f), q)
-        _, dq, dqd, mass = rnea_derivatives(chain, qd_links, links(qdd))
-        return qdd, dq, dqd, mass
+        qdd = _accelerations_of(chain, q, qd, force)
+        return (qdd, *_derivatives_of(chain, q, qd, qdd))
+
+
+def _accelerations_of(chain: a.Chain, q, qd, force) -> jnp.ndarray:
+    """`ChainEquations.accelerations` of the chain at `q`: the articulated-body algorithm."""
+    links = chain.passes.links
+    f = None if force is None else links(jnp.asarray(force, q.dtype))
+    return chain.passes.vector(a.aba(chain, links(qd.astype(q.dtype)), f), q)
+
+
+def _derivatives_of(chain: a.Chain, q, qd, qdd) -> tuple[jnp.ndarray, ...]:
+    """`ChainEquations.derivatives` of the chain at `q`: the RNEA derivatives."""
+    links = chain.passes.links
+    _, dq, dqd, mass = rnea_derivatives(
+        chain, links(qd.astype(q.dtype)), links(qdd.astype(q.dtype))
+    )
+    return dq, dqd, mass
 
 
 class CoupledEquations(AbstractEquations):
