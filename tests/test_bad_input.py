@@ -242,6 +242,50 @@ CASES = [
         id="planar-body-inertia",
     ),
     pytest.param(lambda: lx.models.planar_2r(m2=-1.0), Par, ["m2 = -1"], id="model-negative-mass"),
+    # ------------------------------------------------------------- a structure's params
+    # (JAX clamps an out-of-range read: a short array used to give a wrong answer)
+    pytest.param(
+        lambda: _tree_call("forward_dynamics", m=lambda v: v[:2]),
+        Shp,
+        ["params['m']", "shape (2,)", "(3,)", "Tree of 3 joints"],
+        id="tree-short-mass",
+    ),
+    pytest.param(
+        lambda: _tree_call("simulate", inertia=lambda v: v[:2]),
+        Shp,
+        ["params['inertia']", "(2, 3, 3)", "(3, 3, 3)"],
+        id="tree-simulate-short-inertia",
+    ),
+    pytest.param(
+        lambda: _tree_call("forward_dynamics_derivatives", offset=lambda v: v[:, :2]),
+        Shp,
+        ["params['offset']", "(3, 2)", "(3, 3)"],
+        id="tree-derivatives-offset",
+    ),
+    pytest.param(
+        lambda: _tree_call("linearize", damping=lambda v: v[:2]),
+        Shp,
+        ["params['damping']", "(2,)", "joint damping of 3 joints"],
+        id="tree-linearize-damping",
+    ),
+    pytest.param(
+        lambda: _tree_call("forward_dynamics", com=None),
+        lx.ParameterError,
+        ["params['com']", "missing", "keys"],
+        id="tree-missing-com",
+    ),
+    pytest.param(
+        lambda: _planar_call(l=lambda v: jnp.append(v, 1.0)),
+        Shp,
+        ["params['l']", "shape (3,)", "PlanarChain of 2 joints"],
+        id="planar-chain-long-length",
+    ),
+    pytest.param(
+        lambda: _floating_call(base_com=lambda v: v[:2]),
+        Shp,
+        ["params['base_com']", "(2,)", "(3,)", "floating base"],
+        id="floating-base-com",
+    ),
     # ------------------------------------------------------------- linearize / inverse dynamics
     pytest.param(
         lambda: TWO.linearize(jnp.array([0.3]), jnp.array([0.0]), {}),
@@ -280,6 +324,43 @@ CASES = [
         id="inverse-dynamics-short-q",
     ),
 ]
+
+
+def _changed(params, changes):
+    """`params` with entries replaced by `change(value)` (`None`: removed)."""
+    out = dict(params)
+    for key, change in changes.items():
+        if change is None:
+            del out[key]
+        else:
+            out[key] = change(out[key])
+    return out
+
+
+def _tree_call(what, **changes):
+    """`what` of a damped 3-joint tree (a branch at body 0) with changed `params`."""
+    tree = lx.chains.Tree("RRR", parents=(-1, 0, 0), axes=[(0, 0, 1), (0, 1, 0), (1, 0, 0)])
+    system = tree.system()
+    params = _changed(tree.params(damping=0.1), changes)
+    q = jnp.array([0.1, 0.2, 0.3])
+    if what == "simulate":
+        return lx.simulate(system, q, 0 * q, params, t1=0.1)
+    if what == "linearize":
+        return system.linearize(q, 0 * q, params)
+    return getattr(system, what)(q, 0 * q, params)
+
+
+def _planar_call(**changes):
+    chain = lx.chains.PlanarChain(2)
+    params = _changed(chain.params(), changes)
+    return chain.system().forward_dynamics(jnp.array([0.1, 0.2]), jnp.zeros(2), params)
+
+
+def _floating_call(**changes):
+    robot = lx.chains.FloatingTree(lx.chains.Tree("R", parents=(-1,)))
+    params = _changed(robot.params(), changes)
+    q = jnp.concatenate([jnp.zeros(3), jnp.array([1.0, 0, 0, 0]), jnp.array([0.2])])
+    return robot.system().forward_dynamics(q, jnp.zeros(7), params)
 
 
 @pytest.mark.parametrize(("call", "kind", "words"), CASES)
@@ -329,6 +410,11 @@ def test_battery_is_large_enough():
             ),
             ["shape (1,)"],
             id="T-vector",
+        ),
+        pytest.param(
+            lambda p: _tree_call("forward_dynamics", m=lambda v: v[:2] * p["m"]),
+            ["params['m']", "(2,)"],
+            id="tree-short-mass",
         ),
         pytest.param(
             lambda p: lx.chains.PlanarChain(2).params(m=jnp.stack([-p["m"], p["m"]]), I=0.1)["m"],
@@ -412,3 +498,15 @@ def test_nan_force_is_named():
     message = str(info.value)
     assert "force function F(t, q, qd, params) is NaN or inf" in message
     assert "larger max_steps" not in message and "singular" not in message
+
+
+def test_a_scalar_joint_damping_broadcasts():
+    """A joint damping given as one number (the check lets it broadcast) damps every
+    joint alike: the same `q̈` as the array `params()` builds from it."""
+    tree = lx.chains.Tree("RRR", parents=(-1, 0, 0), axes=[(0, 0, 1), (0, 1, 0), (1, 0, 0)])
+    params = tree.params(damping=0.3)
+    q, qd = jnp.array([0.1, 0.2, 0.3]), jnp.array([0.5, -0.4, 0.2])
+    system = tree.system()
+    expected = system.forward_dynamics(q, qd, params)
+    scalar = system.forward_dynamics(q, qd, {**params, "damping": jnp.asarray(0.3)})
+    np.testing.assert_allclose(scalar, expected, rtol=1e-14, atol=1e-14)

@@ -486,6 +486,16 @@ def test_mimic_joints_are_reduced_into_the_tree():
     _check_against_pinocchio(pin, tree, params, _pin_model(pin, MIMIC, mimic=True), reduce=False)
 
 
+def test_mimic_tree_damping_is_per_joint():
+    """A mimic tree damps every joint, the mimic ones too: a damping per coordinate (3
+    numbers for 5 joints) is refused by name, not broadcast into a raw JAX error or
+    read out of range."""
+    tree, params = from_urdf(MIMIC)
+    q = jnp.array([0.1, 0.2, 0.05])
+    with pytest.raises(lx.ShapeError, match=r"params\['damping'\] has shape \(3,\).*\(5,\)"):
+        tree.system().forward_dynamics(q, q, {**params, "damping": jnp.zeros(tree.n)})
+
+
 def test_mimic_tree_paths_agree():
     """A tree with mimic joints: the reduced recursions equal the energies' autodiff (the
     pose maps through the mimic map), the Newton–Euler oracle, and their derivatives

@@ -205,6 +205,45 @@ def finite_params(params: Params) -> None:
                 raise NonFiniteError(f"params{jax.tree_util.keystr(path)} is not finite: {leaf}")
 
 
+def param_shapes(
+    params: Params,
+    shapes: Mapping[str, tuple[int, ...]],
+    who: str,
+    broadcast: tuple[str, ...] = (),
+) -> None:
+    """Refuse an entry of `params` that a structure-aware system reads with the wrong
+    shape (or that is missing): a `ShapeError` naming the entry, its shape and the one
+    `who` needs. Shapes are static, so this runs while JAX traces and works inside `jit`
+    and `vmap` (a sweep's member sees its own entries). Without it JAX clamps an
+    out-of-range read of a short array and the answer is silently wrong.
+
+    `broadcast`: entries that may also be given as any shape broadcasting to theirs (a
+    scalar joint damping). `params` that is not a mapping is left to the lookups.
+    """
+    if not isinstance(params, Mapping):
+        return
+    for key, shape in shapes.items():
+        if key not in params:
+            raise ParameterError(
+                f"{who} reads params[{key!r}] (shape {shape}), which is missing: "
+                f"{describe_params(params)}"
+            )
+        got = tuple(jnp.shape(params[key]))
+        if got == tuple(shape):
+            continue
+        if key in broadcast:
+            try:
+                if np.broadcast_shapes(got, shape) == tuple(shape):
+                    continue
+            except ValueError:
+                pass
+        allowed = " (or a shape that broadcasts to it)" if key in broadcast else ""
+        raise ShapeError(
+            f"params[{key!r}] has shape {got}, but {who} needs shape {tuple(shape)}"
+            f"{allowed}: one entry per body or joint, as its params() returns them"
+        )
+
+
 # --------------------------------------------------------------------------- energies
 #
 # What a user's energy or force returns is checked where it is called, on its shape and

@@ -134,6 +134,7 @@ class PlanarChain(AbstractArticulated):
         `_UNROLL_MAX_PLANAR`); arrays `(n, 2)`, `(n,)` by cumulative sums for very long
         chains."""
         self._check_q(q)
+        self._check_params(params)
         length, r = jnp.asarray(params["l"]), jnp.asarray(params["r"])
         if self.n > _UNROLL_MAX_PLANAR:
             phi, u = self._directions(q)
@@ -184,7 +185,11 @@ class PlanarChain(AbstractArticulated):
     def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
         """Motion subspaces and link inertias at `q` (see
         `lagrax._multibody.tree_equations.planar_chain`)."""
+        self._check_params(params)
         return planar_articulated(self.n, q, params, scan)
+
+    def _param_shapes(self) -> dict[str, tuple[int, ...]]:
+        return {"m": (self.n,), "l": (self.n,), "r": (self.n,), "I": (self.n,), "g": ()}
 
     def link_energies(self, q, qd, params: Params) -> None:
         """`None`: the vectorized pose maps are already the cheaper route to `(T, V)`."""

@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.blocking import blocked
-from .._core.checks import coords, finite, finite_params, is_traced, physical
+from .._core.checks import coords, finite, finite_params, is_traced, param_shapes, physical
 from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
 from .._core.linalg import cholesky_solve
@@ -132,6 +132,12 @@ def _aba(system: Any, q: Any, v: Any, params: Params, force: Any) -> jnp.ndarray
 def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
     """`∂D/∂v` of `D = ½ Σ b_j θ̇_j²` over the tree's joints (`θ̇ = J v_joints`, mimic
     joints included: `Jᵀ (b θ̇)`; the base is free)."""
+    param_shapes(
+        params,
+        {"damping": (tree.n_bodies,)},
+        f"the joint damping of {tree.n_bodies} joints (mimic ones included)",
+        ("damping",),
+    )
     b = jnp.asarray(params["damping"], v.dtype)
     rates = b * tree.joint_rates(v[6:])
     if tree.mimic:

@@ -42,6 +42,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.checks import param_shapes
 from . import recursions as a
 from .joints import revolute_flags
 from .tree_equations import UNROLL_MAX_SPATIAL, _spatial_link, joint_trig
@@ -130,6 +131,10 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     angle `θ = J q_joints + b` (the coordinates themselves without mimic joints), so the
     chain has `tree.n_bodies` links."""
     n, dtype = tree.n_bodies, q.dtype
+    base = {"base_m": (), "base_com": (3,), "base_inertia": (3, 3)}
+    param_shapes(params, base, "a floating base")
+    if n:
+        tree._check_params(params)
     position, rot = q[:3], quaternion_rotation(q[3:7])
     p = jnp.zeros_like(position)  # the recursions' origin: the base origin
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan

@@ -12,6 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.blocking import BLOCK
+from .._core.checks import param_shapes
 from .._core.custom_types import Params
 from .._core.errors import ShapeError
 from .._core.linalg import cholesky_solve
@@ -47,6 +48,15 @@ class AbstractArticulated(eqx.Module):
     def link_energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
         """`(T, V)` by a pass over the bodies, or `None` where the pose maps are the
         cheaper route."""
+
+    @abc.abstractmethod
+    def _param_shapes(self) -> dict[str, tuple[int, ...]]:
+        """The shapes of the `params` entries its kinematics reads (as `params()`
+        returns them)."""
+
+    def _check_params(self, params: Params) -> None:
+        """`ShapeError` for an entry of `params` of the wrong shape (at trace time)."""
+        param_shapes(params, self._param_shapes(), f"the {type(self).__name__} of {self.n} joints")
 
 
 def _check(n: int, q) -> None:
@@ -151,6 +161,7 @@ def spatial_energies(
     """
     n, dtype = chain.n_bodies, q.dtype
     _check(n, q)
+    chain._check_params(params)
     big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain.joint_constants())
     axes = jnp.asarray(np.asarray(chain.axes, float), dtype)
     rev = jnp.asarray(revolute_flags(chain.joint_types), dtype)
@@ -183,6 +194,7 @@ def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = 
     `R_i Ī_i R_iᵀ` about the centre of mass `o_i + R_i com_i`."""
     n = chain.n_bodies
     _check(n, q)
+    chain._check_params(params)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, scan, q.dtype, chain.parents)
     big_a, big_b, big_c, slide = chain.joint_constants()

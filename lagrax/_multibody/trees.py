@@ -26,7 +26,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import physical
+from .._core.checks import param_shapes, physical
 from .._core.custom_types import Params, Vector
 from .._core.errors import ConfigurationError, ShapeError
 from .._systems.lagrangian import LagrangianSystem
@@ -46,7 +46,14 @@ from .tree_equations import (
 
 
 def _joint_damping(q, qd, params):
-    """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²`."""
+    """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²` (`q̇`: the
+    rates of all joints, mimic ones included)."""
+    param_shapes(
+        params,
+        {"damping": jnp.shape(qd)},
+        f"the joint damping of {jnp.shape(qd)[0]} joints (mimic ones included)",
+        ("damping",),
+    )
     return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2)
 
 
@@ -302,6 +309,7 @@ class AbstractTree(AbstractArticulated):
         stacked arrays from a `lax.scan` for a long chain (`kinematics_scan_above`)."""
         if q.shape != (self.n,):
             raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for the {self.label()}")
+        self._check_params(params)
         offset = jnp.asarray(params["offset"])
         dtype = jnp.result_type(q, offset)
         q, offset = self.joint_angles(q.astype(dtype)), offset.astype(dtype)
@@ -339,6 +347,10 @@ class AbstractTree(AbstractArticulated):
         _, (origins, rots) = jax.lax.scan(joint, init, (q, a, b, c, slide, offset))
         coms = None if com is None else origins + jnp.einsum("nij,nj->ni", rots, com)
         return origins, rots, coms
+
+    def _param_shapes(self) -> dict[str, tuple[int, ...]]:
+        n = self.n_bodies
+        return {"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3), "g": ()}
 
     def _gravity(self, params):
         g = jnp.asarray(params["g"])
