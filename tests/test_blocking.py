@@ -62,8 +62,12 @@ def test_blocked_closure_over_batched_value_falls_back():
     np.testing.assert_allclose(jax.vmap(outer)(x), plain, rtol=1e-15)
 
 
-@pytest.fixture(scope="module")
-def arm():
+@pytest.fixture(scope="module", params=["arm7", "planar"])
+def arm(request):
+    """The URDF arm, and a planar chain (whose derivatives are blocked too)."""
+    if request.param == "planar":
+        chain = lx.chains.PlanarChain(7)
+        return chain.system(), chain.params(m=np.linspace(1.0, 0.4, 7))
     tree, params = lx.chains.from_urdf(lx.models.urdf_path("arm7"))
     return tree.system(), params
 

@@ -72,8 +72,6 @@ class PlanarChain(AbstractArticulated):
 
     n: int = eqx.field(static=True)
 
-    block_derivatives: ClassVar[bool] = False  # a few scalars a link: the whole batch
-
     def __check_init__(self):
         if not isinstance(self.n, int) or self.n < 1:
             raise ConfigurationError(f"PlanarChain needs n >= 1 links, got {self.n!r}")
