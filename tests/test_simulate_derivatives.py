@@ -134,3 +134,51 @@ def test_reverse_mode_by_sensitivities_and_by_checkpoints_agree():
     direction = jnp.asarray(np.random.default_rng(0).normal(size=40))
     _, along = jax.jvp(many, (table,), (direction,))
     assert rel_error(jnp.dot(jax.grad(many)(table), direction), along) <= 1e-9
+
+
+def _tree_loss():
+    """A damped, driven 3-joint tree: a loss reading the saves, the end state, the
+    energy and the work (every post-processed output carries the tangents)."""
+    tree = lx.chains.Tree("RRR", parents=(-1, 0, 1), axes=[(0, 0, 1), (0, 1, 0), (0, 1, 0)])
+    system, params = tree.system(), tree.params(damping=0.2, m=[1.0, 0.7, 0.4])
+
+    def loss(q0, p, tau, t1=0.4):
+        sol = lx.simulate(system, q0, 0.1 * q0, p, tau=tau, t1=t1, n_save=3)
+        out = jnp.sum(sol.q**2) + jnp.sum(sol.qd[-1]) + jnp.sum(sol.energy[1:])
+        return out + sol.work[-1] + jnp.sum(sol.q_end)
+
+    return loss, params
+
+
+@pytest.mark.parametrize(
+    "case", ["grad q0", "grad m", "grad tau", "grad t1", "jacfwd q0", "jvp q0", "vmap grad"]
+)
+def test_forward_sensitivities_as_state_equal_the_loops_jvp(case):
+    """Forward mode through the lean loop solves the augmented system (the tangents as
+    state, `lagrax._solve.sensitivities`): the same numbers as `jax.jvp` of the loop itself
+    to round-off, for `jax.grad` by forward sensitivities (with respect to `q0`, a
+    parameter, a constant `tau`; `t1` takes the loop's own JVP), `jax.jacfwd`, `jax.jvp`
+    and `vmap(grad)`."""
+    from lagrax._solve import sensitivities
+
+    loss, params = _tree_loss()
+    q0, tau = jnp.array([0.3, -0.4, 0.6]), jnp.array([0.5, -0.2, 0.1])
+    calls = {
+        "grad q0": lambda: jax.grad(loss)(q0, params, tau),
+        "grad m": lambda: jax.grad(lambda m: loss(q0, {**params, "m": m}, tau))(params["m"]),
+        "grad tau": lambda: jax.grad(lambda t: loss(q0, params, t))(tau),
+        "grad t1": lambda: jax.grad(lambda t1: loss(q0, params, tau, t1))(0.4),
+        "jacfwd q0": lambda: jax.jacfwd(loss)(q0, params, tau),
+        "jvp q0": lambda: jax.jvp(lambda q: loss(q, params, tau), (q0,), (jnp.ones(3),))[1],
+        "vmap grad": lambda: jax.vmap(jax.grad(loss), in_axes=(0, None, None))(
+            q0[None, :] + jnp.linspace(0.0, 0.2, 3)[:, None], params, tau
+        ),
+    }
+    jax.clear_caches()  # the switch acts while tracing
+    ours = calls[case]()
+    jax.clear_caches()
+    with sensitivities.plain_jvp():
+        plain = calls[case]()
+    jax.clear_caches()
+    assert np.all(np.isfinite(ours))
+    assert rel_error(ours, plain) <= 1e-13

@@ -131,6 +131,12 @@ def _promote(result):
     return RESULTS.successful if _known_success(result) else RESULTS.promote(result)
 
 
+def _primal_part(term, y):
+    """`y`, or its primal part for the augmented system of forward sensitivities
+    (`sensitivities.Sensitivities`: the state `(y, s)`)."""
+    return y[0] if getattr(getattr(term, "vector_field", None), "augmented", False) else y
+
+
 def all_finite(y) -> jax.Array:
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(v)) for v in jtu.tree_leaves(y)]))
 
@@ -185,7 +191,7 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
     )
     y = project(term, y)
     steps = state.num_steps + 1
-    result = RESULTS.where(all_finite(y), res, RESULTS.non_finite_state)
+    result = RESULTS.where(all_finite(_primal_part(term, y)), res, RESULTS.non_finite_state)
     out_of_steps = (steps >= max_steps) & (tprev < t1) & (result == RESULTS.successful)
     result = RESULTS.where(out_of_steps, RESULTS.max_steps_reached, result)
     new = StepState(

@@ -29,7 +29,7 @@ from .._core.results import RESULTS, code_of, messages
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
 from ..integrators import Variational
-from . import arguments, integrate, transposed
+from . import arguments, integrate, sensitivities, transposed
 from . import events as _events  # (`events` is simulate's argument)
 from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
@@ -160,7 +160,11 @@ def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, 
         if isinstance(solver, dfx.AbstractRungeKutta) and solver.scan_kind is None:
             # its stages loop as diffrax's ForwardMode has them loop: no custom_vjp
             solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
-    if config.events is None:
+    if config.events is None and kind == "lax":  # forward mode: tangents as state
+        (q, qd), end = sensitivities.integrate(
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
+        )
+    elif config.events is None:
         (q, qd), end = integrate.integrate(
             term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
         )
