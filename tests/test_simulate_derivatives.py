@@ -182,3 +182,32 @@ def test_forward_sensitivities_as_state_equal_the_loops_jvp(case):
     jax.clear_caches()
     assert np.all(np.isfinite(ours))
     assert rel_error(ours, plain) <= 1e-13
+
+
+def test_closures_over_differentiated_values():
+    """A `tau` function closing over the differentiated value: forward mode picks the
+    loop's own JVP (it was a raw JAX error) and matches central differences, as reverse
+    mode does. An energy closing over it cannot be differentiated by the compiled solve
+    (the derivative came out as a silent zero): a `ConfigurationError` that says to pass
+    it through `params`, in either mode."""
+    system, params = lx.models.planar_2r()
+    q0 = jnp.array([0.3, 0.5])
+
+    def driven(k):
+        tau = lambda t, q, qd: k * jnp.ones(2)  # noqa: E731
+        sol = lx.simulate(system, q0, 0 * q0, params, tau=tau, t1=0.3, n_save=2)
+        return jnp.sum(sol.q[-1] ** 2)
+
+    fd = (driven(0.7 + 1e-6) - driven(0.7 - 1e-6)) / 2e-6
+    assert rel_error(jax.jvp(driven, (0.7,), (1.0,))[1], fd) <= 1e-7
+    assert rel_error(jax.grad(driven)(0.7), fd) <= 1e-7
+
+    def stiff(k):
+        springs = lx.LagrangianSystem(
+            lambda q, qd, p: 0.5 * jnp.sum(qd**2), lambda q, p: 0.5 * k * jnp.sum(q**2), n_dof=2
+        )
+        return jnp.sum(lx.simulate(springs, q0, 0 * q0, {}, t1=0.3, n_save=2).q[-1] ** 2)
+
+    for transform in (jax.grad, lambda f: lambda k: jax.jvp(f, (k,), (1.0,))[1]):
+        with pytest.raises(lx.ConfigurationError, match="close over.*through params"):
+            transform(stiff)(0.7)

@@ -163,6 +163,24 @@ def differentiated_scalars(*values) -> int | None:
     return count
 
 
+def hidden_tracers(*values) -> list:
+    """The traced values that functions among `values` (a `tau` function, a system's
+    energies, its fields shallowly) close over."""
+    seen: set[int] = set()
+    found = []
+    for value in values:
+        fields = vars(value).values() if dataclasses.is_dataclass(value) else (value,)
+        for fn in fields:
+            if isinstance(fn, _FUNCTIONS) and fn not in _CLEAN:
+                found.extend(_closure_tracers(fn, 4, seen))
+    return found
+
+
+def differentiated(*values) -> bool:
+    """Whether any leaf of `values` is traced by automatic differentiation (either mode)."""
+    return any(_modes(leaf) for leaf in jax.tree_util.tree_leaves(values))
+
+
 def closes_over_tracers(*values) -> bool:
     """Whether a function among `values` (a `tau` function, a system's energies) closes
     over a traced value: then `simulate` is traced even where its arrays are concrete."""

@@ -45,6 +45,7 @@ from jax.custom_batching import custom_vmap
 from .._core.results import code_of, from_code
 from .._systems.abstract import AbstractSystem
 from . import integrate as _integrate
+from .arguments import closes_over_tracers
 
 _RULE = {"on": True}
 
@@ -124,10 +125,10 @@ def _projects(field) -> bool:
     return system is not None and type(system).project_configuration is not default
 
 
-def _end(state: _integrate.StepState, y) -> _integrate.StepState:
+def _end(state: _integrate.StepState, y, result) -> _integrate.StepState:
     """The final state as `integrate` reports it, without the solver's and
-    controller's internals (nothing downstream reads them), its result as the code (a
-    custom JVP returns arrays)."""
+    controller's internals (nothing downstream reads them), with `y` and `result` (as
+    its code inside the custom JVP, which returns arrays)."""
     return _integrate.StepState(
         state.t,
         state.tnext,
@@ -137,15 +138,24 @@ def _end(state: _integrate.StepState, y) -> _integrate.StepState:
         state.num_steps,
         state.num_accepted_steps,
         state.save_index,
-        code_of(state.result),
+        result,
     )
 
 
 def integrate(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps: int, kind: str):
     """`integrate.integrate(...)`: `(ys, end)`, `end` without the solver's and
-    controller's states; differentiated in forward mode by the augmented system."""
+    controller's states; differentiated in forward mode by the augmented system, except
+    where the system's functions or `tau` close over a traced value (a custom JVP cannot
+    see a tangent hidden there: the loop's own JVP takes it)."""
+    field = _field_of(term)
+    hidden = (getattr(field, "system", None), getattr(field, "tau_fn", None))
+    if field is None or closes_over_tracers(*hidden):
+        ys, state = _integrate.integrate(
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
+        )
+        return ys, _end(state, state.y, state.result)
     ys, end = _integrate_rule(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind)
-    return ys, eqx.tree_at(lambda s: s.result, end, from_code(end.result))
+    return ys, _end(end, end.y, from_code(end.result))
 
 
 @eqx.filter_custom_jvp
@@ -211,7 +221,7 @@ def _augmented_solve(loop, y0, s0, args, dargs, tangents: bool):
     if tangents:  # the saves' tangents as (k, S, ...), as a vmap over tangents has them
         d_ys = jtu.tree_map(lambda x: jnp.moveaxis(x, 1, 0), d_ys)
     y_end, s_end = state.y
-    return ys, d_ys, _end(state, y_end), s_end
+    return ys, d_ys, _end(state, y_end, code_of(state.result)), s_end
 
 
 def _augmented(loop, y0, s0, args, dargs):
@@ -268,4 +278,4 @@ def _plain(term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind)
     ys, state = _integrate.integrate(
         term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
     )
-    return ys, _end(state, state.y)
+    return ys, _end(state, state.y, code_of(state.result))

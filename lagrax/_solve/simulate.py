@@ -412,7 +412,18 @@ def simulate(
         values = (q0, qd0, params, tau_const, t0, t1, ts, system, tau_fn)
         k = arguments.differentiated_scalars(*values) if adjoint is None else None
         transposed_ok = k is not None and 0 < k <= transposed.max_tangents(2 * q0.shape[-1])
-        adjoint = arguments.adjoint_for(adjoint, q0, qd0, params, tau_const, t0, t1, ts)
+        if arguments.differentiated(arguments.hidden_tracers(system)):
+            # (the compiled solve holds the system's functions as constants: a derivative
+            # with respect to a value they close over would silently be zero)
+            raise ConfigurationError(
+                "simulate is differentiated (jax.grad, jax.jvp, ...) with respect to a "
+                "value that the system's energy, force or dissipation functions close "
+                "over, which the solve cannot differentiate: pass that value through "
+                "params (the functions' last argument) instead"
+            )
+        hidden = arguments.hidden_tracers(tau_fn)  # a tau function's closure
+        values = (q0, qd0, params, tau_const, t0, t1, ts, *hidden)
+        adjoint = arguments.adjoint_for(adjoint, *values)
     events = _events.as_events(events)
     if events is not None:
         events_supported(solver, stepsize_controller, saveat, adjoint)
