@@ -80,18 +80,14 @@ rotational inertia about the origin `I_O`, for `I = [[I_O, [h]×], [[h]×ᵀ, m 
 planar `(m, h_x, h_y, I_O)`. Ten (four) numbers where the matrix has 36 (9) entries."""
 
 
-def _neg(x: Any) -> Any:
-    return x if r._zero(x) else -x
-
-
 def _rigid(inertia: r.Mat) -> Rigid:
     """The numbers of a rigid-body inertia matrix (`recursions.spatial_inertia` or
     `planar_inertia`), read off its entries."""
     i = inertia
     if len(i) == 6:
-        h = (_neg(i[1][5]), i[0][5], _neg(i[0][4]))
+        h = (r.sub(0.0, i[1][5]), i[0][5], r.sub(0.0, i[0][4]))
         return (i[3][3], *h, i[0][0], i[0][1], i[0][2], i[1][1], i[1][2], i[2][2])
-    return (i[1][1], i[0][2], _neg(i[0][1]), i[0][0])
+    return (i[1][1], i[0][2], r.sub(0.0, i[0][1]), i[0][0])
 
 
 def _rigid_mul(p: Rigid, x: r.Vec) -> r.Vec:
