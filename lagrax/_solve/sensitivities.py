@@ -44,6 +44,7 @@ from jax.custom_batching import custom_vmap
 
 from .._core.results import code_of, from_code
 from .._systems.abstract import AbstractSystem
+from .._systems.implicit import along_given
 from . import integrate as _integrate
 from .arguments import closes_over_tracers
 
@@ -78,24 +79,16 @@ class Sensitivities(eqx.Module):
     def __call__(self, t, ys, args):
         y, s = ys
         a, da = args
-        leaves, tree = jtu.tree_flatten(a)
-        given = jtu.tree_leaves(da, is_leaf=lambda x: x is None)
-        picked = [i for i, x in enumerate(given) if x is not None]
+        along, values, directions = along_given(
+            lambda yy, aa: self.field(t, yy, aa), (y, a), (s, da)
+        )
 
-        def of(yy, *values):
-            full = list(leaves)
-            for i, value in zip(picked, values, strict=True):
-                full[i] = value
-            return self.field(t, yy, jtu.tree_unflatten(tree, full))
-
-        primals = (y, *(leaves[i] for i in picked))
-
-        def one(s_i, *da_i):
-            return jax.jvp(of, primals, (s_i, *da_i))
+        def one(*direction):
+            return jax.jvp(along, values, direction)
 
         if not self.tangents:
-            return one(s, *(given[i] for i in picked))
-        return jax.vmap(one, out_axes=(None, 0))(s, *(given[i] for i in picked))
+            return one(*directions)
+        return jax.vmap(one, out_axes=(None, 0))(*directions)
 
 
 class _PrimalNorm(eqx.Module):

@@ -318,6 +318,12 @@ def has_applied(e: Energies, tau) -> bool:
     return tau is not None or e.force is not None or e.dissipation is not None
 
 
+def applied_or_none(e: Energies, t, q, qd, params, tau):
+    """`applied(...)`, or `None` where nothing is applied (what structure-aware
+    equations take as their force)."""
+    return applied(e, t, q, qd, params, tau) if has_applied(e, tau) else None
+
+
 def mass_and_force(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     """`M(q)` and `f = τ + F − C q̇ − G − ∂D/∂q̇`: the equations `M q̈ = f`.
 
@@ -344,8 +350,7 @@ def accelerations(e: Energies, scalar: bool | None, t, q, qd, params, tau):
     Structure-aware `equations` (a chain's articulated-body algorithm) take precedence.
     """
     if e.equations is not None:
-        f = applied(e, t, q, qd, params, tau) if has_applied(e, tau) else None
-        return e.equations.accelerations(q, qd, params, f)
+        return e.equations.accelerations(q, qd, params, applied_or_none(e, t, q, qd, params, tau))
     if use_scalar(q.shape[0], scalar):
         rows, rhs = eom_small(e, q, qd, params, t)
         if has_applied(e, tau):

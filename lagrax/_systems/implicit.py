@@ -124,14 +124,13 @@ def residual_jacobians(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params
     return jq, jqd, d.mass_matrix(e, q, qd, params, t)
 
 
-def jvp_of_given(fn: Callable, primals: tuple, tangents: tuple):
-    """`jax.jvp(fn, primals, tangents)[1]` along the leaves whose tangent is given (a
-    symbolic zero is `None`, leaf by leaf); `None` when no tangent is given."""
+def along_given(fn: Callable, primals: tuple, tangents: tuple):
+    """`(along, values, directions)`: `fn(*primals)` as a function `along(*values)` of
+    only the leaves whose tangent is given (a symbolic zero is `None`, leaf by leaf), those
+    leaves, and their tangents; `jax.jvp(along, values, directions)` is then `fn`'s JVP."""
     leaves, tree = jtu.tree_flatten(primals)
     given = jtu.tree_leaves(tangents, is_leaf=lambda x: x is None)
     picked = [i for i, x in enumerate(given) if x is not None]
-    if not picked:
-        return None
 
     def along(*values):
         full = list(leaves)
@@ -139,7 +138,16 @@ def jvp_of_given(fn: Callable, primals: tuple, tangents: tuple):
             full[i] = value
         return fn(*jtu.tree_unflatten(tree, full))
 
-    return jax.jvp(along, tuple(leaves[i] for i in picked), tuple(given[i] for i in picked))[1]
+    return along, tuple(leaves[i] for i in picked), tuple(given[i] for i in picked)
+
+
+def jvp_of_given(fn: Callable, primals: tuple, tangents: tuple):
+    """`jax.jvp(fn, primals, tangents)[1]` along the leaves whose tangent is given (a
+    symbolic zero is `None`, leaf by leaf); `None` when no tangent is given."""
+    along, values, directions = along_given(fn, primals, tangents)
+    if not values:
+        return None
+    return jax.jvp(along, values, directions)[1]
 
 
 def _raw(e, scalar, t, q, qd, params, tau):
@@ -189,7 +197,7 @@ def _tangent(primals, tangents):
 def _primal_and_jacobians(e, t, q, qd, params, tau):
     """`(q̈, ∂r/∂q, ∂r/∂q̇, M⁻¹)` from structure-aware equations (`_raw` and `_jacobians`
     with the kinematics evaluated once)."""
-    f = d.applied(e, t, q, qd, params, tau) if d.has_applied(e, tau) else None
+    f = d.applied_or_none(e, t, q, qd, params, tau)
     qdd, jq, jqd, mass = e.equations.accelerations_and_derivatives(q, qd, params, f)
     return (qdd, *_less_applied(e, t, q, qd, params, jq, jqd), spd_inverse(mass))
 
