@@ -163,17 +163,28 @@ def differentiated_scalars(*values) -> int | None:
     return count
 
 
-def hidden_tracers(*values) -> list:
-    """The traced values that functions among `values` (a `tau` function, a system's
-    energies, its fields shallowly) close over."""
+def _hidden(values):
+    """The tracers that functions among `values` close over, lazily: a `tau` function,
+    and a system's own functions, its fields (shallow, so that a tree's many arrays are
+    not walked on every call). A function found clean is remembered (`_CLEAN`)."""
     seen: set[int] = set()
-    found = []
     for value in values:
         fields = vars(value).values() if dataclasses.is_dataclass(value) else (value,)
         for fn in fields:
             if isinstance(fn, _FUNCTIONS) and fn not in _CLEAN:
-                found.extend(_closure_tracers(fn, 4, seen))
-    return found
+                clean = True
+                for leaf in _closure_tracers(fn, 4, seen):
+                    clean = False
+                    yield leaf
+                if clean:
+                    with contextlib.suppress(TypeError):  # (not weakly referenceable)
+                        _CLEAN.add(fn)
+
+
+def hidden_tracers(*values) -> list:
+    """The traced values that functions among `values` (a `tau` function, a system's
+    energies) close over."""
+    return list(_hidden(values))
 
 
 def differentiated(*values) -> bool:
@@ -184,18 +195,7 @@ def differentiated(*values) -> bool:
 def closes_over_tracers(*values) -> bool:
     """Whether a function among `values` (a `tau` function, a system's energies) closes
     over a traced value: then `simulate` is traced even where its arrays are concrete."""
-    seen: set[int] = set()
-    for value in values:
-        # a system's own functions: its fields (shallow, so that a tree's many arrays are
-        # not walked on every call)
-        fields = vars(value).values() if dataclasses.is_dataclass(value) else (value,)
-        for fn in fields:
-            if isinstance(fn, _FUNCTIONS) and fn not in _CLEAN:
-                for _ in _closure_tracers(fn, 4, seen):
-                    return True
-                with contextlib.suppress(TypeError):  # (not weakly referenceable)
-                    _CLEAN.add(fn)
-    return False
+    return next(_hidden(values), None) is not None
 
 
 _FUNCTIONS = (types.FunctionType, types.MethodType, functools.partial)
