@@ -32,7 +32,6 @@ itself, as before.
 """
 
 import contextlib
-from collections.abc import Iterator
 from typing import Any
 
 import diffrax as dfx
@@ -44,23 +43,17 @@ from jax.custom_batching import custom_vmap
 
 from .._core.results import code_of, from_code
 from .._systems.abstract import AbstractSystem
-from .._systems.implicit import along_given
+from .._systems.implicit import along_given, switched_off
 from . import integrate as _integrate
 from .arguments import closes_over_tracers
 
 _RULE = {"on": True}
 
 
-@contextlib.contextmanager
-def plain_jvp() -> Iterator[None]:
+def plain_jvp() -> contextlib.AbstractContextManager[None]:
     """Within this context, solves traced take `jax.jvp` of the loop itself (the
     definition the tests hold the augmented system to). Trace-time only."""
-    before = _RULE["on"]
-    _RULE["on"] = False
-    try:
-        yield
-    finally:
-        _RULE["on"] = before
+    return switched_off(_RULE)
 
 
 class Sensitivities(eqx.Module):

@@ -53,17 +53,23 @@ _RULE = {"on": True}
 
 
 @contextlib.contextmanager
-def plain_autodiff() -> Iterator[None]:
+def switched_off(switch: dict) -> Iterator[None]:
+    """Within this context `switch["on"]` is `False`: a trace-time switch for a custom
+    derivative rule, which tests turn off to compare the rule with its definition."""
+    before = switch["on"]
+    switch["on"] = False
+    try:
+        yield
+    finally:
+        switch["on"] = before
+
+
+def plain_autodiff() -> contextlib.AbstractContextManager[None]:
     """Within this context, functions traced differentiate the accelerations by plain
     automatic differentiation through their computation (the factorization, the
     articulated-body recursion) instead of through the inverse dynamics: the definition the
     tests hold the rule to. Trace-time only: a function compiled outside keeps its rule."""
-    before = _RULE["on"]
-    _RULE["on"] = False
-    try:
-        yield
-    finally:
-        _RULE["on"] = before
+    return switched_off(_RULE)
 
 
 def rule_on() -> bool:
