@@ -291,6 +291,29 @@ def test_tau_function_takes_its_own_tangents():
     assert max(rel_error(a, b) for a, b in zip(ours, ref, strict=True)) <= RTOL
 
 
+@pytest.mark.parametrize("n", [2, 8])  # the scalar and the vector energy paths
+def test_params_with_none_entries_pair_tangents_with_their_leaves(n):
+    """A `None` in `params` (an empty subtree) before the differentiated entry: the rule's
+    tangents pair with the right leaves. They were shifted by one, so the derivative with
+    respect to `b` was silently taken along `c` (`0` where central differences give `−0.2`).
+    """
+    system = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * jnp.sum(qd**2),
+        lambda q, p: 0.5 * p["b"] * q[0] ** 2 + 0.5 * p["c"] * q[1] ** 2 + 0.5 * jnp.sum(q**2),
+        n_dof=n,
+    )
+    q, qd = jnp.linspace(0.3, -0.2, n), jnp.linspace(0.1, 0.4, n)
+    params = {"a": None, "b": 2.0, "c": 5.0, "m": 1.5, "z": None}
+
+    def acc(b):
+        return system.forward_dynamics(q, qd, {**params, "b": b})
+
+    exact = np.zeros(n)
+    exact[0] = -q[0] / 1.5  # q̈₀ = −(b + 1) q₀ / m
+    assert rel_error(jax.jacfwd(acc)(2.0), exact) <= RTOL
+    assert rel_error(jax.grad(lambda b: acc(b)[0])(2.0), exact[0]) <= RTOL
+
+
 # ------------------------------------------------------------------ against Pinocchio
 @pytest.mark.parametrize("robot", ["arm7", "torso_two_arms"])
 def test_derivatives_match_pinocchio(robot):

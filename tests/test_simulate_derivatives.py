@@ -211,3 +211,26 @@ def test_closures_over_differentiated_values():
     for transform in (jax.grad, lambda f: lambda k: jax.jvp(f, (k,), (1.0,))[1]):
         with pytest.raises(lx.ConfigurationError, match="close over.*through params"):
             transform(stiff)(0.7)
+
+
+def test_params_with_none_entries_through_simulate():
+    """A `None` in `params` before the differentiated entry: gradients and JVPs through
+    `simulate` match central differences (the tangents-as-state rule paired them with the
+    next leaf, a silent wrong gradient)."""
+    system = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * jnp.sum(qd**2),
+        lambda q, p: 0.5 * p["b"] * q[0] ** 2 + 0.5 * p["c"] * q[1] ** 2,
+        n_dof=2,
+    )
+    q0, qd0 = jnp.array([0.3, -0.2]), jnp.array([0.1, 0.4])
+    params = {"a": None, "b": 2.0, "c": 5.0, "m": 1.5}
+
+    def loss(b):
+        sol = lx.simulate(
+            system, q0, qd0, {**params, "b": b}, t1=1.0, n_save=2, rtol=1e-11, atol=1e-11
+        )
+        return jnp.sum(sol.q[-1] ** 2)
+
+    fd = (loss(2.0 + 1e-5) - loss(2.0 - 1e-5)) / 2e-5
+    assert rel_error(jax.grad(loss)(2.0), fd) <= 1e-6
+    assert rel_error(jax.jvp(loss, (2.0,), (1.0,))[1], fd) <= 1e-6

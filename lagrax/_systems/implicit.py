@@ -135,7 +135,9 @@ def along_given(fn: Callable, primals: tuple, tangents: tuple):
     only the leaves whose tangent is given (a symbolic zero is `None`, leaf by leaf), those
     leaves, and their tangents; `jax.jvp(along, values, directions)` is then `fn`'s JVP."""
     leaves, tree = jtu.tree_flatten(primals)
-    given = jtu.tree_leaves(tangents, is_leaf=lambda x: x is None)
+    # Up to the primals' leaves: a `None` in the primals (an empty subtree, no leaf) must
+    # not count as a tangent's place, or the tangents pair with the wrong leaves.
+    given = tree.flatten_up_to(tangents)
     picked = [i for i, x in enumerate(given) if x is not None]
 
     def along(*values):
