@@ -26,6 +26,7 @@ import numpy as np
 
 from .._core.blocking import blocked
 from .._core.checks import coords, finite, finite_params, is_traced, param_shapes, physical
+from .._core.closures import closes_over_tracers
 from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
 from .._core.linalg import cholesky_solve
@@ -340,7 +341,7 @@ class FloatingBaseSystem(AbstractSystem):
         """
         q, v, tau = self._inputs(q, qd=qd, tau=tau)
         vdot = self.accelerations(t, q, v, params, tau)
-        if not is_traced(q, v, tau, params):
+        if not (is_traced(q, v, tau, params) or closes_over_tracers(self)):
             if not np.all(np.isfinite(np.asarray(vdot))):
                 self.check_state(q, v, params)
                 raise NonFiniteError(

@@ -7,18 +7,12 @@ not a dozen. Under `jit` they use `jax.numpy`, and the checks of traced options 
 with the values returned (`equinox.error_if`, see `checks`).
 """
 
-import contextlib
-import dataclasses
-import functools
-import types
-import weakref
-
 import diffrax as dfx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core import checks
+from .._core import checks, closures
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import split_tau
@@ -80,36 +74,6 @@ def options(t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager: bool):
     return t0, t1, rtol, atol, n_save, ts
 
 
-try:  # JAX's tracer types of jax.jvp and of linearize (jax.grad): private, so looked up softly
-    from jax._src.interpreters import ad as _ad
-
-    _JVP_TRACER = getattr(_ad, "JVPTracer", ())
-    _LINEARIZE_TRACER = getattr(_ad, "LinearizeTracer", ())
-except ImportError:  # pragma: no cover - a JAX that moved them: modes are not seen
-    _JVP_TRACER = _LINEARIZE_TRACER = ()
-
-
-def _modes(tracer) -> set[str]:
-    """The autodiff modes among the transformations that traced `tracer` (each JAX
-    tracer holds the one it wraps): `"forward"` for `jax.jvp` / `jax.jacfwd`,
-    `"reverse"` for `jax.grad` / `jax.vjp` / `jax.jacrev` (JAX linearizes, then
-    transposes)."""
-    found = set()
-    while isinstance(tracer, jax.core.Tracer):
-        if isinstance(tracer, _JVP_TRACER):
-            found.add("forward")
-        elif isinstance(tracer, _LINEARIZE_TRACER):
-            found.add("reverse")
-        inner = None
-        for attr in ("primal", "val"):  # JVP and linearize tracers; batch tracers
-            value = getattr(tracer, attr, None)
-            if isinstance(value, jax.core.Tracer):
-                inner = value
-                break
-        tracer = inner
-    return found
-
-
 def adjoint_for(adjoint, *values):
     """The adjoint a traced `simulate` runs with: for `jax.jvp` / `jax.jacfwd` through it
     (a forward-mode tracer among `values`), `diffrax.ForwardMode()` (its lean loop as a
@@ -121,7 +85,7 @@ def adjoint_for(adjoint, *values):
     """
     modes = set()
     for leaf in jax.tree_util.tree_leaves(values):
-        modes |= _modes(leaf)
+        modes |= closures.modes(leaf)
     if "forward" not in modes:
         return adjoint
     both = "reverse" in modes
@@ -148,7 +112,7 @@ def differentiated_scalars(*values) -> int | None:
     functions = []
     for leaf in jax.tree_util.tree_leaves(values):
         if isinstance(leaf, jax.core.Tracer):
-            modes = _modes(leaf)
+            modes = closures.modes(leaf)
             if "forward" in modes:
                 return None
             if "reverse" in modes:
@@ -157,78 +121,7 @@ def differentiated_scalars(*values) -> int | None:
             functions.append(leaf)
     seen: set[int] = set()
     for fn in functions:
-        for leaf in _closure_tracers(fn, 4, seen):
-            if _modes(leaf):
+        for leaf in closures.closure_tracers(fn, 4, seen):
+            if closures.modes(leaf):
                 return None
     return count
-
-
-def _hidden(values):
-    """The tracers that functions among `values` close over, lazily: a `tau` function,
-    and a system's own functions, its fields (shallow, so that a tree's many arrays are
-    not walked on every call). A function found clean is remembered (`_CLEAN`)."""
-    seen: set[int] = set()
-    for value in values:
-        fields = vars(value).values() if dataclasses.is_dataclass(value) else (value,)
-        for fn in fields:
-            if isinstance(fn, _FUNCTIONS) and fn not in _CLEAN:
-                clean = True
-                for leaf in _closure_tracers(fn, 4, seen):
-                    clean = False
-                    yield leaf
-                if clean:
-                    with contextlib.suppress(TypeError):  # (not weakly referenceable)
-                        _CLEAN.add(fn)
-
-
-def hidden_tracers(*values) -> list:
-    """The traced values that functions among `values` (a `tau` function, a system's
-    energies) close over."""
-    return list(_hidden(values))
-
-
-def differentiated(*values) -> bool:
-    """Whether any leaf of `values` is traced by automatic differentiation (either mode)."""
-    return any(_modes(leaf) for leaf in jax.tree_util.tree_leaves(values))
-
-
-def closes_over_tracers(*values) -> bool:
-    """Whether a function among `values` (a `tau` function, a system's energies) closes
-    over a traced value: then `simulate` is traced even where its arrays are concrete."""
-    return next(_hidden(values), None) is not None
-
-
-_FUNCTIONS = (types.FunctionType, types.MethodType, functools.partial)
-# Functions found to close over no tracer (the usual case: defined outside any transform);
-# eager `simulate` calls reuse them, so each is walked once.
-_CLEAN: "weakref.WeakSet" = weakref.WeakSet()
-
-
-def _closure_tracers(fn, depth: int, seen: set[int]):
-    """The tracers a function closes over (its cells, a `functools.partial`'s arguments,
-    a bound method's owner), `depth` levels of functions down."""
-    if depth == 0 or id(fn) in seen:
-        return
-    seen.add(id(fn))
-    if isinstance(fn, functools.partial):
-        inner = [fn.func, fn.args, fn.keywords]
-    elif isinstance(fn, types.MethodType):
-        inner = [fn.__func__, fn.__self__]
-    elif isinstance(fn, types.FunctionType):
-        inner = [c.cell_contents for c in (fn.__closure__ or ()) if _filled(c)]
-    else:
-        inner = []
-    for value in inner:
-        for leaf in jax.tree_util.tree_leaves(value):
-            if isinstance(leaf, jax.core.Tracer):
-                yield leaf
-            elif callable(leaf):
-                yield from _closure_tracers(leaf, depth - 1, seen)
-
-
-def _filled(cell) -> bool:
-    try:
-        cell.cell_contents  # noqa: B018
-    except ValueError:  # an empty cell
-        return False
-    return True

@@ -41,11 +41,11 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 from jax.custom_batching import custom_vmap
 
+from .._core.closures import closes_over_tracers
 from .._core.results import code_of, from_code
 from .._systems.abstract import AbstractSystem
 from .._systems.implicit import along_given, switched_off
 from . import integrate as _integrate
-from .arguments import closes_over_tracers
 
 _RULE = {"on": True}
 

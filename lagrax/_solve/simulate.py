@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._core import checks
+from .._core import checks, closures
 from .._core.custom_types import Coordinates, Params, Velocities
 from .._core.errors import ConfigurationError, SimulationError
 from .._core.results import RESULTS, code_of, messages
@@ -396,7 +396,7 @@ def simulate(
     ```
     """
     eager = not checks.is_traced(q0, qd0, params, t0, t1, ts, rtol, atol, tau, dt, dt0)
-    eager = eager and not arguments.closes_over_tracers(tau, system)
+    eager = eager and not closures.closes_over_tracers(tau, system)
     q0, qd0, params, tau_fn, tau_const = arguments.arrays(system, q0, qd0, params, tau, eager)
     tdt = np.dtype(q0.dtype)
     t0, t1, rtol, atol, n_save, ts = arguments.options(
@@ -412,7 +412,7 @@ def simulate(
         values = (q0, qd0, params, tau_const, t0, t1, ts, system, tau_fn)
         k = arguments.differentiated_scalars(*values) if adjoint is None else None
         transposed_ok = k is not None and 0 < k <= transposed.max_tangents(2 * q0.shape[-1])
-        if arguments.differentiated(arguments.hidden_tracers(system)):
+        if closures.differentiated_closure(system):
             # (the compiled solve holds the system's functions as constants: a derivative
             # with respect to a value they close over would silently be zero)
             raise ConfigurationError(
@@ -421,7 +421,7 @@ def simulate(
                 "over, which the solve cannot differentiate: pass that value through "
                 "params (the functions' last argument) instead"
             )
-        hidden = arguments.hidden_tracers(tau_fn)  # a tau function's closure
+        hidden = closures.hidden_tracers(tau_fn)  # a tau function's closure
         values = (q0, qd0, params, tau_const, t0, t1, ts, *hidden)
         adjoint = arguments.adjoint_for(adjoint, *values)
     events = _events.as_events(events)

@@ -350,7 +350,7 @@ class ConstrainedSystem(AbstractSystem):
     def _kkt(self, t, q, qd, params, tau):
         """`(q̈, (λ, μ))` without raising: NaN where `M` is not PD or `K` loses
         rank. Differentiated through the KKT system (`_kkt_with_rule`)."""
-        if not implicit.rule_on():
+        if not implicit.rule_on(self):
             return self._kkt_raw(t, q, qd, params, tau)
         return kkt.kkt_with_rule(self, t, q, qd, params, tau)
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from .._core.blocking import blocked
 from .._core.checks import finite, is_traced
+from .._core.closures import closes_over_tracers
 from .._core.errors import LagraxError
 from . import implicit, sensitivity
 from .lagrangian_checks import finite_derivatives, float_arrays
@@ -28,8 +29,10 @@ def forward_dynamics_derivatives(
 ) -> ForwardDynamicsDerivatives:
     """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
-    eager = not is_traced(q, qd, tau, params, t)
-    out = blocked(_forward_derivatives, implicit.blocks(system)[1])(
+    hidden = closes_over_tracers(system)
+    eager = not (hidden or is_traced(q, qd, tau, params, t))
+    program = _forward_body if hidden else _forward_derivatives
+    out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
     )
     return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
@@ -40,8 +43,10 @@ def inverse_dynamics_derivatives(
 ) -> InverseDynamicsDerivatives:
     """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
     q, qd, qdd = system._state(q, qd, qdd=qdd)
-    eager = not is_traced(q, qd, qdd, params, t)
-    out = blocked(_inverse_derivatives, implicit.blocks(system)[1])(
+    hidden = closes_over_tracers(system)
+    eager = not (hidden or is_traced(q, qd, qdd, params, t))
+    program = _inverse_body if hidden else _inverse_derivatives
+    out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
     )
     return finite_derivatives(system, out, q, qd, params, None, t, "inverse_dynamics")
@@ -58,13 +63,16 @@ def linearize(
         (tau,) = system._state(q, tau=tau_eq)[1:]
     dtype = jnp.result_type(q, qd, tau)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-    eager = not is_traced(q, qd, tau, params, t)
+    hidden = closes_over_tracers(system)
+    eager = not (hidden or is_traced(q, qd, tau, params, t))
     if eager:
         finite(q, "q_eq")
         finite(qd, "qd_eq")
         finite(tau, "tau_eq")
         return _eager_linearization(system, t, q, qd, params, tau)
-    a_mat, b_mat = _linearization(system, t, q, qd, params, tau)
+    a_mat, b_mat = (_linearization_body if hidden else _linearization)(
+        system, t, q, qd, params, tau
+    )
     ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
     a_mat = eqx.error_if(
         a_mat,
@@ -95,17 +103,22 @@ def _eager_linearization(system: LagrangianSystem, t, q, qd, params, tau):
     return a_mat, b_mat
 
 
-@eqx.filter_jit
-def _forward_derivatives(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
-    """`sensitivity.forward` as one compiled program (eager calls would otherwise
-    dispatch its thousands of operations one by one)."""
+def _forward_body(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
+    """`sensitivity.forward` with the system's own derivative options."""
     return sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, wrt_params)
 
 
-@eqx.filter_jit
-def _inverse_derivatives(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
-    """`sensitivity.inverse` as one compiled program."""
+def _inverse_body(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
+    """`sensitivity.inverse` with the system's own derivative options."""
     return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
+
+
+# As one compiled program each (eager calls would otherwise dispatch their thousands of
+# operations one by one). A system whose functions close over traced values takes the
+# bodies themselves: a compiled program holds the functions as constants, which cannot
+# hold a tracer of `jax.grad` or `jax.jvp`.
+_forward_derivatives = eqx.filter_jit(_forward_body)
+_inverse_derivatives = eqx.filter_jit(_inverse_body)
 
 
 def _linearization_body(system: LagrangianSystem, t, q, qd, params, tau, one_state=False):

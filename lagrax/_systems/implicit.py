@@ -46,6 +46,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 
 from .._core.blocking import blocked
+from .._core.closures import differentiated_closure
 from .._core.linalg import small_matmul, spd_inverse
 from . import derivatives as d
 
@@ -72,9 +73,12 @@ def plain_autodiff() -> contextlib.AbstractContextManager[None]:
     return switched_off(_RULE)
 
 
-def rule_on() -> bool:
-    """Whether the accelerations traced now carry the inverse-dynamics rule."""
-    return _RULE["on"]
+def rule_on(system: Any) -> bool:
+    """Whether the accelerations of `system` traced now carry the inverse-dynamics rule:
+    unless switched off (`plain_autodiff`), or where the system's functions close over a
+    value that automatic differentiation traces (a rule sees only its arguments, so such
+    a derivative must go through the computation itself)."""
+    return _RULE["on"] and not differentiated_closure(system)
 
 
 def residual(e: d.Energies, t, q, qd, qdd, params):
@@ -228,7 +232,7 @@ def _jacobians(e, scalar, t, q, qd, qdd, params):
 def accelerations(e: d.Energies, scalar: bool | None, t, q, qd, params, tau) -> Any:
     """`q̈ = M⁻¹(τ + F − C q̇ − G − ∂D/∂q̇)` (see `derivatives.accelerations`), whose
     derivatives go through the inverse dynamics (see the module docstring)."""
-    if not _RULE["on"]:
+    if not rule_on(e):
         return _raw(e, scalar, t, q, qd, params, tau)
     return blocked(_with_rule, blocks(e)[0])(e, scalar, t, q, qd, params, tau)
 
