@@ -4,8 +4,9 @@ against Pinocchio, and gradients through `simulate` against the solve.
 Four tables, each a ratio against a baseline measured in this run:
 
 1. **Per state** (`jax.vmap` over `--batch` random states, compiled; the fastest of
-   `--repeats` calls, per state): each system's forward dynamics, its Jacobian
-   `jax.jacfwd(forward_dynamics)` with respect to `(q, q̇, τ)`, and
+   `--repeats` calls, per state, the three calls of a system taken in turn): each
+   system's forward dynamics, its Jacobian `jax.jacfwd(forward_dynamics)` with respect
+   to `(q, q̇, τ)`, and
    `forward_dynamics_derivatives` (the same numbers in one call), for the 2R arm (user
    energies), planar chains of 7 and 20 links, the spatial 7-link chain (alternating z/y
    axes), the URDF arm `arm7` and the URDF tree `torso_two_arms`.
@@ -91,7 +92,23 @@ def per_state(system, params, batch, repeats):
             jax.vmap(lambda a, b, c: system.forward_dynamics_derivatives(a, b, params, c))
         ),
     }
-    return {k: fastest(f, (q, qd, tau), repeats) / batch * 1e6 for k, f in calls.items()}
+    times = fastest_interleaved(calls, (q, qd, tau), repeats)
+    return {k: t / batch * 1e6 for k, t in times.items()}
+
+
+def fastest_interleaved(calls, args, repeats):
+    """`{name: seconds}`, the fastest of `repeats` calls of each `calls[name](*args)`,
+    the calls taken in turn (one of each per round, after one warm-up each), so that the
+    machine's slower and faster spells fall on all of them alike and their ratios hold."""
+    for f in calls.values():
+        jax.block_until_ready(f(*args))
+    best = dict.fromkeys(calls, float("inf"))
+    for _ in range(repeats):
+        for name, f in calls.items():
+            t0 = time.perf_counter()
+            jax.block_until_ready(f(*args))
+            best[name] = min(best[name], time.perf_counter() - t0)
+    return best
 
 
 def per_state_table(batch, repeats):

@@ -206,12 +206,19 @@ def _tangent(primals, tangents):
     return qdd, mm(m_inv, rhs)
 
 
-def _primal_and_jacobians(e, t, q, qd, params, tau):
-    """`(q̈, ∂r/∂q, ∂r/∂q̇, M⁻¹)` from structure-aware equations (`_raw` and `_jacobians`
-    with the kinematics evaluated once)."""
+def primal_and_jacobians(e: d.Energies, t, q, qd, params, tau):
+    """`(q̈, ∂r/∂q, ∂r/∂q̇, M)` from structure-aware equations: the accelerations and
+    `residual_jacobians` with the structure's kinematics evaluated once."""
     f = d.applied_or_none(e, t, q, qd, params, tau)
     qdd, jq, jqd, mass = e.equations.accelerations_and_derivatives(q, qd, params, f)
-    return (qdd, *_less_applied(e, t, q, qd, params, jq, jqd), spd_inverse(mass))
+    return (qdd, *_less_applied(e, t, q, qd, params, jq, jqd), mass)
+
+
+def _primal_and_jacobians(e, t, q, qd, params, tau):
+    """`(q̈, ∂r/∂q, ∂r/∂q̇, M⁻¹)`: `primal_and_jacobians` with `M` inverted (in the same
+    block of states)."""
+    qdd, jq, jqd, mass = primal_and_jacobians(e, t, q, qd, params, tau)
+    return qdd, jq, jqd, spd_inverse(mass)
 
 
 def _less_applied(e: d.Energies, t, q, qd, params, jq, jqd):

@@ -95,8 +95,11 @@ def forward(
     the written-out inverse's time (0.35 s for `n = 7`); the written-out inverse is the
     faster of the two under `vmap` over many states.
     """
-    qdd = implicit.accelerations(e, scalar, t, q, qd, params, tau)
-    jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
+    if e.equations is not None:  # one evaluation of the structure's kinematics
+        qdd, jq, jqd, mass = implicit.primal_and_jacobians(e, t, q, qd, params, tau)
+    else:
+        qdd = implicit.accelerations(e, scalar, t, q, qd, params, tau)
+        jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
     dparams = None
     if wrt_params:
         dparams = _jacobian_wrt_params(
@@ -106,6 +109,19 @@ def forward(
     if one_state and n > _ONE_STATE_LAPACK_ABOVE:
         eye = jnp.eye(n, dtype=mass.dtype)
         cols = cholesky_solve_many(mass, jnp.concatenate([-jq, -jqd, eye], axis=1))
+        return ForwardDynamicsDerivatives(
+            qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
+        )
+    if e.equations is None and d.use_scalar(n, scalar):
+        # the scalar path's written-out solve, all 3n columns vectorized through it (as
+        # the accelerations' tangents are): no stacked matrix product
+        rows, _ = d.eom_small(e, q, qd, params, t)
+        rhs = jnp.concatenate([-jq, -jqd, jnp.eye(n, dtype=jq.dtype)], axis=1)
+        cols = jax.vmap(
+            lambda b: jnp.stack(d.solve_spd_unrolled(rows, [b[i] for i in range(n)])),
+            in_axes=1,
+            out_axes=1,
+        )(rhs)
         return ForwardDynamicsDerivatives(
             qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
         )
