@@ -82,6 +82,46 @@ def test_killed_worker_loses_nothing(oscillator, batch, reference, client, tmp_p
     xr.testing.assert_identical(ds.load(), reference)
 
 
+def test_lost_definition_is_scattered_again(oscillator, batch, reference, client, tmp_path):
+    """The chunk program's definition held by one worker only (a worker that joined
+    after the scatter has none) and that worker killed before the tasks ran: Dask cancels
+    the tasks waiting for it ("lose scattered data, which can't be recovered"; this
+    failed the test above now and then), and the sweep scatters it again and resubmits
+    them. Every chunk is written once, and the result is the local sweep's."""
+    import time
+
+    real_scatter, real_write = client.scatter, _store.SweepStore.write
+    written, scatters = [], []
+
+    def scatter_to_one_worker_then_kill_it(data, **kw):
+        scatters.append(1)
+        if len(scatters) > 1:
+            return real_scatter(data, **kw)
+        workers = sorted(client.scheduler_info()["workers"])
+        out = real_scatter(data, workers=workers[:1], broadcast=False, hash=False)
+        pid = client.run(os.getpid, workers=workers[:1])[workers[0]]
+        os.kill(pid, signal.SIGKILL)
+        deadline = time.monotonic() + 30
+        while workers[0] in client.scheduler_info()["workers"] and time.monotonic() < deadline:
+            time.sleep(0.05)  # until the scheduler has removed it (and lost the data)
+        return out
+
+    def write(self, c, chunk, kept):
+        written.append(c)
+        return real_write(self, c, chunk, kept)
+
+    client.scatter = scatter_to_one_worker_then_kill_it
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(_store.SweepStore, "write", write)
+            ds = run(oscillator, batch, client=client, store=tmp_path / "study.zarr")
+    finally:
+        del client.scatter  # the bound method again
+    assert len(scatters) >= 2  # the definition was scattered again
+    assert sorted(written) == list(range(N_CHUNKS))
+    xr.testing.assert_identical(ds.load(), reference)
+
+
 def test_bad_client(oscillator, batch, client):
     with pytest.raises(lx.ArgumentTypeError, match="dask.distributed.Client"):
         run(oscillator, batch, client="tcp://localhost:8786")

@@ -11,6 +11,11 @@ Each finished chunk comes back to the client, which writes it (into the store,
 the checkpoint directory, or the in-memory result) as it arrives: the only writer, so a
 task that Dask runs again after losing its worker changes nothing (a chunk is written
 once, by its index).
+
+A killed worker may take the only copy of the scattered definition with it (a worker
+that joined after the scatter has none), and Dask then cancels the tasks waiting for it:
+the client scatters the definition again and resubmits those chunks (`_RESUBMITS` times
+each at most).
 """
 
 import collections
@@ -23,7 +28,7 @@ from typing import Any
 import jax.tree_util as jtu
 import numpy as np
 
-from .._core.errors import ArgumentTypeError, ConfigurationError
+from .._core.errors import ArgumentTypeError, ConfigurationError, SimulationError
 from .chunk import ChunkSpec, solve_chunk
 from .grid import Members
 from .progress import progress_bar, progress_default
@@ -70,6 +75,9 @@ def cluster_threads(client: Any) -> int:
 # compiled program: no tracing or compiling again.
 _SPECS: "collections.OrderedDict[str, ChunkSpec]" = collections.OrderedDict()
 _SPECS_KEPT = 8
+# How often a chunk whose task Dask cancelled (its inputs lost with a worker) is submitted
+# again before the sweep gives up.
+_RESUBMITS = 3
 
 
 def _spec_on_worker(digest: str, payload: bytes) -> ChunkSpec:
@@ -125,21 +133,42 @@ def run_on_cluster(
         if todo:
             payload = cloudpickle.dumps(spec)
             digest = hashlib.sha256(payload).hexdigest()
-            [remote_spec] = client.scatter([(digest, payload)], broadcast=True, hash=False)
-            for c in todo:
+            remote: list[Any] = []  # the scattered definition (scattered again if lost)
+            resubmits = dict.fromkeys(todo, 0)
+
+            def submit(c: int) -> Any:
+                if not remote or remote[0].status != "finished":
+                    remote[:] = client.scatter([(digest, payload)], broadcast=True, hash=False)
                 a, b = c * size, min((c + 1) * size, n_members)
                 params = jtu.tree_map(np.asarray, members.params_of(a, b))
                 future = client.submit(
                     _solve,
-                    remote_spec,
+                    remote[0],
                     params,
                     np.asarray(members.q0s[a:b]),
                     np.asarray(members.qd0s[a:b]),
                     pure=False,
                 )
                 index[future] = c
-            for future in as_completed(list(index)):
+                return future
+
+            for c in todo:
+                submit(c)
+            pending = as_completed(list(index))
+            for future in pending:
                 c = index.pop(future)
+                if future.cancelled():  # its inputs went with a killed worker
+                    resubmits[c] += 1
+                    if resubmits[c] > _RESUBMITS:
+                        raise SimulationError(
+                            f"the sweep's chunk {c} was cancelled by the cluster "
+                            f"{resubmits[c]} times (its workers lost): the chunks finished "
+                            "so far are kept (in the store or checkpoint, if any); run the "
+                            "sweep again to resume"
+                        )
+                    remote.clear()  # the definition may have been lost with the worker
+                    pending.add(submit(c))
+                    continue
                 chunk = future.result()
                 if save is not None:
                     save(c, chunk)
