@@ -97,3 +97,18 @@ def test_simulate_of_a_system_built_inside_vmap():
     ks = jnp.array([0.7, 1.7])
     exact = Q[None] * jnp.cos(jnp.sqrt(ks)[:, None] * 0.5)
     assert rel_error(jax.vmap(final)(ks), exact) <= 1e-8
+
+
+def test_check_state_under_jit_is_a_named_error():
+    """`check_state` reads concrete values to name a problem: given traced ones (under
+    `jit`, or a system closing over a traced value) it is a `ConfigurationError` that
+    says so (it was a raw `TracerBoolConversionError`)."""
+    system, params = lx.models.planar_2r()
+    with pytest.raises(lx.ConfigurationError, match="check_state.*outside jax.jit"):
+        jax.jit(lambda q: system.check_state(q, q, params))(Q)
+    with pytest.raises(lx.ConfigurationError, match="check_state.*close over"):
+        jax.jit(lambda k: _springs(k).check_state(Q, Q, {}))(K)
+    rod = lx.ConstrainedSystem(system, lambda q, p: jnp.stack([q @ q - 1.0]))
+    with pytest.raises(lx.ConfigurationError, match="check_state"):
+        jax.jit(lambda q: rod.check_state(q, q, params))(Q)
+    system.check_state(Q, Q, params)  # concrete values: checked, no error

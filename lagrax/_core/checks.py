@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .closures import closes_over_tracers
 from .custom_types import Params
 from .errors import (
     ArgumentTypeError,
@@ -30,6 +31,19 @@ from .linalg import PIVOT_RTOL
 def is_traced(*xs: Any) -> bool:
     """Whether any leaf of `xs` is a JAX tracer (we are inside `jit`/`vmap`/`grad`)."""
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
+
+
+def eager_only(what: str, system: Any, *values: Any) -> None:
+    """Raise a `ConfigurationError` where an eager validation (`check_state`) is given
+    traced values, or a system whose functions close over traced values: it reads the
+    values to name the problem, which only concrete values allow."""
+    if is_traced(*values) or closes_over_tracers(system):
+        raise ConfigurationError(
+            f"{what} validates concrete values outside jax.jit, jax.vmap and jax.grad, "
+            "and was given traced ones (or a system whose functions close over a traced "
+            "value): call it outside the transformation; inside, forward_dynamics and "
+            "simulate check their results at run time"
+        )
 
 
 def pivot_threshold(dtype: Any) -> float:

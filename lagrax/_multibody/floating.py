@@ -25,7 +25,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.blocking import blocked
-from .._core.checks import coords, finite, finite_params, is_traced, param_shapes, physical
+from .._core.checks import (
+    coords,
+    eager_only,
+    finite,
+    finite_params,
+    is_traced,
+    param_shapes,
+    physical,
+)
 from .._core.closures import closes_over_tracers
 from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
@@ -431,8 +439,10 @@ class FloatingBaseSystem(AbstractSystem):
         """Validate a state eagerly: sizes `7 + n` and `6 + n`, finite values, a
         quaternion that is not zero, finite params and a positive-definite `M(q)`.
 
-        **Raises:** `ShapeError`, `NonFiniteError`, `MassMatrixError`.
+        **Raises:** `ShapeError`, `NonFiniteError`, `MassMatrixError`;
+        `ConfigurationError` for traced values (inside `jax.jit`).
         """
+        eager_only(f"check_state of {self.name}", self, q, qd, params, t)
         q, v = self._inputs(q, qd=qd)
         finite(q, "q")
         finite(v, "qd")

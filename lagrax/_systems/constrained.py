@@ -502,6 +502,7 @@ class ConstrainedSystem(AbstractSystem):
         full row rank at the (projected) configuration.
 
         **Raises:** `ConstraintError`, `ShapeError`, `NonFiniteError`,
-        `ParameterError`, `MassMatrixError`.
+        `ParameterError`, `MassMatrixError`; `ConfigurationError` for traced values
+        (inside `jax.jit`).
         """
         checks.check_state(self, q, qd, params, project, t)

@@ -10,7 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import finite, is_traced
+from .._core.checks import eager_only, finite, is_traced
 from .._core.closures import closes_over_tracers
 from .._core.errors import ConstraintError, NonFiniteError
 from .._core.linalg import PIVOT_RTOL
@@ -102,6 +102,7 @@ def k_name(system: ConstrainedSystem) -> str:
 
 def check_state(system: ConstrainedSystem, q, qd, params, project, t) -> None:
     """`ConstrainedSystem.check_state` (documented there)."""
+    eager_only(f"check_state of {system.name}", system, q, qd, params, t)
     system.system.check_state(q, qd, params, t=t)
     q, qd = system._state(q, qd)
     phi = system._phi(q, params)

@@ -493,7 +493,7 @@ class LagrangianSystem(AbstractSystem):
         time-dependent system.
 
         **Raises:** `ShapeError`, `NonFiniteError`, `ParameterError`,
-        `MassMatrixError`.
+        `MassMatrixError`; `ConfigurationError` for traced values (inside `jax.jit`).
         """
         checks.check_state(self, q, qd, params, t)
 

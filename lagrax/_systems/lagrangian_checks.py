@@ -13,6 +13,7 @@ import numpy as np
 
 from .._core.checks import (
     binds,
+    eager_only,
     finite,
     finite_params,
     is_traced,
@@ -86,6 +87,7 @@ def check_init(system: LagrangianSystem) -> None:
 def check_state(system: LagrangianSystem, q, qd, params, t) -> None:
     """`LagrangianSystem.check_state`: shapes, finite values and parameters, a finite
     energy and a symmetric positive-definite `M(q)`, with the values in the messages."""
+    eager_only(f"check_state of {system.name}", system, q, qd, params, t)
     q, qd = system._state(q, qd)
     finite(q, "q")
     finite(qd, "qd")
