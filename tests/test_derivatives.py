@@ -275,6 +275,46 @@ def test_constrained_tangents_go_through_the_kkt_system():
             assert rel_error(a, b) <= 1e-11
 
 
+def test_constrained_derivatives_api_and_linearization():
+    """`ConstrainedSystem.forward_dynamics_derivatives` equals plain autodiff's
+    `jacfwd` (holonomic and velocity constraints, with `∂q̈/∂params`), its `∂q̈/∂τ` the
+    closed form `M⁻¹ − M⁻¹Kᵀ S⁻¹ K M⁻¹` (`S = K M⁻¹ Kᵀ`), and `linearize` of the
+    Cartesian pendulum hanging at rest has the eigenvalues `±i √(g/l)` of its swing and
+    `−α ± √(α² − β²)` of its Baumgarte drift."""
+    pendulum, params = lx.models.cartesian_pendulum(alpha=10.0, beta=5.0)
+    knife = lx.ConstrainedSystem(
+        pendulum.system, None, velocity_constraints=lambda q, p: jnp.stack([q[1], -q[0]])
+    )
+    q, qd, tau = jnp.array([0.6, -0.8]), jnp.array([0.8, 0.6]), jnp.array([0.3, -0.2])
+    for system in (pendulum, knife):
+        out = system.forward_dynamics_derivatives(q, qd, params, tau, wrt_params=True)
+
+        def acc(a, b, c, p, s=system):
+            return s.forward_dynamics(a, b, p, c)
+
+        with implicit.plain_autodiff():
+            ref = jax.jacfwd(acc, argnums=(0, 1, 2, 3))(q, qd, tau, params)
+        assert rel_error(out.qdd, acc(q, qd, tau, params)) <= 1e-14
+        for ours, plain in zip((out.dq, out.dqd, out.dtau), ref[:3], strict=True):
+            assert rel_error(ours, plain) <= 1e-12
+        for key in params:
+            assert rel_error(out.dparams[key], ref[3][key]) <= 1e-12
+        kmat = system.constraint_matrix(q, params)
+        m_inv = jnp.linalg.inv(system.mass_matrix(q, params))
+        m_inv_kt = m_inv @ kmat.T
+        projected = m_inv - m_inv_kt @ jnp.linalg.solve(kmat @ m_inv_kt, m_inv_kt.T)
+        assert rel_error(out.dtau, projected) <= 1e-13
+
+    a_mat, b_mat = pendulum.linearize(jnp.array([0.0, -1.0]), jnp.zeros(2), params)
+    swing = np.sqrt(params["g"] / params["l"])
+    drift = -10.0 + np.array([1.0, -1.0]) * np.sqrt(10.0**2 - 5.0**2)
+    expected = np.sort_complex(np.array([1j * swing, -1j * swing, *drift]))
+    assert rel_error(np.sort_complex(np.linalg.eigvals(np.asarray(a_mat))), expected) <= 1e-12
+    assert rel_error(b_mat, np.array([[0, 0], [0, 0], [1 / params["m"], 0], [0, 0]])) <= 1e-14
+    with pytest.raises(lx.NonFiniteError):
+        pendulum.forward_dynamics_derivatives(jnp.array([jnp.nan, -1.0]), jnp.zeros(2), params)
+
+
 def test_tau_function_takes_its_own_tangents():
     """A state feedback `τ(t, q, q̇)` in the vector field: its Jacobian by the rule equals
     plain autodiff (the feedback's derivatives chain into the accelerations')."""

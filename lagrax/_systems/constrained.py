@@ -23,10 +23,12 @@ from .._core.custom_types import (
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from . import constraint_checks as checks
 from . import derivatives as d
+from . import dynamics_derivatives as api
 from . import implicit, kkt, projection
 from .abstract import AbstractSystem
 from .kkt import solve_kkt
 from .lagrangian import LagrangianSystem
+from .sensitivity import ForwardDynamicsDerivatives
 
 ConstraintFn = Callable[[Vector, Params], ConstraintValues]
 VelocityConstraintFn = Callable[[Vector, Params], ConstraintJacobian]
@@ -423,6 +425,80 @@ class ConstrainedSystem(AbstractSystem):
         `NonFiniteError`. Under `jit`, a run-time error by `equinox.error_if`.
         """
         return checks.checked_kkt(self, q, qd, params, tau, t, "forward_dynamics")[0]
+
+    def forward_dynamics_derivatives(
+        self,
+        q: Coordinates,
+        qd: Velocities,
+        params: Params,
+        tau: Velocities | None = None,
+        t: Time = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> ForwardDynamicsDerivatives:
+        r"""The constrained accelerations and their derivatives at one state, in one call.
+
+        Differentiating the KKT system `[[M, Kᵀ], [K, 0]] (q̈, −λ) = (f, γ)` at its
+        solution (`K = [J; A]`, `f = τ + F − C q̇ − G − ∂D/∂q̇`, `γ` the constraints'
+        velocity products and Baumgarte terms):
+
+        $$
+        \begin{bmatrix} M & −Kᵀ \\ K & 0 \end{bmatrix}
+        \begin{bmatrix} δq̈ \\ δλ \end{bmatrix}
+        = \begin{bmatrix} δτ − \tfrac{∂r}{∂(q, q̇)} δ(q, q̇) + δKᵀ λ \\
+          δγ − δK q̈ \end{bmatrix},
+        $$
+
+        with `r` the unconstrained system's inverse dynamics less its applied forces. So
+        `∂q̈/∂τ = M⁻¹ − M⁻¹Kᵀ S⁻¹ K M⁻¹` with the Schur complement `S = K M⁻¹ Kᵀ` (not
+        `M⁻¹`: an input along a constrained direction does not accelerate), and
+        `∂q̈/∂q`, `∂q̈/∂q̇` include the motion of the constraints and of the Baumgarte
+        terms. One linearization of the accelerations, then the `3n` basis tangents
+        through the KKT system's tangent rule (the numbers of
+        `jax.jacfwd(forward_dynamics)`).
+
+        **Arguments:** the state `q`, `qd` (shape `(n,)`, redundant coordinates),
+        `params`, the input `tau` (default zero), the time `t`, and `wrt_params=True` to
+        add `∂q̈/∂params`.
+
+        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives]
+        (`qdd`, `dq`, `dqd`, `dtau`, `dparams`).
+
+        **Raises:** `NonFiniteError` where the derivatives are not finite (a rank-deficient
+        `K`, `M` not positive-definite, NaN inputs; eagerly the cause by
+        [`check_state`][lagrax.ConstrainedSystem.check_state]); `ShapeError`. Under
+        `jit`, a run-time error by `equinox.error_if`.
+        """
+        return api.constrained_forward_dynamics_derivatives(self, q, qd, params, tau, t, wrt_params)
+
+    def linearize(
+        self,
+        q_eq: Coordinates,
+        qd_eq: Velocities,
+        params: Params,
+        tau_eq: Velocities | None = None,
+        *,
+        t: Time = 0.0,
+    ) -> tuple[jax.Array, jax.Array]:
+        r"""Linearization `δẋ = A δx + B δτ` of the constrained state equations
+        `ẋ = (q̇, q̈(q, q̇, τ))` in the redundant coordinates, about `(x_eq, τ_eq)`:
+        `A = [[0, I], [∂q̈/∂q, ∂q̈/∂q̇]]`, `B = [[0], [∂q̈/∂τ]]` from
+        [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives].
+
+        Besides the motion along the constraints, `A` holds the Baumgarte dynamics of the
+        drift across them: for each holonomic constraint the eigenvalues
+        `−α ± √(α² − β²)` of `φ̈ + 2α φ̇ + β² φ = 0` (a pendulum in Cartesian
+        coordinates hanging at rest: `±i √(g/l)` and those two).
+
+        **Arguments:** the state `q_eq`, `qd_eq` (shape `(n,)`), `params`, the input
+        `tau_eq` (default zero) and the time `t`.
+
+        **Returns:** `(A, B)` of shapes `(2n, 2n)` and `(2n, n)`.
+
+        **Raises:** as
+        [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives].
+        """
+        return api.constrained_linearize(self, q_eq, qd_eq, params, tau_eq, t)
 
     def multipliers(
         self,

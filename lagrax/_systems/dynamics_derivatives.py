@@ -1,7 +1,8 @@
 """The derivatives API of a `LagrangianSystem`: the forward and inverse dynamics with
 their derivatives (as Pinocchio's `computeABADerivatives` / `computeRNEADerivatives`)
 and the linearization of the state equations, each one compiled program around
-`sensitivity`'s kernels, with eager checks around it."""
+`sensitivity`'s kernels, with eager checks around it; and of a `ConstrainedSystem`, whose
+accelerations' derivatives go through its KKT system (`kkt`'s tangent rule)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from .lagrangian_checks import finite_derivatives, float_arrays
 from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
 
 if TYPE_CHECKING:
+    from .constrained import ConstrainedSystem
     from .lagrangian import LagrangianSystem
 
 
@@ -82,6 +84,42 @@ def linearize(
         "which.",
     )
     return a_mat, b_mat
+
+
+def constrained_forward_dynamics_derivatives(
+    system: ConstrainedSystem, q, qd, params, tau, t, wrt_params: bool
+) -> ForwardDynamicsDerivatives:
+    """`ConstrainedSystem.forward_dynamics_derivatives` (documented there)."""
+    q, qd, tau = system._state(q, qd, tau=tau)
+    tau = jnp.zeros_like(q) if tau is None else tau
+    hidden = closes_over_tracers(system)
+    eager = not (hidden or is_traced(q, qd, tau, params, t))
+    program = _constrained_body if hidden else _constrained_derivatives
+    out = program(system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params)
+    return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
+
+
+def constrained_linearize(
+    system: ConstrainedSystem, q_eq, qd_eq, params, tau_eq, t
+) -> tuple[jax.Array, jax.Array]:
+    """`ConstrainedSystem.linearize` (documented there): `(A, B)`."""
+    out = constrained_forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
+    n = out.qdd.shape[0]
+    zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
+    return jnp.block([[zero, eye], [out.dq, out.dqd]]), jnp.concatenate([zero, out.dtau])
+
+
+def _constrained_body(system: ConstrainedSystem, t, q, qd, params, tau, wrt_params: bool):
+    """`sensitivity.forward_by_jacobian` of the KKT accelerations (whose tangents go
+    through the KKT system at the primal solution)."""
+
+    def accelerations(a, b, c, p):
+        return system._kkt(t, a, b, p, c)[0]
+
+    return sensitivity.forward_by_jacobian(accelerations, q, qd, tau, params, wrt_params)
+
+
+_constrained_derivatives = eqx.filter_jit(_constrained_body)
 
 
 def _eager_linearization(system: LagrangianSystem, t, q, qd, params, tau):
