@@ -17,7 +17,7 @@ import pytest
 from jax.test_util import check_grads
 
 import lagrax as lx
-from _helpers import pin_state, rel_error  # tests/_helpers.py
+from _helpers import example_robot_data, pin_state, rel_error  # tests/_helpers.py
 from _random_models import random_spatial  # tests/_random_models.py
 from lagrax._systems import implicit
 
@@ -355,10 +355,21 @@ def test_params_with_none_entries_pair_tangents_with_their_leaves(n):
 
 
 # ------------------------------------------------------------------ against Pinocchio
-@pytest.mark.parametrize("robot", ["arm7", "torso_two_arms"])
+# example-robot-data's robots as shipped (inputs we did not write): UR5 (6 revolute joints,
+# fixed links merged) and Unitree Z1 (7 joints)
+SHIPPED = {"ur5": "ur_description/urdf/ur5_robot.urdf", "z1": "z1_description/urdf/z1.urdf"}
+
+
+@pytest.mark.parametrize("robot", ["arm7", "torso_two_arms", *SHIPPED])
 def test_derivatives_match_pinocchio(robot):
     pin = pytest.importorskip("pinocchio", reason="Pinocchio (pip install pin) is the reference")
-    path = lx.models.urdf_path(robot)
+    if robot in SHIPPED:
+        root = example_robot_data()
+        if root is None:
+            pytest.skip("example-robot-data is not installed")
+        path = root / "robots" / SHIPPED[robot]
+    else:
+        path = lx.models.urdf_path(robot)
     tree, params = lx.chains.from_urdf(path)
     params = {**params, "damping": jnp.zeros(tree.n)}
     system = tree.system()
