@@ -33,11 +33,18 @@ def is_traced(*xs: Any) -> bool:
     return any(isinstance(x, jax.core.Tracer) for x in jax.tree_util.tree_leaves(xs))
 
 
+def traced(system: Any, *values: Any) -> bool:
+    """Whether a call of `system` on `values` is traced: a leaf of `values` is a tracer,
+    or the system's functions close over one (a system built inside a function that
+    `jax.jit`, `jax.vmap` or `jax.grad` transforms)."""
+    return is_traced(*values) or closes_over_tracers(system)
+
+
 def eager_only(what: str, system: Any, *values: Any) -> None:
     """Raise a `ConfigurationError` where an eager validation (`check_state`) is given
     traced values, or a system whose functions close over traced values: it reads the
     values to name the problem, which only concrete values allow."""
-    if is_traced(*values) or closes_over_tracers(system):
+    if traced(system, *values):
         raise ConfigurationError(
             f"{what} validates concrete values outside jax.jit, jax.vmap and jax.grad, "
             "and was given traced ones (or a system whose functions close over a traced "

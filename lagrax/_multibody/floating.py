@@ -30,11 +30,10 @@ from .._core.checks import (
     eager_only,
     finite,
     finite_params,
-    is_traced,
     param_shapes,
     physical,
+    traced,
 )
-from .._core.closures import closes_over_tracers
 from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
 from .._core.linalg import cholesky_solve
@@ -349,7 +348,7 @@ class FloatingBaseSystem(AbstractSystem):
         """
         q, v, tau = self._inputs(q, qd=qd, tau=tau)
         vdot = self.accelerations(t, q, v, params, tau)
-        if not (is_traced(q, v, tau, params) or closes_over_tracers(self)):
+        if not traced(self, q, v, tau, params):
             if not np.all(np.isfinite(np.asarray(vdot))):
                 self.check_state(q, v, params)
                 raise NonFiniteError(

@@ -10,8 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import eager_only, finite, is_traced
-from .._core.closures import closes_over_tracers
+from .._core.checks import eager_only, finite, traced
 from .._core.errors import ConstraintError, NonFiniteError
 from .._core.linalg import PIVOT_RTOL
 
@@ -23,7 +22,7 @@ def checked_kkt(system: ConstrainedSystem, q, qd, params, tau, t, what: str):
     """`(q̈, (λ, μ))` of a state, checked: eagerly, the error that names the cause;
     under `jit`, a run-time error."""
     q, qd, tau = system._state(q, qd, tau=tau)
-    if not (is_traced(q, qd, tau, params, t) or closes_over_tracers(system)):
+    if not traced(system, q, qd, tau, params, t):
         finite(q, "q")
         finite(qd, "qd")
         if tau is not None:

@@ -6,6 +6,7 @@ accelerations' derivatives go through its KKT system (`kkt`'s tangent rule)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import equinox as eqx
@@ -31,9 +32,7 @@ def forward_dynamics_derivatives(
 ) -> ForwardDynamicsDerivatives:
     """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
-    hidden = closes_over_tracers(system)
-    eager = not (hidden or is_traced(q, qd, tau, params, t))
-    program = _forward_body if hidden else _forward_derivatives
+    program, eager = _program(system, _forward_derivatives, _forward_body, q, qd, tau, params, t)
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -45,9 +44,7 @@ def inverse_dynamics_derivatives(
 ) -> InverseDynamicsDerivatives:
     """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
     q, qd, qdd = system._state(q, qd, qdd=qdd)
-    hidden = closes_over_tracers(system)
-    eager = not (hidden or is_traced(q, qd, qdd, params, t))
-    program = _inverse_body if hidden else _inverse_derivatives
+    program, eager = _program(system, _inverse_derivatives, _inverse_body, q, qd, qdd, params, t)
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
     )
@@ -65,16 +62,13 @@ def linearize(
         (tau,) = system._state(q, tau=tau_eq)[1:]
     dtype = jnp.result_type(q, qd, tau)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-    hidden = closes_over_tracers(system)
-    eager = not (hidden or is_traced(q, qd, tau, params, t))
+    program, eager = _program(system, _linearization, _linearization_body, q, qd, tau, params, t)
     if eager:
         finite(q, "q_eq")
         finite(qd, "qd_eq")
         finite(tau, "tau_eq")
         return _eager_linearization(system, t, q, qd, params, tau)
-    a_mat, b_mat = (_linearization_body if hidden else _linearization)(
-        system, t, q, qd, params, tau
-    )
+    a_mat, b_mat = program(system, t, q, qd, params, tau)
     ok = jnp.all(jnp.isfinite(a_mat)) & jnp.all(jnp.isfinite(b_mat))
     a_mat = eqx.error_if(
         a_mat,
@@ -92,9 +86,9 @@ def constrained_forward_dynamics_derivatives(
     """`ConstrainedSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
     tau = jnp.zeros_like(q) if tau is None else tau
-    hidden = closes_over_tracers(system)
-    eager = not (hidden or is_traced(q, qd, tau, params, t))
-    program = _constrained_body if hidden else _constrained_derivatives
+    program, eager = _program(
+        system, _constrained_derivatives, _constrained_body, q, qd, tau, params, t
+    )
     out = program(system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params)
     return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
 
@@ -104,9 +98,25 @@ def constrained_linearize(
 ) -> tuple[jax.Array, jax.Array]:
     """`ConstrainedSystem.linearize` (documented there): `(A, B)`."""
     out = constrained_forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
+    return _state_space(out)
+
+
+def _program(system, compiled, body, *values) -> tuple[Callable, bool]:
+    """`(program, eager)` of a call of `system` on `values`: the `compiled` program, and
+    whether nothing in the call is traced; or `body` itself (traced) where the system's
+    functions close over traced values, since a compiled program holds the functions as
+    constants, which cannot hold a tracer of `jax.grad` or `jax.jvp`."""
+    if closes_over_tracers(system):
+        return body, False
+    return compiled, not is_traced(*values)
+
+
+def _state_space(out: ForwardDynamicsDerivatives) -> tuple[jax.Array, jax.Array]:
+    """`(A, B)` of `ẋ = (q̇, q̈(q, q̇, τ))` from the derivatives of `q̈`:
+    `A = [[0, I], [∂q̈/∂q, ∂q̈/∂q̇]]`, `B = [[0], [∂q̈/∂τ]]`."""
     n = out.qdd.shape[0]
     zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
-    return jnp.block([[zero, eye], [out.dq, out.dqd]]), jnp.concatenate([zero, out.dtau])
+    return jnp.block([[zero, eye], [out.dq, out.dqd]]), jnp.concatenate([zero, out.dtau], axis=0)
 
 
 def _constrained_body(system: ConstrainedSystem, t, q, qd, params, tau, wrt_params: bool):
@@ -165,11 +175,7 @@ def _linearization_body(system: LagrangianSystem, t, q, qd, params, tau, one_sta
     out = sensitivity.forward(
         system, system.scalar_derivatives, t, q, qd, params, tau, False, one_state=one_state
     )
-    n = q.shape[0]
-    zero, eye = jnp.zeros((n, n), out.dq.dtype), jnp.eye(n, dtype=out.dq.dtype)
-    a_mat = jnp.block([[zero, eye], [out.dq, out.dqd]])
-    b_mat = jnp.concatenate([zero, out.dtau], axis=0)
-    return a_mat, b_mat
+    return _state_space(out)
 
 
 _linearization = eqx.filter_jit(_linearization_body)

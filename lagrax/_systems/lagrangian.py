@@ -6,8 +6,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._core.checks import call_user, is_traced
-from .._core.closures import closes_over_tracers
+from .._core.checks import call_user, traced
 from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 from . import derivatives as d
 from . import dynamics_derivatives as api
@@ -356,7 +355,7 @@ class LagrangianSystem(AbstractSystem):
         Under `jit` the last two are raised at run time by `equinox.error_if`.
         """
         q, qd, tau = self._state(q, qd, tau=tau)
-        if not (is_traced(q, qd, tau, params, t) or closes_over_tracers(self)):
+        if not traced(self, q, qd, tau, params, t):
             return checks.eager_forward_dynamics(self, t, q, qd, params, tau)
         # traced: one check on the output (NaN inputs and a non-PD mass matrix both make
         # it non-finite); checking the output keeps XLA from splitting the fused kernel.

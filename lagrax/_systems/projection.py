@@ -11,8 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import finite, is_traced
-from .._core.closures import closes_over_tracers
+from .._core.checks import finite, traced
 from .._core.errors import ConstraintError
 from . import derivatives as d
 from .constraint_checks import rank_message
@@ -75,7 +74,7 @@ def project_state(system: ConstrainedSystem, q, qd, params):
 def project(system: ConstrainedSystem, q, qd, params):
     """`ConstrainedSystem.project` of checked 1-D arrays (documented there)."""
     q, qd = system._state(q, qd)
-    if is_traced(q, qd, params) or closes_over_tracers(system):
+    if traced(system, q, qd, params):
         q1, qd1, ok = project_state(system, q, qd, params)
         return eqx.error_if(
             (q1, qd1),

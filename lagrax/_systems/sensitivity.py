@@ -106,22 +106,22 @@ def forward(
             lambda p: implicit.accelerations(e, scalar, t, q, qd, p, tau), params
         )
     n = q.shape[0]
-    if one_state and n > _ONE_STATE_LAPACK_ABOVE:
-        eye = jnp.eye(n, dtype=mass.dtype)
-        cols = cholesky_solve_many(mass, jnp.concatenate([-jq, -jqd, eye], axis=1))
-        return ForwardDynamicsDerivatives(
-            qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
-        )
-    if e.equations is None and d.use_scalar(n, scalar):
-        # the scalar path's written-out solve, all 3n columns vectorized through it (as
-        # the accelerations' tangents are): no stacked matrix product
-        rows, _ = d.eom_small(e, q, qd, params, t)
-        rhs = jnp.concatenate([-jq, -jqd, jnp.eye(n, dtype=jq.dtype)], axis=1)
-        cols = jax.vmap(
-            lambda b: jnp.stack(d.solve_spd_unrolled(rows, [b[i] for i in range(n)])),
-            in_axes=1,
-            out_axes=1,
-        )(rhs)
+    lapack = one_state and n > _ONE_STATE_LAPACK_ABOVE
+    if lapack or (e.equations is None and d.use_scalar(n, scalar)):
+        # M⁻¹ [−∂r/∂q, −∂r/∂q̇, I] by solves: one LAPACK call for all 3n columns, or the
+        # scalar path's written-out solve with the columns vectorized through it, on `M`'s
+        # entries as scalars (as the accelerations' tangents solve; the entries read back
+        # out of the stacked `M` ran 15 % slower: 0.30 against 0.26 µs for the 2R arm)
+        rhs = jnp.concatenate([-jq, -jqd, jnp.eye(n, dtype=mass.dtype)], axis=1)
+        if lapack:
+            cols = cholesky_solve_many(mass, rhs)
+        else:
+            rows, _ = d.eom_small(e, q, qd, params, t)
+            cols = jax.vmap(
+                lambda b: jnp.stack(d.solve_spd_unrolled(rows, [b[i] for i in range(n)])),
+                in_axes=1,
+                out_axes=1,
+            )(rhs)
         return ForwardDynamicsDerivatives(
             qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
         )
