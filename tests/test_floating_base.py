@@ -299,3 +299,135 @@ def test_event_with_a_floating_base():
     assert abs(float(record.times[0]) - t_star) < 1e-9
     assert abs(float(sol.t_end) - t_star) < 1e-9
     assert record.q.shape[-1] == 7 + robot.n and record.qd.shape[-1] == 6 + robot.n
+
+
+# ---------------------------------------------------------------------------- derivatives
+@pytest.fixture(scope="module", params=["arm7", "solo12"])
+def free_flyer(request):
+    return _robot(request.param)
+
+
+def test_derivatives_match_pinocchio_free_flyer(free_flyer):
+    """`forward_dynamics_derivatives` and `inverse_dynamics_derivatives` of a floating
+    base against Pinocchio's `computeABADerivatives` and `computeRNEADerivatives` on the
+    same free-flyer model: derivatives with respect to the configuration on its tangent
+    space, the base moved in its own frame (Pinocchio's `integrate`)."""
+    robot, params, model = free_flyer
+    data = model.createData()
+    system = robot.system()
+    rng = np.random.default_rng(11)
+    errors = []
+    for _ in range(2):
+        q, v = _random_state(rng, robot.n)
+        tau, vdot = rng.normal(size=6 + robot.n), rng.normal(size=6 + robot.n)
+        qp, vp, idx = _pin(model, robot, q, v)
+        tau_p, vdot_p = np.zeros(model.nv), np.zeros(model.nv)
+        tau_p[idx], vdot_p[idx] = tau, vdot
+        block = np.ix_(idx, idx)
+        fwd = system.forward_dynamics_derivatives(q, v, params, tau)
+        pin.computeABADerivatives(model, data, qp, vp, tau_p)
+        m_inv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        inv = system.inverse_dynamics_derivatives(q, v, vdot, params)
+        dq_p, dv_p, m_p = pin.computeRNEADerivatives(model, data, qp, vp, vdot_p)
+        m_p = np.triu(m_p) + np.triu(m_p, 1).T
+        errors.append(
+            [
+                rel_error(fwd.qdd, data.ddq[idx]),
+                rel_error(fwd.dq, data.ddq_dq[block]),
+                rel_error(fwd.dqd, data.ddq_dv[block]),
+                rel_error(fwd.dtau, m_inv[block]),
+                rel_error(inv.tau, pin.rnea(model, data, qp, vp, vdot_p)[idx]),
+                rel_error(inv.dq, dq_p[block]),
+                rel_error(inv.dqd, dv_p[block]),
+                rel_error(inv.dqdd, m_p[block]),
+            ]
+        )
+    assert np.max(errors) <= 1e-10, errors
+
+
+def test_floating_linearize_matches_pinocchio_differences():
+    """`linearize` of a moving floating base (`v_eq ≠ 0`, so that the base's
+    `−½ ad_V` block matters) against central differences of the nonlinear tangent-space
+    map built from Pinocchio alone: `δ̇ = dDifference(q_eq, q_eq ⊕ δ) v` and
+    `v̇ = aba(q_eq ⊕ δ, v, τ)`, with `⊕` Pinocchio's `integrate`."""
+    robot, params, model = _robot("arm7")
+    data = model.createData()
+    system = robot.system()
+    rng = np.random.default_rng(2)
+    q, v = _random_state(rng, robot.n)
+    tau = rng.normal(size=6 + robot.n)
+    a_mat, b_mat = system.linearize(q, v, params, tau)
+    qp, vp, idx = _pin(model, robot, q, v)
+    tau_p = np.zeros(model.nv)
+    tau_p[idx] = tau
+    nv = model.nv
+
+    def f(x, u):
+        delta, w = x[:nv], x[nv:]
+        moved = pin.integrate(model, qp, delta)
+        jac = pin.dDifference(model, qp, moved, pin.ArgumentPosition.ARG1)
+        return np.concatenate([jac @ w, pin.aba(model, data, moved, w, u)])
+
+    x0, eps = np.concatenate([np.zeros(nv), vp]), 1e-6
+    cols_x = [(f(x0 + eps * e, tau_p) - f(x0 - eps * e, tau_p)) / (2 * eps) for e in np.eye(2 * nv)]
+    cols_u = [(f(x0, tau_p + eps * e) - f(x0, tau_p - eps * e)) / (2 * eps) for e in np.eye(nv)]
+    a_ref, b_ref = np.array(cols_x).T, np.array(cols_u).T
+    both = np.concatenate([idx, nv + idx])
+    assert rel_error(a_mat, a_ref[np.ix_(both, both)]) < 1e-7
+    assert rel_error(b_mat, b_ref[np.ix_(both, idx)]) < 1e-7
+    # the base block is the twist's −½ ad_V, not zero, for a moving base
+    assert float(jnp.max(jnp.abs(a_mat[:6, :6]))) > 0.1
+
+
+def test_floating_derivatives_with_damping_and_params_match_autodiff():
+    """With joint damping and with respect to `params`: the derivatives call against
+    plain autodiff of `forward_dynamics` along `q ⊕ δ`, under `jit` and `vmap` too."""
+    from lagrax._multibody.floating_derivatives import retract
+
+    robot, params, _ = _robot("arm7")
+    params = dict(params, damping=jnp.full(robot.n, 0.3))
+    system = robot.system()
+    rng = np.random.default_rng(4)
+    q, v = (jnp.asarray(x) for x in _random_state(rng, robot.n))
+    tau = jnp.asarray(rng.normal(size=6 + robot.n))
+    out = system.forward_dynamics_derivatives(q, v, params, tau, wrt_params=True)
+
+    def fd(delta, w, u, p):
+        return system.forward_dynamics(retract(q, delta), w, p, u)
+
+    zero = jnp.zeros(6 + robot.n)
+    ref = jax.jacfwd(fd, argnums=(0, 1, 2, 3))(zero, v, tau, params)
+    assert rel_error(out.dq, ref[0]) < 1e-12
+    assert rel_error(out.dqd, ref[1]) < 1e-12
+    assert rel_error(out.dtau, ref[2]) < 1e-12
+    for key in ("damping", "m", "com"):
+        assert rel_error(out.dparams[key], ref[3][key]) < 1e-12, key
+    inv = system.inverse_dynamics_derivatives(q, v, out.qdd, params)
+    assert rel_error(inv.tau, tau) < 1e-12  # τ(v̇(τ)) = τ
+    assert rel_error(inv.dqd, -inv.dqdd @ out.dqd) < 1e-10  # ∂v̇/∂v = −M⁻¹ ∂τ/∂v
+    batch = jax.jit(jax.vmap(lambda a, b: system.forward_dynamics_derivatives(a, b, params)))
+    many = batch(jnp.stack([q, q]), jnp.stack([v, 2 * v]))
+    one = system.forward_dynamics_derivatives(q, 2 * v, params)
+    assert rel_error(many.dq[1], one.dq) < 1e-12
+
+
+def test_floating_derivatives_bad_input():
+    robot, params, _ = _robot("arm7")
+    system = robot.system()
+    q, v = _random_state(np.random.default_rng(0), robot.n)
+    with pytest.raises(lx.ShapeError, match="qd"):
+        system.forward_dynamics_derivatives(q, v[:-1], params)
+    with pytest.raises(lx.NonFiniteError, match="qd"):
+        system.forward_dynamics_derivatives(q, np.where(np.arange(v.size) == 2, np.nan, v), params)
+    position_nan = np.where(np.arange(q.size) == 0, np.nan, q)  # not read by the dynamics
+    with pytest.raises(lx.NonFiniteError, match="q "):
+        system.inverse_dynamics_derivatives(position_nan, v, v, params)
+    # under jit, equinox's run-time check (JAX's runtime error, with the message)
+    for call in (
+        lambda: jax.jit(lambda a: system.linearize(a, v, params))(position_nan),
+        lambda: jax.jit(lambda u: system.forward_dynamics_derivatives(q, v, params, u))(
+            np.full(v.size, np.inf)
+        ),
+    ):
+        with pytest.raises(Exception, match="not finite"):  # noqa: PT011
+            jax.block_until_ready(call())

@@ -21,6 +21,7 @@ import warnings
 from typing import Any
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -38,6 +39,8 @@ from .._core.custom_types import Params
 from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
 from .._core.linalg import cholesky_solve
 from .._systems.abstract import AbstractSystem
+from .._systems.sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
+from . import floating_derivatives
 from . import floating_recursions as fr
 from .common import broadcast, float_dtype, steiner
 from .inertia import check_inertia
@@ -320,6 +323,10 @@ class FloatingBaseSystem(AbstractSystem):
         base frame. **Arguments:** `q` `(7 + n,)`, `qd` = `v` and `qdd` = `v̇`
         `(6 + n,)`, `params`."""
         q, v, vdot = self._inputs(q, qd=qd, qdd=qdd)
+        return self._inverse(q, v, vdot, params)
+
+    def _inverse(self, q: Any, v: Any, vdot: Any, params: Params) -> jnp.ndarray:
+        """`inverse_dynamics` of checked arrays."""
         return self._rnea(self._at(q, params), v, vdot) + _joint_damping(self.robot.tree, params, v)
 
     def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
@@ -362,6 +369,111 @@ class FloatingBaseSystem(AbstractSystem):
             ~jnp.all(jnp.isfinite(vdot)),
             f"forward_dynamics of {self.name} produced non-finite accelerations",
         )
+
+    # ------------------------------------------------------------------ derivatives
+    def forward_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        params: Params,
+        tau: Any = None,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> ForwardDynamicsDerivatives:
+        r"""`v̇` and its derivatives at one state, in one call (Pinocchio's
+        `computeABADerivatives` on a free-flyer model, the same numbers).
+
+        The derivatives with respect to the configuration are on its tangent space:
+        along `q ⊕ δ` (Pinocchio's `integrate`: the base moved by the twist
+        `δ[:6] = (δ_v, δ_ω)` in its own frame, the joints by `δ[6:]`), so `dq` is
+        `(6 + n) × (6 + n)`, not `(6 + n) × (7 + n)`. From the inverse dynamics at the
+        primal `v̇`:
+
+        $$
+        \frac{∂v̇}{∂q} = −M⁻¹ \frac{∂τ}{∂q}, \qquad
+        \frac{∂v̇}{∂v} = −M⁻¹ \frac{∂τ}{∂v}, \qquad \frac{∂v̇}{∂τ} = M⁻¹.
+        $$
+
+        **Arguments:** `q` `(7 + n,)`, `qd` = `v` `(6 + n,)`, `params`, `tau`
+        `(6 + n,)` (default zero), the time `t` (unused: the equations are autonomous),
+        and `wrt_params=True` to add `∂v̇/∂params`.
+
+        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives]
+        (`qdd` = `v̇`, `dq`, `dqd`, `dtau`, `dparams`).
+
+        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
+        or results, `MassMatrixError` for a mass matrix that is not positive-definite
+        (under `jit`, a `NonFiniteError` through `equinox.error_if`).
+        """
+        return floating_derivatives.forward_dynamics_derivatives(
+            self, q, qd, params, tau, t, wrt_params
+        )
+
+    def inverse_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        params: Params,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> InverseDynamicsDerivatives:
+        """`τ = M v̇ + b + ∂D/∂v` and its derivatives at one state, in one call
+        (Pinocchio's `computeRNEADerivatives` on a free-flyer model): `∂τ/∂q` on the
+        tangent space of the configuration (along `q ⊕ δ`, as
+        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives]),
+        `∂τ/∂v`, `∂τ/∂v̇ = M` and, with `wrt_params=True`, `∂τ/∂params`.
+
+        **Arguments:** `q` `(7 + n,)`, `qd` = `v` and `qdd` = `v̇` `(6 + n,)`,
+        `params`, the time `t` (unused), `wrt_params`.
+
+        **Returns:** an [`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives].
+
+        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
+        or results.
+        """
+        return floating_derivatives.inverse_dynamics_derivatives(
+            self, q, qd, qdd, params, t, wrt_params
+        )
+
+    def linearize(
+        self,
+        q_eq: Any,
+        qd_eq: Any,
+        params: Params,
+        tau_eq: Any = None,
+        *,
+        t: Any = 0.0,
+    ) -> tuple[jax.Array, jax.Array]:
+        r"""Linearization `δẋ = A δx + B δτ` on the tangent space, about
+        `(q_eq, v_eq, τ_eq)`.
+
+        The configuration is `q = q_eq ⊕ δ` (Pinocchio's `integrate`) and the state
+        `x = (δ, v)`, of size `2(6 + n)`. The base's twist is `V = J_r(δ) δ̇` (`J_r` the
+        right Jacobian of `SE(3)`'s exponential), so `δ̇ = V − ½ ad_V δ + O(δ²)`:
+
+        $$
+        A = \begin{pmatrix} −½\,\mathrm{ad}_{V_{eq}} ⊕ 0 & I \\
+        ∂v̇/∂q & ∂v̇/∂v \end{pmatrix}, \qquad
+        B = \begin{pmatrix} 0 \\ M⁻¹ \end{pmatrix},
+        $$
+
+        with `ad_V = [[ω×, v×], [0, ω×]]` for the base's `V = (v, ω)` (a zero block
+        for a base at rest, and for the joints). `τ`'s first six entries act on the
+        base: keep the columns of the inputs a robot has (`B[:, 6:]` for a free robot
+        with every joint driven).
+
+        **Arguments:** `q_eq` `(7 + n,)`, `qd_eq` = `v_eq` `(6 + n,)`, `params`, `tau_eq`
+        (default zero), `t` (unused).
+
+        **Returns:** `(A, B)`, shapes `(2(6 + n), 2(6 + n))` and `(2(6 + n), 6 + n)`.
+
+        **Raises:** as
+        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives].
+        """
+        return floating_derivatives.linearize(self, q_eq, qd_eq, params, tau_eq, t)
 
     # ------------------------------------------------------------------ energies, momentum
     def center_of_mass(self, q: Any, params: Params) -> jnp.ndarray:

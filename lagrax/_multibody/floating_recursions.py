@@ -67,7 +67,7 @@ def quaternion_rate(quat: Any, omega: Any) -> jnp.ndarray:
     return jnp.concatenate([0.5 * (w * omega + jnp.cross(vec, omega)), -0.5 * (vec @ omega)[None]])
 
 
-def _skew(p: Any) -> jnp.ndarray:
+def skew(p: Any) -> jnp.ndarray:
     zero = jnp.zeros((), p.dtype)
     return jnp.stack(
         [
@@ -158,7 +158,7 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     centre = p + rot @ jnp.asarray(params["base_com"], dtype)
     inertia_base = a.spatial_inertia(m_base, _tuples(inertia_w), _tuples(centre))
     zero = jnp.zeros((3, 3), dtype)
-    s_base = jnp.block([[zero, rot], [rot, _skew(p) @ rot]])
+    s_base = jnp.block([[zero, rot], [rot, skew(p) @ rot]])
     return FloatingChain(chain, inertia_base, s_base, position, rot)
 
 
