@@ -50,11 +50,14 @@ import jax
 import jax.numpy as jnp
 
 from .._core.checks import finite, traced
-from .._core.custom_types import Params
-from .._core.linalg import cholesky_solve_many
-from .._systems.dynamics_derivatives import _program
+from .._systems.dynamics_derivatives import _program, _state_space
 from .._systems.lagrangian_checks import finite_derivatives, float_arrays
-from .._systems.sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
+from .._systems.sensitivity import (
+    ForwardDynamicsDerivatives,
+    InverseDynamicsDerivatives,
+    _jacobian_wrt_params,
+    by_solves,
+)
 from . import floating_recursions as fr
 
 if TYPE_CHECKING:
@@ -86,23 +89,13 @@ def _inverse_jacobians(system: FloatingBaseSystem, q, v, vdot, params):
     return jq, jv, system._mass(system._at(q, params))[0]
 
 
-def _params_jacobian(fn, params: Params) -> Any:
-    dynamic, static = eqx.partition(params, eqx.is_inexact_array)
-    return jax.jacfwd(lambda p: fn(eqx.combine(p, static)))(dynamic)
-
-
 def _forward_body(system: FloatingBaseSystem, t, q, v, params, tau, wrt_params: bool):
     vdot = system.accelerations(t, q, v, params, tau)
     jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
-    n = system.n_dof
-    rhs = jnp.concatenate([-jq, -jv, jnp.eye(n, dtype=mass.dtype)], axis=1)
-    cols = cholesky_solve_many(mass, rhs)
     dparams = None
     if wrt_params:
-        dparams = _params_jacobian(lambda p: system.accelerations(t, q, v, p, tau), params)
-    return ForwardDynamicsDerivatives(
-        vdot, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
-    )
+        dparams = _jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
+    return by_solves(vdot, jq, jv, mass, dparams)
 
 
 def _inverse_body(system: FloatingBaseSystem, t, q, v, vdot, params, wrt_params: bool):
@@ -110,7 +103,7 @@ def _inverse_body(system: FloatingBaseSystem, t, q, v, vdot, params, wrt_params:
     jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
     dparams = None
     if wrt_params:
-        dparams = _params_jacobian(lambda p: system._inverse(q, v, vdot, p), params)
+        dparams = _jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
     return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
 
 
@@ -161,9 +154,6 @@ def linearize(
 ) -> tuple[jax.Array, jax.Array]:
     """`FloatingBaseSystem.linearize` (documented there): `(A, B)`."""
     out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
-    n = system.n_dof
     (v,) = system._inputs(q_eq, qd=qd_eq)[1:]
-    zero = jnp.zeros((n, n), out.dq.dtype)
-    top = zero.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(out.dq.dtype)))
-    a_mat = jnp.block([[top, jnp.eye(n, dtype=out.dq.dtype)], [out.dq, out.dqd]])
-    return a_mat, jnp.concatenate([zero, out.dtau], axis=0)
+    a_mat, b_mat = _state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
+    return a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype))), b_mat

@@ -12,6 +12,7 @@ With the residual `r(t, q, q̇, q̈, p) = M q̈ + C q̇ + G + ∂D/∂q̇ − F`
 about what one Jacobian-vector product of the accelerations does plus `n³/2` for `M⁻¹`.
 """
 
+from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
@@ -112,22 +113,35 @@ def forward(
         # scalar path's written-out solve with the columns vectorized through it, on `M`'s
         # entries as scalars (as the accelerations' tangents solve; the entries read back
         # out of the stacked `M` ran 15 % slower: 0.30 against 0.26 µs for the 2R arm)
-        rhs = jnp.concatenate([-jq, -jqd, jnp.eye(n, dtype=mass.dtype)], axis=1)
         if lapack:
-            cols = cholesky_solve_many(mass, rhs)
-        else:
+            return by_solves(qdd, jq, jqd, mass, dparams)
+
+        def scalar_solve(_, rhs):  # `M`'s entries as the scalars they were computed as
             rows, _ = d.eom_small(e, q, qd, params, t)
-            cols = jax.vmap(
+            return jax.vmap(
                 lambda b: jnp.stack(d.solve_spd_unrolled(rows, [b[i] for i in range(n)])),
                 in_axes=1,
                 out_axes=1,
             )(rhs)
-        return ForwardDynamicsDerivatives(
-            qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
-        )
+
+        return by_solves(qdd, jq, jqd, mass, dparams, scalar_solve)
     m_inv = spd_inverse(mass)
     mm = implicit.matmul(e)
     return ForwardDynamicsDerivatives(qdd, -mm(m_inv, jq), -mm(m_inv, jqd), m_inv, dparams)
+
+
+def by_solves(
+    qdd, jq, jqd, mass, dparams: Any = None, solve: Callable = cholesky_solve_many
+) -> ForwardDynamicsDerivatives:
+    """[`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives] from `q̈`,
+    `∂r/∂q`, `∂r/∂q̇` and `M`: `M⁻¹ [−∂r/∂q, −∂r/∂q̇, I]` by one `solve(M, rhs)` of all
+    `3n` columns (by default one LAPACK factorization)."""
+    n = qdd.shape[0]
+    rhs = jnp.concatenate([-jq, -jqd, jnp.eye(n, dtype=mass.dtype)], axis=1)
+    cols = solve(mass, rhs)
+    return ForwardDynamicsDerivatives(
+        qdd, cols[:, :n], cols[:, n : 2 * n], cols[:, 2 * n :], dparams
+    )
 
 
 def inverse(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params: Params, wrt_params: bool):
