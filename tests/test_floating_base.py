@@ -79,6 +79,24 @@ def _pin(model, robot, q, v):
     return qp, vp, np.concatenate([np.arange(6), order])
 
 
+def _random_inputs(rng, n):
+    """A random state `(q, v)` and a random `τ` and `v̇`."""
+    q, v = _random_state(rng, n)
+    return q, v, rng.normal(size=6 + n), rng.normal(size=6 + n)
+
+
+def _in_pin_order(model, idx, x):
+    """A velocity-sized vector of lagrax's in Pinocchio's order (`idx` from `_pin`)."""
+    out = np.zeros(model.nv)
+    out[idx] = x
+    return out
+
+
+def _symmetric(upper):
+    """A symmetric matrix from the upper triangle Pinocchio fills (`crba`, `Minv`)."""
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
 @pytest.mark.parametrize("name", ["arm7", "torso_two_arms", "solo12"])
 def test_dynamics_match_pinocchio_free_flyer(name):
     robot, params, model = _robot(name)
@@ -89,13 +107,11 @@ def test_dynamics_match_pinocchio_free_flyer(name):
     rng = np.random.default_rng(7)
     errors = []
     for _ in range(3):
-        q, v = _random_state(rng, robot.n)
-        tau, vdot = rng.normal(size=6 + robot.n), rng.normal(size=6 + robot.n)
+        q, v, tau, vdot = _random_inputs(rng, robot.n)
         qp, vp, idx = _pin(model, robot, q, v)
-        tau_p, vdot_p = np.zeros(model.nv), np.zeros(model.nv)
-        tau_p[idx], vdot_p[idx] = tau, vdot
+        tau_p, vdot_p = _in_pin_order(model, idx, tau), _in_pin_order(model, idx, vdot)
         m_p = pin.crba(model, data, qp)
-        m_p = np.triu(m_p) + np.triu(m_p, 1).T
+        m_p = _symmetric(m_p)
         errors.append(
             (
                 rel_error(system.mass_matrix(q, params), m_p[np.ix_(idx, idx)]),
@@ -318,18 +334,16 @@ def test_derivatives_match_pinocchio_free_flyer(free_flyer):
     rng = np.random.default_rng(11)
     errors = []
     for _ in range(2):
-        q, v = _random_state(rng, robot.n)
-        tau, vdot = rng.normal(size=6 + robot.n), rng.normal(size=6 + robot.n)
+        q, v, tau, vdot = _random_inputs(rng, robot.n)
         qp, vp, idx = _pin(model, robot, q, v)
-        tau_p, vdot_p = np.zeros(model.nv), np.zeros(model.nv)
-        tau_p[idx], vdot_p[idx] = tau, vdot
+        tau_p, vdot_p = _in_pin_order(model, idx, tau), _in_pin_order(model, idx, vdot)
         block = np.ix_(idx, idx)
         fwd = system.forward_dynamics_derivatives(q, v, params, tau)
         pin.computeABADerivatives(model, data, qp, vp, tau_p)
-        m_inv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+        m_inv = _symmetric(data.Minv)
         inv = system.inverse_dynamics_derivatives(q, v, vdot, params)
         dq_p, dv_p, m_p = pin.computeRNEADerivatives(model, data, qp, vp, vdot_p)
-        m_p = np.triu(m_p) + np.triu(m_p, 1).T
+        m_p = _symmetric(m_p)
         errors.append(
             [
                 rel_error(fwd.qdd, data.ddq[idx]),
@@ -358,8 +372,7 @@ def test_floating_linearize_matches_pinocchio_differences():
     tau = rng.normal(size=6 + robot.n)
     a_mat, b_mat = system.linearize(q, v, params, tau)
     qp, vp, idx = _pin(model, robot, q, v)
-    tau_p = np.zeros(model.nv)
-    tau_p[idx] = tau
+    tau_p = _in_pin_order(model, idx, tau)
     nv = model.nv
 
     def f(x, u):
