@@ -233,6 +233,15 @@ def test_floating_base_errors():
         system.forward_dynamics(jnp.zeros(13), jnp.zeros(13), params)
     with pytest.raises(lx.ShapeError, match="13"):
         system.forward_dynamics(jnp.r_[jnp.zeros(6), 1.0, jnp.zeros(7)], jnp.zeros(14), params)
+    # a NaN in the base's position: the accelerations do not read it, so only the
+    # input check can catch it (eagerly, naming q; under jit, at run time)
+    q = jnp.r_[jnp.nan, jnp.zeros(5), 1.0, jnp.zeros(7)]
+    v = jnp.zeros(13)
+    assert np.all(np.isfinite(system.accelerations(0.0, q, v, params, None)))
+    with pytest.raises(lx.NonFiniteError, match="q "):
+        system.forward_dynamics(q, v, params)
+    with pytest.raises(Exception, match="configuration q is not finite"):  # noqa: PT011
+        jax.block_until_ready(jax.jit(lambda a: system.forward_dynamics(a, v, params))(q))
     with pytest.raises(lx.URDFError, match="world"):  # a massless root cannot float
         lx.chains.from_urdf(urdf_path("torso_two_arms"), floating_base=True)
     with pytest.raises(lx.ParameterError, match="base_m"):

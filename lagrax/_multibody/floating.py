@@ -349,13 +349,17 @@ class FloatingBaseSystem(AbstractSystem):
         **Arguments:** `q` `(7 + n,)`, `qd` = `v` `(6 + n,)`, `params`, `tau`
         `(6 + n,)` (default zero; its first six entries act on the base).
 
-        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite
-        accelerations (NaN/inf inputs, a massless subtree); under `jit` through
+        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for NaN/inf inputs
+        (the base's position included, which the accelerations do not depend on) and for
+        non-finite accelerations (a massless subtree); under `jit` through
         `equinox.error_if`.
         """
         q, v, tau = self._inputs(q, qd=qd, tau=tau)
-        vdot = self.accelerations(t, q, v, params, tau)
         if not traced(self, q, v, tau, params):
+            # the inputs first: a NaN in the base's position, which the dynamics do not
+            # read, would otherwise pass unnoticed
+            floating_derivatives.finite_inputs(self, "tau", q, v, tau)
+            vdot = self.accelerations(t, q, v, params, tau)
             if not np.all(np.isfinite(np.asarray(vdot))):
                 self.check_state(q, v, params)
                 raise NonFiniteError(
@@ -364,10 +368,12 @@ class FloatingBaseSystem(AbstractSystem):
                     "subtree has a positive mass"
                 )
             return vdot
+        vdot = self.accelerations(t, q, v, params, tau)
         return eqx.error_if(
             vdot,
-            ~jnp.all(jnp.isfinite(vdot)),
-            f"forward_dynamics of {self.name} produced non-finite accelerations",
+            ~(jnp.all(jnp.isfinite(vdot)) & jnp.all(jnp.isfinite(q))),
+            f"forward_dynamics of {self.name} produced non-finite accelerations, or its "
+            "configuration q is not finite",
         )
 
     # ------------------------------------------------------------------ derivatives

@@ -115,7 +115,7 @@ def forward_dynamics_derivatives(
     system: FloatingBaseSystem, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`FloatingBaseSystem.forward_dynamics_derivatives` (documented there)."""
-    q, v, tau = _finite(system, "tau", *system._inputs(q, qd=qd, tau=tau))
+    q, v, tau = finite_inputs(system, "tau", *system._inputs(q, qd=qd, tau=tau))
     tau = jnp.zeros_like(v) if tau is None else tau
     program, eager = _program(system, _forward, _forward_body, q, v, tau, params, t)
     out = program(system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params)
@@ -126,13 +126,13 @@ def inverse_dynamics_derivatives(
     system: FloatingBaseSystem, q, qd, qdd, params, t, wrt_params: bool
 ) -> InverseDynamicsDerivatives:
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
-    q, v, vdot = _finite(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
+    q, v, vdot = finite_inputs(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
     program, eager = _program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
     out = program(system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params)
     return finite_derivatives(system, out, q, v, params, None, t, "inverse_dynamics")
 
 
-def _finite(system: FloatingBaseSystem, third: str, q, v, w):
+def finite_inputs(system: FloatingBaseSystem, third: str, q, v, w):
     """The inputs, checked finite: a NaN in the base's position, which the dynamics do
     not read, would otherwise pass unnoticed. Eagerly a `NonFiniteError` naming the
     input; traced, through `equinox.error_if`."""
