@@ -1,7 +1,7 @@
 """Derivatives at the price of the dynamics: ∂q̈/∂(q, q̇, τ) against the forward dynamics,
 against Pinocchio, and gradients through `simulate` against the solve.
 
-Four tables, each a ratio against a baseline measured in this run:
+Five tables, each a ratio against a baseline measured in this run:
 
 1. **Per state** (`jax.vmap` over `--batch` random states, compiled; the fastest of
    `--repeats` calls, per state, the three calls of a system taken in turn): each
@@ -18,7 +18,10 @@ Four tables, each a ratio against a baseline measured in this run:
    respect to `q0`): the forward solve, `jax.grad`, `jax.jacfwd` (forward mode) and
    `jax.vmap(jax.grad)` over `--sweep` (2R arm) or `--sweep-urdf` initial states, per
    member.
-4. **Compile times** (a fresh trace each, the persistent cache off for this process): the
+4. **Floating bases** (the URDF arm on a free base, and solo12 where example-robot-data
+   is installed): the derivatives call against the forward dynamics per state (batched),
+   and against Pinocchio's free-flyer `aba` and `computeABADerivatives`.
+5. **Compile times** (a fresh trace each, the persistent cache off for this process): the
    URDF arm's first `linearize`, its first forward `simulate` and its first gradient.
 
     python benchmarks/bench_derivatives.py [--batch 4096] [--repeats 20] [--sweep 4096]
@@ -41,6 +44,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).parent))
 import lagrax as lx  # noqa: E402
 from _optional import available  # noqa: E402
+from _robots import floating_states, robots_folder  # noqa: E402
 
 ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 4
 
@@ -172,6 +176,62 @@ def pinocchio_table(ours, batch, repeats):
         )
 
 
+def floating_table(batch, repeats):
+    """Floating bases: the derivatives call against the forward dynamics (per state,
+    batched, taken in turn), and against Pinocchio's free-flyer `aba` and
+    `computeABADerivatives` (one call from Python) where `pin` is installed."""
+    print(f"\n## Floating bases (vmap over {batch:,} states, µs per state)\n")
+    robots = [("URDF arm7 on a free base", lx.models.urdf_path("arm7").read_text())]
+    folder = robots_folder()
+    if folder is None:
+        print(
+            'note: solo12 skipped: example-robot-data is not installed (pip install -e ".[bench]")'
+        )
+    else:
+        path = Path(folder) / "solo_description" / "robots" / "solo12.urdf"
+        robots.append(("solo12 (example-robot-data)", path.read_text()))
+    pin = None
+    if available("pinocchio", "Pinocchio's free-flyer derivatives"):
+        import pinocchio as pin
+    print(
+        "| robot | forward dynamics | derivatives call | ratio | pin aba "
+        "| pin computeABADerivatives | lagrax / Pinocchio |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for label, xml in robots:
+        robot, params = lx.chains.from_urdf(xml, floating_base=True)
+        params = dict(params, damping=jnp.zeros_like(params["damping"]))  # as Pinocchio's
+        system, n = robot.system(), robot.n
+        q, v = (jnp.asarray(x) for x in floating_states(np.random.default_rng(0), n, batch))
+        tau = jnp.asarray(np.random.default_rng(1).normal(size=(batch, 6 + n)))
+        calls = {
+            "fd": jax.jit(
+                jax.vmap(lambda a, b, c, s=system, p=params: s.forward_dynamics(a, b, p, c))
+            ),
+            "derivatives": jax.jit(
+                jax.vmap(
+                    lambda a, b, c, s=system, p=params: s.forward_dynamics_derivatives(a, b, p, c)
+                )
+            ),
+        }
+        t = {
+            k: s / batch * 1e6 for k, s in fastest_interleaved(calls, (q, v, tau), repeats).items()
+        }
+        fd, der = t["fd"], t["derivatives"]
+        line = f"| {label} | {fd:.2f} | {der:.2f} | {der / fd:.1f}× "
+        if pin is None:
+            print(line + "| | | |", flush=True)
+            continue
+        model = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
+        data = model.createData()
+        rng = np.random.default_rng(1)
+        qp = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+        vp, taup = rng.normal(size=model.nv), rng.normal(size=model.nv)
+        aba = _pin_loop(pin.aba, (model, data, qp, vp, taup), repeats)
+        d_aba = _pin_loop(pin.computeABADerivatives, (model, data, qp, vp, taup), repeats)
+        print(line + f"| {aba:.2f} | {d_aba:.2f} | {der / d_aba:.2f}× |", flush=True)
+
+
 def _losses(system, params, n_save=2):
     n = system.n_dof
 
@@ -247,7 +307,7 @@ def main(argv=None):
     ap.add_argument("--sweep-urdf", type=int, default=256, help="URDF arm: members of vmap(grad)")
     ap.add_argument(
         "--only",
-        choices=("all", "compile", "per-state", "simulate"),
+        choices=("all", "compile", "per-state", "floating", "simulate"),
         default="all",
         help="run one table (compile times need a fresh process: run them first)",
     )
@@ -258,6 +318,8 @@ def main(argv=None):
     if args.only in ("all", "per-state"):
         ours = per_state_table(args.batch, args.repeats)
         pinocchio_table(ours, args.batch, args.repeats)
+    if args.only in ("all", "floating"):
+        floating_table(args.batch, args.repeats)
     if args.only in ("all", "simulate"):
         simulate_table(args.repeats, args.sweep, args.sweep_urdf)
 

@@ -31,7 +31,6 @@ Writes a log-log chart of cost against n with ``--chart PATH``.
 
 import argparse
 import dataclasses
-import importlib.metadata
 import os
 import sys
 import time
@@ -45,6 +44,7 @@ from lagrax.chains import PlanarChain, SpatialChain
 
 sys.path.insert(0, os.path.dirname(__file__))
 from _optional import available  # noqa: E402
+from _robots import floating_states, robots_folder  # noqa: E402
 
 B = 4096
 ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 3 + [(0, 0, 1)]
@@ -306,31 +306,11 @@ FLOATING_ROBOTS = (
 )
 
 
-def _robots_folder():
-    """example-robot-data's ``robots`` folder, or None when it is not installed."""
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in dist.files or ():
-        if f.name == "package.xml" and "example-robot-data" in f.parts:
-            return os.path.join(os.path.dirname(str(dist.locate_file(f))), "robots")
-    return None
-
-
-def _floating_states(rng, n, size):
-    """Random ``(q, v)`` of a floating base: a unit quaternion, joints in [-1, 1]."""
-    quat = rng.normal(size=(size, 4))
-    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
-    q = np.concatenate([rng.normal(size=(size, 3)), quat, rng.uniform(-1, 1, (size, n))], 1)
-    return q, rng.normal(size=(size, 6 + n))
-
-
 def floating_bases(repeats):
     """Section 4: floating-base robots, lagrax (vmap over B states) against Pinocchio's
     ABA per call on its free-flyer model of the same URDF."""
     print(f"\n4. floating bases, forward dynamics per state (vmap over {B} states)")
-    folder = _robots_folder()
+    folder = robots_folder()
     if folder is None:
         print("   skipped: example-robot-data is not installed (pip install example-robot-data)")
         return
@@ -346,7 +326,7 @@ def floating_bases(repeats):
         params = {**params, "damping": jnp.zeros_like(params["damping"])}  # as Pinocchio's
         system, n = robot.system(), robot.n
         fn = jax.jit(jax.vmap(lambda q, v, s=system, p=params: s.accelerations(0.0, q, v, p, None)))
-        q, v = (jnp.asarray(x) for x in _floating_states(np.random.default_rng(0), n, B))
+        q, v = (jnp.asarray(x) for x in floating_states(np.random.default_rng(0), n, B))
         t0 = time.perf_counter()
         fn(q, v).block_until_ready()
         compile_s = time.perf_counter() - t0

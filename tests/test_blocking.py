@@ -112,8 +112,9 @@ def test_blocked_dynamics_match_unblocked(arm):
 
 
 def test_blocked_floating_base_matches_slices():
-    """A floating base's forward dynamics over a large batch (blocked) equal the same
-    function over slices of at most `BLOCK` states (unblocked)."""
+    """A floating base's forward dynamics and their derivatives call over a large batch
+    (blocked) equal the same functions over slices of at most `BLOCK` states
+    (unblocked)."""
     robot, params = lx.chains.from_urdf(lx.models.urdf_path("arm7"), floating_base=True)
     system = robot.system()
     rng = np.random.default_rng(2)
@@ -124,9 +125,11 @@ def test_blocked_floating_base_matches_slices():
         np.concatenate([rng.normal(size=(batch, 3)), quat, rng.uniform(-1, 1, (batch, 7))], 1)
     )
     v = jnp.asarray(rng.normal(size=(batch, 13)))
-    fn = jax.jit(jax.vmap(lambda a, b: system.forward_dynamics(a, b, params)))
-    whole = fn(q, v)
-    pieces = jnp.concatenate(
-        [fn(q[k : k + BLOCK], v[k : k + BLOCK]) for k in range(0, batch, BLOCK)]
-    )
-    np.testing.assert_allclose(whole, pieces, rtol=1e-12, atol=1e-12)
+    for call in (system.forward_dynamics, system.forward_dynamics_derivatives):
+        fn = jax.jit(jax.vmap(lambda a, b, call=call: call(a, b, params)))
+        whole = fn(q, v)
+        pieces = [fn(q[k : k + BLOCK], v[k : k + BLOCK]) for k in range(0, batch, BLOCK)]
+        plain = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs), *pieces)
+        pairs = zip(jax.tree_util.tree_leaves(whole), jax.tree_util.tree_leaves(plain), strict=True)
+        for ours, ref in pairs:
+            np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)

@@ -144,6 +144,19 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
     **Returns:** `τ` of shape `(n,)` and the three `(n, n)` matrices `∂τ/∂q`,
     `∂τ/∂q̇` and the mass matrix `M = ∂τ/∂q̈`.
     """
+    per_body, _ = _passes(chain, qd, qdd)
+    return _assemble(chain, per_body)
+
+
+def _passes(chain: Chain, qd: Any, qdd: Any, root: tuple[Any, Any] | None = None):
+    """`(per_body, totals)`: the outward and inward passes of `rnea_derivatives`.
+
+    `per_body` is `(τ, u, bt_s, pq, pv, d, ψ)`, per-body sequences (`u = Y S`,
+    `bt_s = B^cᵀ S`, `pq` and `pv` the vectors `∂τ_j/∂q_i` and `∂τ_j/∂q̇_i` pair with `S_j`
+    for `j ≼ i`); `totals` is `(Y, Σ^c, F, h^c)` summed over the root's subtrees (the
+    inertia as its ten numbers less the mass, see `Rigid`). `root`: the velocity and
+    acceleration `(v, a)` the root's children start from (a moving base; by default rest
+    and `a_0`)."""
     alg, passes = chain.algebra, chain.passes
     k = len(chain.a0)
     zero = tuple(0.0 for _ in range(k))
@@ -161,7 +174,7 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
         return (v, a), (d, psi, f, h, _rigid_rate(rigid, v)[1:], rigid)
 
     xs = passes.zip(chain.s, chain.inertia, qd, qdd)
-    _, ys = passes.run(outward, (zero, chain.a0), xs)
+    _, ys = passes.run(outward, (zero, chain.a0) if root is None else root, xs)
     d, psi, f, h, sym, rigid = passes.split(ys)
 
     def inward(carry, x):
@@ -185,8 +198,15 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
 
     zr = tuple(0.0 for _ in range(10 if k == 6 else 4))
     xs = passes.zip(chain.s, rigid, d, psi, f, h, sym)
-    _, outs = passes.run(inward, (zr, zr[1:], zero, zero), xs, reverse=True)
-    tau, u, bt_s, pq, pv = passes.split(outs)
+    totals, outs = passes.run(inward, (zr, zr[1:], zero, zero), xs, reverse=True)
+    return (*passes.split(outs), d, psi), totals
+
+
+def _assemble(chain: Chain, per_body: tuple) -> tuple[jax.Array, ...]:
+    """`(τ, ∂τ/∂q, ∂τ/∂q̇, M)` from `_passes`' per-body vectors: dot products (see the
+    module docstring)."""
+    passes = chain.passes
+    tau, u, bt_s, pq, pv, d, psi = per_body
     s_a, u_a, bt_a, pq_a, pv_a, d_a, psi_a = (
         passes.column(x) for x in (chain.s, u, bt_s, pq, pv, d, psi)
     )
@@ -201,3 +221,84 @@ def rnea_derivatives(chain: Chain, qd: Any, qdd: Any) -> tuple[jax.Array, ...]:
     g = r.rows_dot(s_a, u_a)  # g[j, i] = S_j · Y_i S_i
     mass = jnp.where(up, g, jnp.where(up.T, g.T, 0.0))
     return passes.vector(tau, s_a), dtau_dq, dtau_dqd, mass
+
+
+def free_root_derivatives(
+    chain: Chain, s_base: jax.Array, inertia_base: Any, qd: Any, qdd: Any, v_base, vdot_base
+) -> tuple[jax.Array, ...]:
+    r"""`(τ, ∂τ/∂q, ∂τ/∂q̇, M)` of a tree on a free root: the base's six coordinates
+    (Pinocchio's free flyer: `(v_b, ω_b)` in the base frame, `δ` along `q ⊕ δ`) first,
+    then the joints'.
+
+    The base is a joint of six columns `S_B` (world axes) from the world, which rests and
+    accelerates at `a_0`; its columns move with the base (they are the base frame's).
+    For the derivatives that makes it the first joint of every path, with `d_k = 0 × S_k
+    = 0` and `ψ_k = a_0 × S_k` (only gravity's direction changes relative to a robot
+    moved as a whole), and the moving-frame rule (`i ≺ j`) between its own columns:
+
+    $$
+    \frac{∂τ_B}{∂q_B} = S_Bᵀ Y_B Ψ, \quad \frac{∂τ_j}{∂q_B} = (Y_j S_j)ᵀ Ψ, \quad
+    \frac{∂τ_B}{∂q_i} = S_Bᵀ p^q_i, \qquad
+    \frac{∂τ_B}{∂v_B} = S_Bᵀ (Y_B E + B^c_B S_B), \quad
+    \frac{∂τ_j}{∂v_B} = (Y_j S_j)ᵀ E + (B^{cᵀ}_j S_j)ᵀ S_B, \quad
+    \frac{∂τ_B}{∂q̇_i} = S_Bᵀ p^v_i,
+    $$
+
+    with `Ψ = [ψ_1 … ψ_6]` and `E = [v_B × S_1 … v_B × S_6]`: a base rate moves every
+    body's acceleration by `S_k × (v_m − v_B)`, where a one-column joint `i` moves it
+    by `2 d_i + S_i × v_m` (the base's own acceleration `S_B v̇_b` has no velocity term,
+    its columns moving with it: `Ṡ_B v_b = v_B × v_B = 0`). `Y_B` and `B^c_B` are the
+    whole robot's composite inertia and
+    Coriolis-like map (the base body's own included), `p^q_i`, `p^v_i` the vectors
+    `rnea_derivatives` pairs with an ancestor's `S_j`, and the joints' block that of a
+    fixed base whose root moves with `v_B = S_B v_b` and accelerates at
+    `a_B = a_0 + S_B v̇_b`. `M` is the composite-rigid-body algorithm's, `τ_B = S_Bᵀ F_B`.
+
+    **Arguments:** `chain`, the joints' chain at `q` (world axes at the base origin);
+    `s_base`, `inertia_base`, the base's `S_B` and inertia (`floating_recursions`);
+    `qd`, `qdd`, the joints' rates as the recursions take them; `v_base`, `vdot_base`,
+    the base's `(v_b, ω_b)` and their rates.
+
+    **Returns:** `τ` `(6 + n,)` and the `(6 + n, 6 + n)` matrices `∂τ/∂q`, `∂τ/∂q̇`, `M`.
+    """
+    alg, passes = chain.algebra, chain.passes
+    dtype = s_base.dtype
+    columns = [tuple(s_base[i, k] for i in range(6)) for k in range(6)]
+    s_rows = [tuple(s_base[i, k] for k in range(6)) for i in range(6)]
+    rates, accelerations = tuple(v_base[k] for k in range(6)), tuple(vdot_base[k] for k in range(6))
+    v_b = tuple(dot(row, rates) for row in s_rows)  # S_B v_b
+    a_b = tuple(
+        add(a_i, dot(row, accelerations)) for a_i, row in zip(chain.a0, s_rows, strict=True)
+    )
+    per_body, (y_sub, sym_sub, f_sub, h_sub) = _passes(chain, qd, qdd, root=(v_b, a_b))
+    tau, dq, dqd, mass = _assemble(chain, per_body)
+    rigid_b = _rigid(inertia_base)
+    h_b = _rigid_mul(rigid_b, v_b)
+    f_b = vadd(_rigid_mul(rigid_b, a_b), alg.crf(v_b, h_b))
+    y = _rigid_add(rigid_b, y_sub)
+    sym = (0.0, *_rigid_add(_rigid_rate(rigid_b, v_b)[1:], sym_sub))
+    force, momentum = vadd(f_b, f_sub), vadd(h_b, h_sub)
+
+    def rows(vectors):  # 6-vectors as the rows of a (len, 6) array
+        return jnp.stack([jnp.stack([jnp.asarray(x, dtype) for x in v]) for v in vectors])
+
+    # the products as dot products of rows (`rows_dot`: elementwise code under `vmap`)
+    psi = [alg.crm(chain.a0, c) for c in columns]
+    e = [alg.crm(v_b, c) for c in columns]
+    bc_s = [  # Y e + B^c S, with B^c S = Σ^c S + S ×* h^c
+        vadd(_rigid_mul(y, e_k), vadd(_rigid_mul(sym, c), alg.crf(c, momentum)))
+        for e_k, c in zip(e, columns, strict=True)
+    ]
+    s_r = s_base.T  # S_B's columns as rows
+    psi_r, e_r, bc_r = rows(psi), rows(e), rows(bc_s)
+    y_psi_r, y_s_r = (
+        rows([_rigid_mul(y, p) for p in psi]),
+        rows([_rigid_mul(y, c) for c in columns]),
+    )
+    u_a, bt_a, pq_a, pv_a = (passes.column(x) for x in per_body[1:5])
+    rd = r.rows_dot
+    dq = jnp.block([[rd(s_r, y_psi_r), rd(s_r, pq_a)], [rd(u_a, psi_r), dq]])
+    dqd = jnp.block([[rd(s_r, bc_r), rd(s_r, pv_a)], [rd(u_a, e_r) + rd(bt_a, s_r), dqd]])
+    m_bj = rd(s_r, u_a)
+    mass = jnp.block([[rd(s_r, y_s_r), m_bj], [m_bj.T, mass]])
+    return jnp.concatenate([rd(s_r, rows([force]))[:, 0], tau]), dq, dqd, mass

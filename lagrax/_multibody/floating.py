@@ -327,7 +327,11 @@ class FloatingBaseSystem(AbstractSystem):
 
     def _inverse(self, q: Any, v: Any, vdot: Any, params: Params) -> jnp.ndarray:
         """`inverse_dynamics` of checked arrays."""
-        return self._rnea(self._at(q, params), v, vdot) + _joint_damping(self.robot.tree, params, v)
+        return self._rnea(self._at(q, params), v, vdot) + self._damping(params, v)
+
+    def _damping(self, params: Params, v: Any) -> jnp.ndarray:
+        """`∂D/∂v`, the joint damping's generalized force (zero on the base)."""
+        return _joint_damping(self.robot.tree, params, v)
 
     def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
         """`v̇` of checked arrays by the articulated-body algorithm with a free root

@@ -23,8 +23,9 @@ $$
 $$
 
 with `τ = M v̇ + b + ∂D/∂v` (`FloatingBaseSystem.inverse_dynamics`, recursive
-Newton–Euler with a free root), whose Jacobians are forward-mode derivatives of the
-recursion (`2(6 + n)` tangents), and `M` from the composite-rigid-body algorithm. One
+Newton–Euler with a free root), whose Jacobians and `M` come from one outward and one
+inward pass of the analytic recursion with the base as a six-column root joint
+(`derivative_recursions.free_root_derivatives`, `O(n²)` as for a fixed base). One
 Cholesky factorization of `M` applies `M⁻¹` to all `3(6 + n)` columns.
 
 **Linearization.** About `(q_eq, v_eq)`, write `q = q_eq ⊕ δ`. The base's twist in its
@@ -49,6 +50,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core.blocking import blocked
 from .._core.checks import finite, traced
 from .._systems.dynamics_derivatives import _program, _state_space
 from .._systems.lagrangian_checks import finite_derivatives, float_arrays
@@ -58,6 +60,7 @@ from .._systems.sensitivity import (
     _jacobian_wrt_params,
     by_solves,
 )
+from . import derivative_recursions as dr
 from . import floating_recursions as fr
 
 if TYPE_CHECKING:
@@ -81,17 +84,48 @@ def twist_adjoint(twist: Any) -> jnp.ndarray:
 
 
 def _inverse_jacobians(system: FloatingBaseSystem, q, v, vdot, params):
-    """`(∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`."""
-    zero = jnp.zeros(system.n_dof, q.dtype)
-    jq, jv = jax.jacfwd(
-        lambda d, w: system._inverse(retract(q, d), w, vdot, params), argnums=(0, 1)
-    )(zero, v)
-    return jq, jv, system._mass(system._at(q, params))[0]
+    """`(τ, ∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`: the analytic
+    recursion with a free root (`derivative_recursions.free_root_derivatives`), reduced
+    to the coordinates for mimic joints, with the joint damping's `∂τ/∂v`; a lone rigid
+    body (no joints) by forward-mode derivatives of its Newton–Euler equations."""
+    tree = system.robot.tree
+    if tree.n_bodies == 0:
+        zero = jnp.zeros(system.n_dof, q.dtype)
+        jq, jv = jax.jacfwd(
+            lambda d, w: system._inverse(retract(q, d), w, vdot, params), argnums=(0, 1)
+        )(zero, v)
+        return system._inverse(q, v, vdot, params), jq, jv, system._mass(system._at(q, params))[0]
+    fc = system._at(q, params)
+    links = fc.chain.passes.links
+    v_all, vdot_all = system._full(v), system._full(vdot)
+    tau, jq, jv, mass = dr.free_root_derivatives(
+        fc.chain,
+        fc.s_base,
+        fc.inertia_base,
+        links(v_all[6:]),
+        links(vdot_all[6:]),
+        v_all[:6],
+        vdot_all[:6],
+    )
+    if tree.mimic:  # θ = J q + b: every matrix is J_Bᵀ (·) J_B, τ is J_Bᵀ τ_θ
+        n = tree.n
+        j_b = jnp.block(
+            [
+                [jnp.eye(6, dtype=q.dtype), jnp.zeros((6, n), q.dtype)],
+                [
+                    jnp.zeros((tree.n_bodies, 6), q.dtype),
+                    jnp.asarray(tree.coupling_matrix(), q.dtype),
+                ],
+            ]
+        )
+        tau, jq, jv, mass = j_b.T @ tau, j_b.T @ jq @ j_b, j_b.T @ jv @ j_b, j_b.T @ mass @ j_b
+    damping = jax.jacfwd(lambda w: system._damping(params, w))(v)  # constant: `J_Bᵀ b J_B`
+    return tau + system._damping(params, v), jq, jv + damping, mass
 
 
 def _forward_body(system: FloatingBaseSystem, t, q, v, params, tau, wrt_params: bool):
     vdot = system.accelerations(t, q, v, params, tau)
-    jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
+    _, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
     dparams = None
     if wrt_params:
         dparams = _jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
@@ -99,8 +133,7 @@ def _forward_body(system: FloatingBaseSystem, t, q, v, params, tau, wrt_params: 
 
 
 def _inverse_body(system: FloatingBaseSystem, t, q, v, vdot, params, wrt_params: bool):
-    tau = system._inverse(q, v, vdot, params)
-    jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
+    tau, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
     dparams = None
     if wrt_params:
         dparams = _jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
@@ -118,7 +151,9 @@ def forward_dynamics_derivatives(
     q, v, tau = finite_inputs(system, "tau", *system._inputs(q, qd=qd, tau=tau))
     tau = jnp.zeros_like(v) if tau is None else tau
     program, eager = _program(system, _forward, _forward_body, q, v, tau, params, t)
-    out = program(system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params)
+    out = blocked(program)(
+        system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params
+    )
     return finite_derivatives(system, out, q, v, params, tau, t, "forward_dynamics")
 
 
@@ -128,7 +163,9 @@ def inverse_dynamics_derivatives(
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
     q, v, vdot = finite_inputs(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
     program, eager = _program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
-    out = program(system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params)
+    out = blocked(program)(
+        system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params
+    )
     return finite_derivatives(system, out, q, v, params, None, t, "inverse_dynamics")
 
 
