@@ -262,18 +262,22 @@ class FloatingBaseSystem(AbstractSystem):
     def _mass(self, fc: fr.FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:
         """`(M, I^c_B)` with `M = J_Bᵀ M_θ J_B` (`M_θ` itself without mimic joints)."""
         mass, total = fr.crba(fc)
-        tree = self.robot.tree
-        if not tree.mimic:
+        if not self.robot.tree.mimic:
             return mass, total
-        j = jnp.asarray(tree.coupling_matrix(), mass.dtype)
-        n = tree.n
-        j_b = jnp.block(
+        j_b = self._coupling(mass.dtype)
+        return j_b.T @ mass @ j_b, total
+
+    def _coupling(self, dtype: Any) -> jnp.ndarray:
+        """`J_B = diag(1_6, J)`, every body's velocities from the coordinates' (`J` the
+        mimic map, `θ̇ = J q̇`)."""
+        tree = self.robot.tree
+        j = jnp.asarray(tree.coupling_matrix(), dtype)
+        return jnp.block(
             [
-                [jnp.eye(6, dtype=mass.dtype), jnp.zeros((6, n), mass.dtype)],
-                [jnp.zeros((tree.n_bodies, 6), mass.dtype), j],
+                [jnp.eye(6, dtype=dtype), jnp.zeros((6, tree.n), dtype)],
+                [jnp.zeros((tree.n_bodies, 6), dtype), j],
             ]
         )
-        return j_b.T @ mass @ j_b, total
 
     def _rnea(self, fc: fr.FloatingChain, v: Any, vdot: Any) -> jnp.ndarray:
         """`M v̇ + b` (`vdot` `None`: `b`) in the coordinates."""

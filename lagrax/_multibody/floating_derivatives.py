@@ -108,16 +108,7 @@ def _inverse_jacobians(system: FloatingBaseSystem, q, v, vdot, params):
         vdot_all[:6],
     )
     if tree.mimic:  # θ = J q + b: every matrix is J_Bᵀ (·) J_B, τ is J_Bᵀ τ_θ
-        n = tree.n
-        j_b = jnp.block(
-            [
-                [jnp.eye(6, dtype=q.dtype), jnp.zeros((6, n), q.dtype)],
-                [
-                    jnp.zeros((tree.n_bodies, 6), q.dtype),
-                    jnp.asarray(tree.coupling_matrix(), q.dtype),
-                ],
-            ]
-        )
+        j_b = system._coupling(q.dtype)
         tau, jq, jv, mass = j_b.T @ tau, j_b.T @ jq @ j_b, j_b.T @ jv @ j_b, j_b.T @ mass @ j_b
     damping = jax.jacfwd(lambda w: system._damping(params, w))(v)  # constant: `J_Bᵀ b J_B`
     return tau + system._damping(params, v), jq, jv + damping, mass
