@@ -141,6 +141,14 @@ def _pin_loop(fn, args, repeats, calls=1000):
     return min(times) * 1e6
 
 
+def _pin_inputs(pin, model):
+    """`(data, q, v, tau)` for timing Pinocchio on `model`: a random configuration in
+    [-1, 1] (a unit quaternion for a free flyer) and normal `v`, `tau` (seed 1)."""
+    rng = np.random.default_rng(1)
+    q = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+    return model.createData(), q, rng.normal(size=model.nv), rng.normal(size=model.nv)
+
+
 def pinocchio_table(ours, batch, repeats):
     if not available("pinocchio", "Pinocchio's derivatives"):
         return
@@ -155,10 +163,7 @@ def pinocchio_table(ours, batch, repeats):
     for name in ("arm7", "torso_two_arms"):
         path = lx.models.urdf_path(name)
         model = pin.buildModelFromXML(path.read_text())
-        data = model.createData()
-        rng = np.random.default_rng(1)
-        q = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
-        v, tau = rng.normal(size=model.nv), rng.normal(size=model.nv)
+        data, q, v, tau = _pin_inputs(pin, model)
         aba = _pin_loop(pin.aba, (model, data, q, v, tau), repeats)
         d_aba = _pin_loop(pin.computeABADerivatives, (model, data, q, v, tau), repeats)
         d_rnea = _pin_loop(pin.computeRNEADerivatives, (model, data, q, v, tau), repeats)
@@ -223,10 +228,7 @@ def floating_table(batch, repeats):
             print(line + "| | | |", flush=True)
             continue
         model = pin.buildModelFromXML(xml, pin.JointModelFreeFlyer())
-        data = model.createData()
-        rng = np.random.default_rng(1)
-        qp = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
-        vp, taup = rng.normal(size=model.nv), rng.normal(size=model.nv)
+        data, qp, vp, taup = _pin_inputs(pin, model)
         aba = _pin_loop(pin.aba, (model, data, qp, vp, taup), repeats)
         d_aba = _pin_loop(pin.computeABADerivatives, (model, data, qp, vp, taup), repeats)
         print(line + f"| {aba:.2f} | {d_aba:.2f} | {der / d_aba:.2f}× |", flush=True)
