@@ -6,6 +6,9 @@ import os
 
 import numpy as np
 
+SOLO12 = os.path.join("solo_description", "robots", "solo12.urdf")
+"""solo12's URDF in example-robot-data's ``robots`` folder."""
+
 
 def robots_folder():
     """example-robot-data's ``robots`` folder, or None when it is not installed."""

@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).parent))
 import lagrax as lx  # noqa: E402
 from _optional import available  # noqa: E402
-from _robots import floating_states, robots_folder  # noqa: E402
+from _robots import SOLO12, floating_states, robots_folder  # noqa: E402
 
 ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 4
 
@@ -193,7 +193,7 @@ def floating_table(batch, repeats):
             'note: solo12 skipped: example-robot-data is not installed (pip install -e ".[bench]")'
         )
     else:
-        path = Path(folder) / "solo_description" / "robots" / "solo12.urdf"
+        path = Path(folder) / SOLO12
         robots.append(("solo12 (example-robot-data)", path.read_text()))
     pin = None
     if available("pinocchio", "Pinocchio's free-flyer derivatives"):

@@ -46,7 +46,7 @@ def child(one_core: bool) -> dict:
     import numpy as np
 
     import lagrax as lx
-    from _robots import floating_states, robots_folder
+    from _robots import SOLO12, floating_states, robots_folder
     from bench_derivatives import _losses, fastest, fastest_interleaved, random_states, systems
 
     out: dict = {}
@@ -55,7 +55,7 @@ def child(one_core: bool) -> dict:
         cases = [(name, *table[name]) for name in SYSTEMS]
         folder = robots_folder()
         if folder is not None:
-            xml = (Path(folder) / "solo_description" / "robots" / "solo12.urdf").read_text()
+            xml = (Path(folder) / SOLO12).read_text()
             robot, params = lx.chains.from_urdf(xml, floating_base=True)
             cases.append(("solo12", robot.system(), params))
         for name, system, params in cases:
