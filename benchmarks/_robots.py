@@ -28,3 +28,13 @@ def floating_states(rng, n, size):
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     q = np.concatenate([rng.normal(size=(size, 3)), quat, rng.uniform(-1, 1, (size, n))], 1)
     return q, rng.normal(size=(size, 6 + n))
+
+
+def floating_inputs(n, size):
+    """``(q, v, tau)`` of ``size`` random floating-base states with ``n`` joints, as
+    ``jax`` arrays: ``floating_states`` drawn with seed 0, ``tau`` normal with seed 1."""
+    import jax.numpy as jnp
+
+    q, v = floating_states(np.random.default_rng(0), n, size)
+    tau = np.random.default_rng(1).normal(size=(size, 6 + n))
+    return jnp.asarray(q), jnp.asarray(v), jnp.asarray(tau)

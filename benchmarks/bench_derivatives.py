@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).parent))
 import lagrax as lx  # noqa: E402
 from _optional import available  # noqa: E402
-from _robots import SOLO12, floating_states, robots_folder  # noqa: E402
+from _robots import SOLO12, floating_inputs, robots_folder  # noqa: E402
 
 ARM_AXES = [(0, 0, 1), (0, 1, 0)] * 4
 
@@ -78,6 +78,17 @@ def fastest(fn, args, repeats):
 def random_states(n, batch, seed=0):
     rng = np.random.default_rng(seed)
     return tuple(jnp.asarray(rng.uniform(-1.5, 1.5, (batch, n))) for _ in range(3))
+
+
+def forward_and_derivatives(system, params):
+    """`{"fd": …, "derivatives": …}`: `system`'s `forward_dynamics` and
+    `forward_dynamics_derivatives` at `params`, vmapped over `(q, qd, tau)` and compiled."""
+    return {
+        "fd": jax.jit(jax.vmap(lambda a, b, c: system.forward_dynamics(a, b, params, c))),
+        "derivatives": jax.jit(
+            jax.vmap(lambda a, b, c: system.forward_dynamics_derivatives(a, b, params, c))
+        ),
+    }
 
 
 def per_state(system, params, batch, repeats):
@@ -207,21 +218,9 @@ def floating_table(batch, repeats):
         robot, params = lx.chains.from_urdf(xml, floating_base=True)
         params = dict(params, damping=jnp.zeros_like(params["damping"]))  # as Pinocchio's
         system, n = robot.system(), robot.n
-        q, v = (jnp.asarray(x) for x in floating_states(np.random.default_rng(0), n, batch))
-        tau = jnp.asarray(np.random.default_rng(1).normal(size=(batch, 6 + n)))
-        calls = {
-            "fd": jax.jit(
-                jax.vmap(lambda a, b, c, s=system, p=params: s.forward_dynamics(a, b, p, c))
-            ),
-            "derivatives": jax.jit(
-                jax.vmap(
-                    lambda a, b, c, s=system, p=params: s.forward_dynamics_derivatives(a, b, p, c)
-                )
-            ),
-        }
-        t = {
-            k: s / batch * 1e6 for k, s in fastest_interleaved(calls, (q, v, tau), repeats).items()
-        }
+        calls = forward_and_derivatives(system, params)
+        inputs = floating_inputs(n, batch)
+        t = {k: s / batch * 1e6 for k, s in fastest_interleaved(calls, inputs, repeats).items()}
         fd, der = t["fd"], t["derivatives"]
         line = f"| {label} | {fd:.2f} | {der:.2f} | {der / fd:.1f}× "
         if pin is None:

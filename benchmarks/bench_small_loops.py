@@ -46,8 +46,15 @@ def child(one_core: bool) -> dict:
     import numpy as np
 
     import lagrax as lx
-    from _robots import SOLO12, floating_states, robots_folder
-    from bench_derivatives import _losses, fastest, fastest_interleaved, random_states, systems
+    from _robots import SOLO12, floating_inputs, robots_folder
+    from bench_derivatives import (
+        _losses,
+        fastest,
+        fastest_interleaved,
+        forward_and_derivatives,
+        random_states,
+        systems,
+    )
 
     out: dict = {}
     table = systems()
@@ -60,25 +67,11 @@ def child(one_core: bool) -> dict:
             cases.append(("solo12", robot.system(), params))
         for name, system, params in cases:
             if name == "solo12":
-                rng = np.random.default_rng(0)
-                q, v = (jnp.asarray(x) for x in floating_states(rng, system.n_dof - 6, 4096))
-                args = (q, v, jnp.asarray(rng.normal(size=(4096, system.n_dof))))
+                args = floating_inputs(system.n_dof - 6, 4096)
             else:
                 args = random_states(system.n_dof, 4096)
-            calls = {
-                "fd": jax.jit(
-                    jax.vmap(lambda a, b, c, s=system, p=params: s.forward_dynamics(a, b, p, c))
-                ),
-                "der": jax.jit(
-                    jax.vmap(
-                        lambda a, b, c, s=system, p=params: s.forward_dynamics_derivatives(
-                            a, b, p, c
-                        )
-                    )
-                ),
-            }
-            t = fastest_interleaved(calls, args, 20)
-            out[name] = (t["fd"] / 4096 * 1e6, t["der"] / 4096 * 1e6)
+            t = fastest_interleaved(forward_and_derivatives(system, params), args, 20)
+            out[name] = (t["fd"] / 4096 * 1e6, t["derivatives"] / 4096 * 1e6)
         system, params = table["URDF arm7"]
         _, loss = _losses(system, params)
         starts = jnp.asarray(np.random.default_rng(0).uniform(-1, 1, (256, 7)))

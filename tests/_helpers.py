@@ -2,11 +2,14 @@
 difference against which gradients are checked, example-robot-data's folder and the
 conservation checks of a free floating motion."""
 
-import importlib.metadata
+import sys
 from pathlib import Path
 
 import jax
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+from _robots import robots_folder  # noqa: E402  (the benchmarks' finder)
 
 
 def rel_error(a, b) -> float:
@@ -75,15 +78,9 @@ def pin_coupling(pin, model, tree):
 
 def example_robot_data() -> Path | None:
     """example-robot-data's folder (``…/share/example-robot-data``, holding ``robots``),
-    or ``None`` when it is not installed."""
-    try:
-        dist = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    for f in dist.files or ():
-        if f.name == "package.xml" and "example-robot-data" in f.parts:
-            return Path(str(dist.locate_file(f))).parent
-    return None
+    or ``None`` when it is not installed (found as the benchmarks find it)."""
+    folder = robots_folder()
+    return None if folder is None else Path(folder).parent
 
 
 def assert_free_motion_conserved(system, params, sol, tol=1e-10):
