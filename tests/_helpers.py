@@ -83,6 +83,20 @@ def example_robot_data() -> Path | None:
     return None if folder is None else Path(folder).parent
 
 
+def robots_or_skip() -> Path:
+    """example-robot-data's `robots` folder, or skip the calling test module when the
+    package is not installed."""
+    share = example_robot_data()
+    if share is None:
+        import pytest
+
+        pytest.skip(
+            "example-robot-data is not installed (pip install example-robot-data)",
+            allow_module_level=True,
+        )
+    return share / "robots"
+
+
 def assert_free_motion_conserved(system, params, sol, tol=1e-10):
     """A floating base's free motion (zero gravity, no inputs) in `sol`: the spatial
     momentum (angular about the world origin, and linear) and the energy constant to

@@ -38,17 +38,10 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import example_robot_data, pin_coupling, pin_state, rel_error
+from _helpers import pin_coupling, pin_state, rel_error, robots_or_skip
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio (pip install pin) is the reference")
-SHARE = example_robot_data()
-if SHARE is None:
-    pytest.skip(
-        "example-robot-data is not installed (pip install example-robot-data)",
-        allow_module_level=True,
-    )
-assert SHARE is not None
-ROBOTS = SHARE / "robots"
+ROBOTS = robots_or_skip()
 RTOL = 1e-10
 
 CASES = [

@@ -54,7 +54,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import example_robot_data, pin_coupling, pin_state, rel_error
+from _helpers import pin_coupling, pin_state, rel_error, robots_or_skip
 from lagrax.chains import from_urdf
 
 RTOL = 1e-12
@@ -66,14 +66,7 @@ pin = pytest.importorskip(
 )
 
 
-SHARE = example_robot_data()
-if SHARE is None:
-    pytest.skip(
-        "example-robot-data is not installed (pip install example-robot-data)",
-        allow_module_level=True,
-    )
-assert SHARE is not None
-ROBOTS = SHARE / "robots"
+ROBOTS = robots_or_skip()
 URDFS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.urdf"))
 XACROS = sorted(str(p.relative_to(ROBOTS)) for p in ROBOTS.rglob("*.xacro"))
 
