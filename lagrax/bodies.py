@@ -66,19 +66,20 @@ axial dashpot), [`TorsionalDamper`][lagrax.bodies.TorsionalDamper] (on a coordin
 [`check_inertia`][lagrax.bodies.check_inertia] (symmetric, positive-definite, `I1 + I2 ≥ I3`).
 """
 
-from ._multibody.bodies import AbstractBody as AbstractBody
-from ._multibody.bodies import Param as Param
-from ._multibody.bodies import ParamLike as ParamLike
-from ._multibody.bodies import PlanarBody as PlanarBody
-from ._multibody.bodies import PointFn as PointFn
-from ._multibody.bodies import PointMass as PointMass
-from ._multibody.bodies import SpatialBody as SpatialBody
-from ._multibody.forces import AbstractDamper as AbstractDamper
-from ._multibody.forces import AbstractSpring as AbstractSpring
-from ._multibody.forces import LinearDamper as LinearDamper
-from ._multibody.forces import LinearSpring as LinearSpring
-from ._multibody.forces import TorsionalDamper as TorsionalDamper
-from ._multibody.forces import TorsionalSpring as TorsionalSpring
+from ._multibody.energies.bodies import AbstractBody as AbstractBody
+from ._multibody.energies.bodies import Param as Param
+from ._multibody.energies.bodies import ParamLike as ParamLike
+from ._multibody.energies.bodies import PlanarBody as PlanarBody
+from ._multibody.energies.bodies import PointFn as PointFn
+from ._multibody.energies.bodies import PointMass as PointMass
+from ._multibody.energies.bodies import SpatialBody as SpatialBody
+from ._multibody.energies.forces import AbstractDamper as AbstractDamper
+from ._multibody.energies.forces import AbstractSpring as AbstractSpring
+from ._multibody.energies.forces import LinearDamper as LinearDamper
+from ._multibody.energies.forces import LinearSpring as LinearSpring
+from ._multibody.energies.forces import TorsionalDamper as TorsionalDamper
+from ._multibody.energies.forces import TorsionalSpring as TorsionalSpring
+from ._multibody.energies.scene import Scene as Scene
 from ._multibody.inertia import PrincipalAxes as PrincipalAxes
 from ._multibody.inertia import box_inertia as box_inertia
 from ._multibody.inertia import check_inertia as check_inertia
@@ -88,7 +89,6 @@ from ._multibody.inertia import principal_axes as principal_axes
 from ._multibody.inertia import rod_inertia as rod_inertia
 from ._multibody.inertia import rotate_inertia as rotate_inertia
 from ._multibody.inertia import sphere_inertia as sphere_inertia
-from ._multibody.scene import Scene as Scene
 
 __all__ = [
     "Scene",

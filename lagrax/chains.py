@@ -51,21 +51,21 @@ shared 2-core CPU). Use [`SpatialChain`][lagrax.chains.SpatialChain] for anythin
 plane; [`PlanarChain.to_spatial`][lagrax.chains.PlanarChain.to_spatial] converts for comparison.
 """
 
-from ._multibody.chains import BodyKind as BodyKind
-from ._multibody.chains import PlanarChain as PlanarChain
-from ._multibody.chains import SpatialChain as SpatialChain
-from ._multibody.chains import axis_angle_rotation as axis_angle_rotation
-from ._multibody.chains import planar_chain as planar_chain
-from ._multibody.chains import spatial_chain as spatial_chain
-from ._multibody.floating import FloatingBaseSystem as FloatingBaseSystem
-from ._multibody.floating import FloatingTree as FloatingTree
+from ._multibody.articulated.chains import BodyKind as BodyKind
+from ._multibody.articulated.chains import PlanarChain as PlanarChain
+from ._multibody.articulated.chains import SpatialChain as SpatialChain
+from ._multibody.articulated.chains import axis_angle_rotation as axis_angle_rotation
+from ._multibody.articulated.chains import planar_chain as planar_chain
+from ._multibody.articulated.chains import spatial_chain as spatial_chain
+from ._multibody.articulated.trees import AbstractTree as AbstractTree
+from ._multibody.articulated.trees import Tree as Tree
+from ._multibody.floating.system import FloatingBaseSystem as FloatingBaseSystem
+from ._multibody.floating.system import FloatingTree as FloatingTree
+from ._multibody.formats.mjcf import from_mjcf as from_mjcf
+from ._multibody.formats.mjcf import from_mujoco_state as from_mujoco_state
+from ._multibody.formats.mjcf import to_mujoco_state as to_mujoco_state
+from ._multibody.formats.urdf import from_urdf as from_urdf
 from ._multibody.limits import limit_events as limit_events
-from ._multibody.mjcf import from_mjcf as from_mjcf
-from ._multibody.mjcf import from_mujoco_state as from_mujoco_state
-from ._multibody.mjcf import to_mujoco_state as to_mujoco_state
-from ._multibody.trees import AbstractTree as AbstractTree
-from ._multibody.trees import Tree as Tree
-from ._multibody.urdf import from_urdf as from_urdf
 
 __all__ = [
     "PlanarChain",

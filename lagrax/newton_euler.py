@@ -21,9 +21,9 @@ from jaxtyping import Array, Float
 
 from ._core.custom_types import Params
 from ._core.errors import ArgumentTypeError, ShapeError
-from ._multibody.chains import PlanarChain, SpatialChain
+from ._multibody.articulated.chains import PlanarChain, SpatialChain
+from ._multibody.articulated.trees import AbstractTree, Tree
 from ._multibody.joints import revolute
-from ._multibody.trees import AbstractTree, Tree
 
 __all__ = ["planar_2r", "planar_2r_free_body", "FreeBody2R", "rnea"]
 

@@ -25,6 +25,7 @@ from ._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from ._plot.axes import axes_for
 from ._plot.sweep import sweep_heatmap as sweep_heatmap
 from ._solve.solution import Solution
+from .chains import PlanarChain
 
 Geometry = Callable[[Any], Any] | Sequence[float] | Any
 """What to draw: a function `q -> (k, 2)` points, link lengths, or a chain object."""
@@ -118,7 +119,7 @@ def _chain_points(geometry: Any, q: np.ndarray, params: Any) -> np.ndarray:
     """Points `(T, k, 2)` to draw at each saved state, from the kinds of geometry."""
     if geometry is None:
         pts = planar_chain_points(q, _default_lengths(params, q.shape[-1]))
-    elif hasattr(geometry, "joint_positions"):  # e.g. lagrax.chains.PlanarChain
+    elif isinstance(geometry, PlanarChain):
         if params is None:
             raise ConfigurationError(
                 f"drawing a {type(geometry).__name__} needs its parameters: pass params="
@@ -179,8 +180,7 @@ def arm_snapshots(
         - link lengths `[l1, …, ln]` of a planar serial chain in the lecture's
           convention (`θ1` from +x, `θi` relative to link `i − 1`, see
           `planar_chain_points`);
-        - a chain object with `joint_positions(q, params)` (e.g.
-          `lagrax.chains.PlanarChain`; then pass `params=`);
+        - a [`lagrax.chains.PlanarChain`][] (then pass `params=`);
         - `None` (default): the lecture's chain, with lengths `params["l1"], …` when
           `params` has them, else 1 m per link (right for `lagrax.models.planar_2r`).
     - `params`: parameters for a chain object, or for the default's link lengths.

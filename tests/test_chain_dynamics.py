@@ -19,7 +19,7 @@ import pytest
 import lagrax as lx
 from _helpers import check_grad_against_central_difference
 from _random_models import check_energies, close, random_spatial  # tests/_random_models.py
-from lagrax._multibody.tree_equations import ChainEquations
+from lagrax._multibody.articulated.tree_equations import ChainEquations
 from lagrax._systems.derivatives import mass_and_force
 from lagrax.chains import PlanarChain, SpatialChain
 from lagrax.newton_euler import rnea

@@ -404,7 +404,7 @@ def test_floating_linearize_matches_pinocchio_differences():
 def test_floating_derivatives_with_damping_and_params_match_autodiff():
     """With joint damping and with respect to `params`: the derivatives call against
     plain autodiff of `forward_dynamics` along `q ⊕ δ`, under `jit` and `vmap` too."""
-    from lagrax._multibody.floating_derivatives import retract
+    from lagrax._multibody.floating.derivatives import retract
 
     robot, params, _ = _robot("arm7")
     params = dict(params, damping=jnp.full(robot.n, 0.3))
@@ -457,7 +457,7 @@ def test_floating_derivatives_mimic_prismatic_branches_match_autodiff():
     mimic joint (`θ_2 = 0.7 θ_1 + 0.1`), a prismatic joint and joint damping, at a moving
     and accelerating base: `τ`, `∂τ/∂q` (along `q ⊕ δ`), `∂τ/∂v` and `M` against plain
     forward-mode autodiff of the free-root Newton–Euler recursion, to 1e-12."""
-    from lagrax._multibody.floating_derivatives import retract
+    from lagrax._multibody.floating.derivatives import retract
 
     robot, params = lx.chains.from_urdf(_MIMIC_TREE, floating_base=True)
     assert robot.n == 2 and robot.tree.mimic  # j2 follows j1

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 import lagrax as lx
 from _helpers import check_grad_against_central_difference, close
-from lagrax._multibody.scene_equations import SceneEquations
+from lagrax._multibody.energies.scene_equations import SceneEquations
 from lagrax._systems.derivatives import mass_and_force
 from lagrax.bodies import (
     LinearDamper,

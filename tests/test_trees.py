@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from _random_models import check_energies, close, random_spatial  # tests/_random_models.py
-from lagrax._multibody.tree_equations import ChainEquations
+from lagrax._multibody.articulated.tree_equations import ChainEquations
 from lagrax._systems.derivatives import mass_and_force
 from lagrax.chains import SpatialChain, Tree
 from lagrax.newton_euler import rnea

@@ -8,7 +8,7 @@ one place the kinds differ there (a revolute joint turns about its axis, a prism
 slides along it).
 
 To add a kind with one coordinate, add its letter to `KINDS` and its constants to
-`_CONSTANTS`, and give the recursions (`tree_equations._spatial_link`,
+`_CONSTANTS`, and give the recursions (`tree_equations.spatial_link`,
 `spatial_energies`) and the oracle (`newton_euler`) its motion subspace. A joint with
 several coordinates (a floating base: a free root joint) adds its coordinates in front of
 the tree's, as the root of `parents`.

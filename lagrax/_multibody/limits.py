@@ -32,8 +32,8 @@ import numpy as np
 
 from .._core.errors import ConfigurationError, ParameterError
 from .._solve.events import Event
-from .floating import FloatingTree
-from .trees import AbstractTree, Tree
+from .articulated.trees import AbstractTree, Tree
+from .floating.system import FloatingTree
 
 LIMIT_MODELS = (None, "impact")
 """The values of `from_urdf`'s and `from_mjcf`'s `limits=`."""
@@ -71,7 +71,7 @@ def with_limits(
         )
     if limits is None:
         return tree, params
-    lims = np.asarray([tree.limits[b] for b in getattr(tree, "coordinates", range(tree.n))], float)
+    lims = np.asarray([tree.limits[b] for b in tree.coordinates], float)
     if not np.any(np.isfinite(lims)):
         raise ConfigurationError(
             "limits='impact', but no joint of the robot has a finite limit: there is "
@@ -203,19 +203,17 @@ def limit_events(
     ```
     """
     joints_tree, q0, v0 = _joints(tree)
-    limits = getattr(joints_tree, "limits", None)
-    if limits is None:
+    if not isinstance(joints_tree, Tree):
         raise ConfigurationError(
             f"limit_events needs a tree with joint limits (tree.limits), got a "
             f"{type(tree).__name__}"
         )
     n = joints_tree.n
-    names = tuple(getattr(joints_tree, "joint_names", (f"joint{i}" for i in range(n))))
     # per coordinate: a mimic joint is no coordinate (it follows its master, whose limits
     # stop both), so the limits and names of the coordinates' own bodies
-    bodies = getattr(joints_tree, "coordinates", tuple(range(n)))
-    limits = [limits[b] for b in bodies]
-    names = tuple(names[b] for b in bodies)
+    bodies = joints_tree.coordinates
+    limits = [joints_tree.limits[b] for b in bodies]
+    names = tuple(joints_tree.joint_names[b] for b in bodies)
     finite = [i for i, (lo, hi) in enumerate(limits) if math.isfinite(lo) or math.isfinite(hi)]
     if joints is None:
         chosen = finite

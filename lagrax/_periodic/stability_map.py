@@ -19,7 +19,7 @@ from .._core.custom_types import Params
 from .._core.errors import ConfigurationError
 from .._core.results import code_of, messages
 from .._solve.events import Event
-from .._sweep.dataset import _member_labels, _short, statuses
+from .._sweep.dataset import member_labels, short_label, statuses
 from .._sweep.driver import dof_labels
 from .._sweep.grid import Grid, Members
 from .._systems.abstract import AbstractSystem
@@ -185,10 +185,10 @@ def orbit_map(
     coords: dict[str, Any] = {
         "dof": dof_labels(system.coordinate_names, n),
         "multiplier": np.arange(mu.shape[-1]),
-        **_member_labels(members),
+        **member_labels(members),
     }
     text = messages()
-    counts = {_short(text[c]): int(np.sum(result == c)) for c in np.unique(result[~ok])}
+    counts = {short_label(text[c]): int(np.sum(result == c)) for c in np.unique(result[~ok])}
     attrs = dict(
         n_members=int(members.size),
         n_failed=int(np.sum(~ok)),

@@ -442,22 +442,9 @@ def simulate(
     )
     parts = (system, solver, tau_fn, stepsize_controller, saveat, adjoint)
     if not eager:
-        if transposed_ok and saveat is None:  # its loop runs in forward mode
-            config = SolveConfig(*parts[:-1], dfx.ForwardMode(), n_save, max_steps, events)
-            sol = _solve_transposed(config, SolveInputs(*fields))
-        else:
-            sol = _solve(SolveConfig(*parts, n_save, max_steps, events), SolveInputs(*fields))
-        if not throw:
-            return sol
-        # inside a user's jit: fail at run time, with the failure's own message
-        return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
-    if events is None:
-        config, fn = configured(checked_solve, SolveConfig, parts, n_save, max_steps)
-    else:  # (events: a fresh tuple each call, no front cache)
-        config = SolveConfig(*parts, n_save, max_steps, events)
-        fn = compiled_or_none(checked_solve, config)
-    sol, flags = call(checked_solve, config, fields, fn)
-    inputs_ok, solved_ok = np.asarray(flags)  # the one device-to-host transfer
+        limits = (n_save, max_steps, events)
+        return _traced_solve(parts, fields, limits, transposed_ok and saveat is None, throw)
+    sol, (inputs_ok, solved_ok) = _eager_solve(parts, fields, n_save, max_steps, events)
     if not inputs_ok:
         system.check_state(q0, qd0, params, t=t0)  # raises with the values in the message
     if not throw or solved_ok:
@@ -466,6 +453,32 @@ def simulate(
         system, sol, events, params, max_steps, rtol, atol, tau_fn, tau_const, (q0, qd0), t1
     )
     raise SimulationError(why)
+
+
+def _eager_solve(parts: tuple, fields: tuple, n_save, max_steps, events):
+    """`simulate` called eagerly: `(solution, (inputs_ok, solved_ok))` from one compiled
+    call (its program cached by the configuration), with one device-to-host transfer."""
+    if events is None:
+        config, fn = configured(checked_solve, SolveConfig, parts, n_save, max_steps)
+    else:  # (events: a fresh tuple each call, no front cache)
+        config = SolveConfig(*parts, n_save, max_steps, events)
+        fn = compiled_or_none(checked_solve, config)
+    sol, flags = call(checked_solve, config, fields, fn)
+    return sol, tuple(np.asarray(flags))
+
+
+def _traced_solve(parts: tuple, fields: tuple, limits: tuple, transposed: bool, throw: bool):
+    """`simulate` inside a trace (a user's `jit`, `grad` or `vmap`): the solve as part of
+    the caller's program, on the transposed loop where it serves (`transposed`: its loop
+    runs in forward mode), failing at run time with the failure's own message."""
+    if transposed:
+        config = SolveConfig(*parts[:-1], dfx.ForwardMode(), *limits)
+        sol = _solve_transposed(config, SolveInputs(*fields))
+    else:
+        sol = _solve(SolveConfig(*parts, *limits), SolveInputs(*fields))
+    if not throw:
+        return sol
+    return eqx.branched_error_if(sol, ~sol.ok, code_of(sol.result), _JIT_MESSAGES)
 
 
 def events_supported(solver, controller, saveat, adjoint) -> None:

@@ -233,7 +233,7 @@ def _warn(message: str) -> None:
     warnings.warn(message, CheckpointWarning, stacklevel=4)
 
 
-def _probe_writable(directory: Path, what: str = "checkpoint") -> None:
+def probe_writable(directory: Path, what: str = "checkpoint") -> None:
     """Create and remove a file in `directory` (a checkpoint directory, or with
     `what="store"` a sweep's zarr store), or raise `CheckpointError`."""
     try:
@@ -288,7 +288,7 @@ def prepare(
             "again."
         )
     if not ours or len(loaded) < n_chunks:
-        _probe_writable(directory)
+        probe_writable(directory)
     if not ours:
         info = dict(
             fingerprint=fp,

@@ -70,11 +70,11 @@ def variables(
 
 def labels(members: Members, kept: Kept) -> dict[str, Any]:
     """The coordinates of a sweep's Dataset beside `dof`: the kept times and the
-    members' labels (`_member_labels`)."""
+    members' labels (`member_labels`)."""
     coords: dict[str, Any] = {}
     if kept.path:
         coords["time"] = ("time", kept.ts, {"units": "s"})
-    coords.update(_member_labels(members))
+    coords.update(member_labels(members))
     return coords
 
 
@@ -150,7 +150,7 @@ def _name_for_plots(data: dict[str, Any], final: bool) -> None:
             )
 
 
-def _member_labels(members: Members) -> dict[str, Any]:
+def member_labels(members: Members) -> dict[str, Any]:
     """The coordinates along the sweep dimensions: a grid's swept values (with their
     units; an initial-state component's long name), or the member index and the
     batched scalar parameters that vary between members."""
@@ -184,7 +184,7 @@ def attrs_of(result, ok, busy_lane_steps, lane_steps, n_members: int, run: Mappi
     failed = ~ok
     counts = {}
     for r in np.unique(result[failed]):
-        counts[_short(text[r])] = int(np.sum(result == r))
+        counts[short_label(text[r])] = int(np.sum(result == r))
     busy, total = int(np.sum(busy_lane_steps)), int(np.sum(lane_steps))
     return dict(
         n_members=int(n_members),
@@ -204,7 +204,7 @@ def statuses(result: np.ndarray) -> np.ndarray:
             if r == _OK
             else "ok: stopped at a terminal event"
             if r == _EVENT
-            else _short(text[r])
+            else short_label(text[r])
             for r in result
         ]
     )
@@ -221,5 +221,5 @@ def _reduce_name(path: str) -> str:
     return name or "value"
 
 
-def _short(message: str) -> str:
+def short_label(message: str) -> str:
     return message.split("\n")[0].strip()

@@ -35,7 +35,7 @@ import numpy as np
 
 from .._core.errors import CheckpointError, CheckpointWarning
 from .._core.results import messages
-from .checkpoint import _probe_writable, checksum
+from .checkpoint import checksum, probe_writable
 from .dataset import attrs_of, labels, statuses, variables
 from .grid import Members
 from .options import Kept
@@ -113,7 +113,7 @@ class SweepStore:
             self._has_arrays = "ok" in group.array_keys()
             self._done = self._verified(group)
         if len(self._done) < n_chunks:
-            _probe_writable(path, what="store")
+            probe_writable(path, what="store")
         if fresh:
             group: Any = zarr.open_group(str(path), mode="w")
             shape = members.shape

@@ -31,6 +31,9 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from ..bodies import Param, PlanarBody, Scene
+from ..models import planar_2r
+from ..newton_euler import planar_2r as newton_euler_planar_2r
 from .conversions import load_sympy
 from .equations import Equations, equations
 from .interpreter import interpret
@@ -62,7 +65,6 @@ def planar_2r_scene() -> Any:
     [`PlanarBody`][lagrax.bodies.PlanarBody]s (same parameters as
     [`lagrax.models.planar_2r`][]), evaluated from the bodies' pose maps
     (`equations="poses"`): Kane's method (see the module docstring)."""
-    from lagrax.bodies import Param, PlanarBody, Scene
 
     links = [
         PlanarBody(Param("m1"), Param("I1"), _link1, _angle1),
@@ -106,9 +108,7 @@ def _state(eq: Equations) -> tuple[Any, ...]:
 def newton_euler_2r(eq: Equations) -> Any:
     """`τ` of the 2R arm by the free-body Newton–Euler method
     ([`lagrax.newton_euler.planar_2r`][], interpreted), simplified, in `eq`'s symbols."""
-    import lagrax
-
-    tau = interpret(lagrax.newton_euler.planar_2r, *_state(eq))
+    tau = interpret(newton_euler_planar_2r, *_state(eq))
     return tau.applyfunc(canonical)
 
 
@@ -173,9 +173,7 @@ def derivations_2r(**overrides: float) -> Derivations2R:
     d.differences()   # {'lagrange': Matrix([[0], [0]]), 'newton_euler': ..., 'kane': ...}
     ```
     """
-    import lagrax
-
-    system, params = lagrax.models.planar_2r(**overrides)
+    system, params = planar_2r(**overrides)
     eq = equations(system, params, coordinates=("theta1", "theta2"))
     return Derivations2R(
         equations=eq,

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import ArgumentTypeError, ParameterError, ShapeError
+from .._systems.lagrangian import LagrangianSystem
 from .conversions import load_sympy, to_sympy, tree_size
 from .interpreter import interpret_arrays
 from .simplification import DEFAULT_MAX_SIZE, DEFAULT_TIMEOUT, Budget, Deadline, check_size
@@ -112,9 +113,7 @@ class Equations:
 
 
 def _check_system(system: Any) -> None:
-    import lagrax  # the public API, imported when used (lagrax imports this module)
-
-    if not isinstance(system, lagrax.LagrangianSystem):
+    if not isinstance(system, LagrangianSystem):
         raise ArgumentTypeError(
             "lagrax.symbolic.equations needs a lagrax.LagrangianSystem (its energies are "
             f"interpreted), got {type(system).__name__}; for a ConstrainedSystem pass its "

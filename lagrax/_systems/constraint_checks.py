@@ -4,8 +4,6 @@ that name a rank-deficient constraint matrix `K = [J; A]`."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -13,12 +11,10 @@ import numpy as np
 from .._core.checks import eager_only, finite, traced
 from .._core.errors import ConstraintError, NonFiniteError
 from .._core.linalg import PIVOT_RTOL
-
-if TYPE_CHECKING:
-    from .constrained import ConstrainedSystem
+from .interfaces import Constrained
 
 
-def checked_kkt(system: ConstrainedSystem, q, qd, params, tau, t, what: str):
+def checked_kkt(system: Constrained, q, qd, params, tau, t, what: str):
     """`(q̈, (λ, μ))` of a state, checked: eagerly, the error that names the cause;
     under `jit`, a run-time error."""
     q, qd, tau = system._state(q, qd, tau=tau)
@@ -50,7 +46,7 @@ def checked_kkt(system: ConstrainedSystem, q, qd, params, tau, t, what: str):
     )
 
 
-def rank_message(system: ConstrainedSystem, q, params) -> str | None:
+def rank_message(system: Constrained, q, params) -> str | None:
     """A description of a rank-deficient `K = [J; A]` at `q` (`None` if it has
     full rank)."""
     jac = np.asarray(system._kmat(jnp.asarray(q), params))
@@ -83,14 +79,14 @@ def rank_message(system: ConstrainedSystem, q, params) -> str | None:
     )
 
 
-def k_symbol(system: ConstrainedSystem) -> str:
+def k_symbol(system: Constrained) -> str:
     """How messages write the constraint matrix `K`: `J`, `A` or `[J; A]`."""
     if system.velocity_constraints is None:
         return "J"
     return "A" if system.constraints is None else "[J; A]"
 
 
-def k_name(system: ConstrainedSystem) -> str:
+def k_name(system: Constrained) -> str:
     """How messages name the constraint matrix `K`."""
     if system.velocity_constraints is None:
         return "the constraint Jacobian J = dphi/dq"
@@ -99,7 +95,7 @@ def k_name(system: ConstrainedSystem) -> str:
     return "the constraint matrix K = [J; A] (J = dphi/dq, A the velocity constraints)"
 
 
-def check_state(system: ConstrainedSystem, q, qd, params, project, t) -> None:
+def check_state(system: Constrained, q, qd, params, project, t) -> None:
     """`ConstrainedSystem.check_state` (documented there)."""
     eager_only(f"check_state of {system.name}", system, q, qd, params, t)
     system.system.check_state(q, qd, params, t=t)

@@ -7,7 +7,6 @@ accelerations' derivatives go through its KKT system (`kkt`'s tangent rule)."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import equinox as eqx
 import jax
@@ -19,20 +18,19 @@ from .._core.checks import finite, is_traced
 from .._core.closures import closes_over_tracers
 from .._core.errors import LagraxError
 from . import implicit, sensitivity
+from .interfaces import Constrained, Energies
 from .lagrangian_checks import finite_derivatives, float_arrays
 from .sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
 
-if TYPE_CHECKING:
-    from .constrained import ConstrainedSystem
-    from .lagrangian import LagrangianSystem
-
 
 def forward_dynamics_derivatives(
-    system: LagrangianSystem, q, qd, params, tau, t, wrt_params: bool
+    system: Energies, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
-    program, eager = _program(system, _forward_derivatives, _forward_body, q, qd, tau, params, t)
+    program, eager = choose_program(
+        system, _forward_derivatives, _forward_body, q, qd, tau, params, t
+    )
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -40,20 +38,20 @@ def forward_dynamics_derivatives(
 
 
 def inverse_dynamics_derivatives(
-    system: LagrangianSystem, q, qd, qdd, params, t, wrt_params: bool
+    system: Energies, q, qd, qdd, params, t, wrt_params: bool
 ) -> InverseDynamicsDerivatives:
     """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
     q, qd, qdd = system._state(q, qd, qdd=qdd)
-    program, eager = _program(system, _inverse_derivatives, _inverse_body, q, qd, qdd, params, t)
+    program, eager = choose_program(
+        system, _inverse_derivatives, _inverse_body, q, qd, qdd, params, t
+    )
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
     )
     return finite_derivatives(system, out, q, qd, params, None, t, "inverse_dynamics")
 
 
-def linearize(
-    system: LagrangianSystem, q_eq, qd_eq, params, tau_eq, t
-) -> tuple[jax.Array, jax.Array]:
+def linearize(system: Energies, q_eq, qd_eq, params, tau_eq, t) -> tuple[jax.Array, jax.Array]:
     """`LagrangianSystem.linearize` (documented there): `(A, B)`."""
     q, qd = system._state(q_eq, qd_eq)
     if tau_eq is None:
@@ -62,7 +60,9 @@ def linearize(
         (tau,) = system._state(q, tau=tau_eq)[1:]
     dtype = jnp.result_type(q, qd, tau)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-    program, eager = _program(system, _linearization, _linearization_body, q, qd, tau, params, t)
+    program, eager = choose_program(
+        system, _linearization, _linearization_body, q, qd, tau, params, t
+    )
     if eager:
         finite(q, "q_eq")
         finite(qd, "qd_eq")
@@ -81,12 +81,12 @@ def linearize(
 
 
 def constrained_forward_dynamics_derivatives(
-    system: ConstrainedSystem, q, qd, params, tau, t, wrt_params: bool
+    system: Constrained, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`ConstrainedSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
     tau = jnp.zeros_like(q) if tau is None else tau
-    program, eager = _program(
+    program, eager = choose_program(
         system, _constrained_derivatives, _constrained_body, q, qd, tau, params, t
     )
     out = program(system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params)
@@ -94,14 +94,14 @@ def constrained_forward_dynamics_derivatives(
 
 
 def constrained_linearize(
-    system: ConstrainedSystem, q_eq, qd_eq, params, tau_eq, t
+    system: Constrained, q_eq, qd_eq, params, tau_eq, t
 ) -> tuple[jax.Array, jax.Array]:
     """`ConstrainedSystem.linearize` (documented there): `(A, B)`."""
     out = constrained_forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
-    return _state_space(out)
+    return state_space(out)
 
 
-def _program(system, compiled, body, *values) -> tuple[Callable, bool]:
+def choose_program(system, compiled, body, *values) -> tuple[Callable, bool]:
     """`(program, eager)` of a call of `system` on `values`: the `compiled` program, and
     whether nothing in the call is traced; or `body` itself (traced) where the system's
     functions close over traced values, since a compiled program holds the functions as
@@ -111,7 +111,7 @@ def _program(system, compiled, body, *values) -> tuple[Callable, bool]:
     return compiled, not is_traced(*values)
 
 
-def _state_space(out: ForwardDynamicsDerivatives) -> tuple[jax.Array, jax.Array]:
+def state_space(out: ForwardDynamicsDerivatives) -> tuple[jax.Array, jax.Array]:
     """`(A, B)` of `ẋ = (q̇, q̈(q, q̇, τ))` from the derivatives of `q̈`:
     `A = [[0, I], [∂q̈/∂q, ∂q̈/∂q̇]]`, `B = [[0], [∂q̈/∂τ]]`."""
     n = out.qdd.shape[0]
@@ -119,7 +119,7 @@ def _state_space(out: ForwardDynamicsDerivatives) -> tuple[jax.Array, jax.Array]
     return jnp.block([[zero, eye], [out.dq, out.dqd]]), jnp.concatenate([zero, out.dtau], axis=0)
 
 
-def _constrained_body(system: ConstrainedSystem, t, q, qd, params, tau, wrt_params: bool):
+def _constrained_body(system: Constrained, t, q, qd, params, tau, wrt_params: bool):
     """`sensitivity.forward_by_jacobian` of the KKT accelerations (whose tangents go
     through the KKT system at the primal solution)."""
 
@@ -132,7 +132,7 @@ def _constrained_body(system: ConstrainedSystem, t, q, qd, params, tau, wrt_para
 _constrained_derivatives = eqx.filter_jit(_constrained_body)
 
 
-def _eager_linearization(system: LagrangianSystem, t, q, qd, params, tau):
+def _eager_linearization(system: Energies, t, q, qd, params, tau):
     """`(A, B)` outside `jit`. The state is checked only when the linearization fails
     (a trace error, or non-finite Jacobians: NaN parameters, `M(q_eq)` not
     positive-definite), for `check_state`'s precise message: a first call then compiles
@@ -151,12 +151,12 @@ def _eager_linearization(system: LagrangianSystem, t, q, qd, params, tau):
     return a_mat, b_mat
 
 
-def _forward_body(system: LagrangianSystem, t, q, qd, params, tau, wrt_params: bool):
+def _forward_body(system: Energies, t, q, qd, params, tau, wrt_params: bool):
     """`sensitivity.forward` with the system's own derivative options."""
     return sensitivity.forward(system, system.scalar_derivatives, t, q, qd, params, tau, wrt_params)
 
 
-def _inverse_body(system: LagrangianSystem, t, q, qd, qdd, params, wrt_params: bool):
+def _inverse_body(system: Energies, t, q, qd, qdd, params, wrt_params: bool):
     """`sensitivity.inverse` with the system's own derivative options."""
     return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
 
@@ -169,13 +169,13 @@ _forward_derivatives = eqx.filter_jit(_forward_body)
 _inverse_derivatives = eqx.filter_jit(_inverse_body)
 
 
-def _linearization_body(system: LagrangianSystem, t, q, qd, params, tau, one_state=False):
+def _linearization_body(system: Energies, t, q, qd, params, tau, one_state=False):
     """`(A, B)` of the state equations at one state, as one compiled program
     (`one_state`: `M⁻¹` by LAPACK, see `sensitivity.forward`)."""
     out = sensitivity.forward(
         system, system.scalar_derivatives, t, q, qd, params, tau, False, one_state=one_state
     )
-    return _state_space(out)
+    return state_space(out)
 
 
 _linearization = eqx.filter_jit(_linearization_body)

@@ -4,8 +4,6 @@ primal solution."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -14,9 +12,7 @@ from .._core.custom_types import ConstraintJacobian, ConstraintValues, Matrix, V
 from .._core.linalg import cholesky_solve, spd_inverse
 from . import derivatives as d
 from . import implicit
-
-if TYPE_CHECKING:
-    from .constrained import ConstrainedSystem
+from .interfaces import Constrained
 
 
 def solve_kkt(mass: Matrix, jac: ConstraintJacobian, force: Vector, gamma: ConstraintValues):
@@ -39,7 +35,7 @@ def solve_kkt(mass: Matrix, jac: ConstraintJacobian, force: Vector, gamma: Const
 
 
 @eqx.filter_custom_jvp
-def kkt_with_rule(system: ConstrainedSystem, t, q, qd, params, tau):
+def kkt_with_rule(system: Constrained, t, q, qd, params, tau):
     return system._kkt_raw(t, q, qd, params, tau)
 
 

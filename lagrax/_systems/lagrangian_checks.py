@@ -4,8 +4,6 @@ the accelerations or their derivatives are not finite."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -25,9 +23,7 @@ from .._core.custom_types import Params
 from .._core.errors import ArgumentTypeError, ConfigurationError, MassMatrixError, NonFiniteError
 from . import derivatives as d
 from .abstract import AbstractSystem
-
-if TYPE_CHECKING:
-    from .lagrangian import LagrangianSystem
+from .interfaces import Energies
 
 
 def float_arrays(params: Params) -> Params:
@@ -36,7 +32,7 @@ def float_arrays(params: Params) -> Params:
     return jax.tree_util.tree_map(lambda x: np.asarray(x) if isinstance(x, float) else x, params)
 
 
-def check_init(system: LagrangianSystem) -> None:
+def check_init(system: Energies) -> None:
     """`LagrangianSystem.__check_init__`: the energies are functions of the right
     arity, `n_dof` and `coordinate_names` agree, and only an autonomous system has
     structure-aware `equations`."""
@@ -84,7 +80,7 @@ def check_init(system: LagrangianSystem) -> None:
         )
 
 
-def check_state(system: LagrangianSystem, q, qd, params, t) -> None:
+def check_state(system: Energies, q, qd, params, t) -> None:
     """`LagrangianSystem.check_state`: shapes, finite values and parameters, a finite
     energy and a symmetric positive-definite `M(q)`, with the values in the messages."""
     eager_only(f"check_state of {system.name}", system, q, qd, params, t)
@@ -107,7 +103,7 @@ def check_state(system: LagrangianSystem, q, qd, params, t) -> None:
         raise MassMatrixError(mass_message(system, q, eigs))
 
 
-def mass_message(system: LagrangianSystem, q, params_eigs) -> str:
+def mass_message(system: Energies, q, params_eigs) -> str:
     """Why `M(q)` is refused, with its eigenvalues when known."""
     return (
         f"mass matrix M(q) = d2T/dqd2 of {system.name} is singular or not "
@@ -118,7 +114,7 @@ def mass_message(system: LagrangianSystem, q, params_eigs) -> str:
     )
 
 
-def finite_derivatives(system: LagrangianSystem, out, q, qd, params, tau, t, what: str):
+def finite_derivatives(system: Energies, out, q, qd, params, tau, t, what: str):
     """`out` if every array in it is finite, else the error `forward_dynamics` would
     raise there (eagerly), or a `NonFiniteError` (under `jit`, at run time)."""
     ok = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree_util.tree_leaves(out)]))
@@ -136,7 +132,7 @@ def finite_derivatives(system: LagrangianSystem, out, q, qd, params, tau, t, wha
     return out
 
 
-def eager_forward_dynamics(system: LagrangianSystem, t, q, qd, params, tau):
+def eager_forward_dynamics(system: Energies, t, q, qd, params, tau):
     """`LagrangianSystem.forward_dynamics` of concrete inputs: `q̈`, or the error that
     names the cause (non-finite inputs, a bad `M(q)` or energies, else the applied
     forces)."""
@@ -159,6 +155,6 @@ def eager_forward_dynamics(system: LagrangianSystem, t, q, qd, params, tau):
 
 
 @eqx.filter_jit
-def _energy_and_mass(system: LagrangianSystem, q, qd, params, t):
+def _energy_and_mass(system: Energies, q, qd, params, t):
     """`(T + V, M)` at one state: one compiled call for `check_state`."""
     return system.energy(q, qd, params, t=t), system.mass_matrix(q, params, qd, t=t)

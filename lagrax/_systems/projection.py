@@ -4,8 +4,6 @@ on `φ(q) = 0` in the kinetic metric, then the `M`-orthogonal projection of `q̇
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -15,17 +13,15 @@ from .._core.checks import finite, traced
 from .._core.errors import ConstraintError
 from . import derivatives as d
 from .constraint_checks import rank_message
+from .interfaces import Constrained
 from .kkt import solve_kkt
-
-if TYPE_CHECKING:
-    from .constrained import ConstrainedSystem
 
 # Newton iterations to project a state onto φ(q) = 0 (quadratic convergence: a start
 # within the basin needs a handful).
 PROJECTION_ITERS = 30
 
 
-def project_state(system: ConstrainedSystem, q, qd, params):
+def project_state(system: Constrained, q, qd, params):
     """Project `(q, q̇)` onto `φ = 0`, `J q̇ = 0`, `A q̇ = 0` without raising.
 
     Returns `(q, q̇, ok)`; when `ok` is false, the returned state is the
@@ -71,7 +67,7 @@ def project_state(system: ConstrainedSystem, q, qd, params):
     return jnp.where(ok, q1, q0), jnp.where(ok, qd1, qd0), ok
 
 
-def project(system: ConstrainedSystem, q, qd, params):
+def project(system: Constrained, q, qd, params):
     """`ConstrainedSystem.project` of checked 1-D arrays (documented there)."""
     q, qd = system._state(q, qd)
     if traced(system, q, qd, params):
@@ -91,7 +87,7 @@ def project(system: ConstrainedSystem, q, qd, params):
     return q1, qd1
 
 
-def projection_message(system: ConstrainedSystem, q, params) -> str:
+def projection_message(system: Constrained, q, params) -> str:
     """Why a state could not be projected: a rank-deficient `K`, else no convergence."""
     head = f"could not project the state of {system.name} onto its constraints"
     rank = rank_message(system, q, params)
@@ -109,5 +105,5 @@ def projection_message(system: ConstrainedSystem, q, params) -> str:
 
 
 @eqx.filter_jit
-def _project_jit(system: ConstrainedSystem, q, qd, params):
+def _project_jit(system: Constrained, q, qd, params):
     return project_state(system, q, qd, params)

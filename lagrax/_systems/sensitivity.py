@@ -69,7 +69,7 @@ class InverseDynamicsDerivatives(eqx.Module):
 _ONE_STATE_LAPACK_ABOVE = 3  # below, the written-out inverse compiles as fast
 
 
-def _jacobian_wrt_params(fn, params: Params) -> Any:
+def jacobian_wrt_params(fn, params: Params) -> Any:
     """`∂fn/∂params` leaf by leaf (forward mode; leaves that are not inexact arrays get
     `None`), each of shape `(n, *leaf.shape)`."""
     dynamic, static = eqx.partition(params, eqx.is_inexact_array)
@@ -103,7 +103,7 @@ def forward(
         jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
     dparams = None
     if wrt_params:
-        dparams = _jacobian_wrt_params(
+        dparams = jacobian_wrt_params(
             lambda p: implicit.accelerations(e, scalar, t, q, qd, p, tau), params
         )
     n = q.shape[0]
@@ -151,7 +151,7 @@ def inverse(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params: Params, w
     jq, jqd, mass = implicit.residual_jacobians(e, scalar, t, q, qd, qdd, params)
     dparams = None
     if wrt_params:
-        dparams = _jacobian_wrt_params(lambda p: implicit.residual(e, t, q, qd, qdd, p), params)
+        dparams = jacobian_wrt_params(lambda p: implicit.residual(e, t, q, qd, qdd, p), params)
     return InverseDynamicsDerivatives(tau, jq, jqd, mass, dparams)
 
 
@@ -168,5 +168,5 @@ def forward_by_jacobian(accelerations, q, qd, tau, params: Params, wrt_params: b
     dtau = jax.vmap(lin, in_axes=(1, 1, 1), out_axes=1)(zero, zero, eye)
     dparams = None
     if wrt_params:
-        dparams = _jacobian_wrt_params(lambda p: accelerations(q, qd, tau, p), params)
+        dparams = jacobian_wrt_params(lambda p: accelerations(q, qd, tau, p), params)
     return ForwardDynamicsDerivatives(qdd, dq, dqd, dtau, dparams)

@@ -25,7 +25,7 @@ def urdf_path(name: str) -> Path:
 
 
 def _load(name: str) -> tuple[LagrangianSystem, dict]:
-    from .._multibody.urdf import from_urdf
+    from .._multibody.formats.urdf import from_urdf
 
     tree, params = from_urdf(urdf_path(name))
     return tree.system(), params

@@ -10,9 +10,10 @@ A [`Tree`][lagrax.chains.Tree] holds the *structure* (joint types, the parent of
 axes, fixed joint rotations, names, limits); the numbers a sweep may vary (masses, joint
 placements, centres of mass, inertias, damping, g) live in `params` as arrays with a
 leading axis of length `n`, as for chains. Its energies are one batched
-[`SpatialBody`][lagrax.bodies.SpatialBody]; its equations are Featherstone's recursions run over
-parents (`lagrax._multibody.recursions`); [`lagrax.newton_euler.rnea`][] reads its structure
-for the independent oracle. [`lagrax.chains.from_urdf`][] builds one from a URDF file.
+[`SpatialBody`][lagrax.bodies.SpatialBody]; its equations are Featherstone's recursions
+run over parents (`lagrax._multibody.algorithms.recursions`);
+[`lagrax.newton_euler.rnea`][] reads its structure for the independent oracle.
+[`lagrax.chains.from_urdf`][] builds one from a URDF file.
 """
 
 import abc
@@ -26,16 +27,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import param_shapes, physical
-from .._core.custom_types import Params, Vector
-from .._core.errors import ConfigurationError, ShapeError
-from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, SpatialBody
-from .common import broadcast, float_dtype, rotation_tuple, unit_vector
-from .inertia import check_inertia
-from .joints import joint_constants, parse_joint_types, revolute
-from .recursions import Chain
-from .scene import Scene
+from ..._core.checks import param_shapes, physical
+from ..._core.custom_types import Params, Vector
+from ..._core.errors import ConfigurationError, ShapeError
+from ..._systems.lagrangian import LagrangianSystem
+from ..algorithms.recursions import Chain
+from ..common import broadcast, float_dtype, rotation_tuple, unit_vector
+from ..energies.bodies import Param, SpatialBody
+from ..energies.scene import Scene
+from ..inertia import check_inertia
+from ..joints import joint_constants, parse_joint_types, revolute
 from .tree_equations import (
     AbstractArticulated,
     ChainEquations,
@@ -43,6 +44,7 @@ from .tree_equations import (
     spatial_chain,
     spatial_energies,
 )
+from .tree_fields import joint_limits_of, mimic_entries, names_of, positive_bounds
 
 
 def _joint_damping(q, qd, params):
@@ -65,71 +67,6 @@ class _CoupledDamping(eqx.Module):
 
     def __call__(self, q, qd, params):
         return _joint_damping(q, self.tree.joint_rates(qd), params)
-
-
-def _names(values: Any, n: int, default: str, what: str) -> tuple[str, ...]:
-    if values is None:
-        return tuple(f"{default}{i}" for i in range(n))
-    out = tuple(str(v) for v in values)
-    if len(out) != n:
-        raise ConfigurationError(f"{n} joints need {n} {what}, got {len(out)}")
-    if len(set(out)) != n:
-        raise ConfigurationError(f"{what} must be distinct, got {out}")
-    return out
-
-
-def _limits(values: Any, n: int) -> tuple[tuple[float, float], ...]:
-    if values is None:
-        return tuple((-math.inf, math.inf) for _ in range(n))
-    arr = np.asarray(values, float)
-    if arr.size == 0:  # no pairs (a tree with no joints)
-        arr = arr.reshape(0, 2)
-    if arr.shape != (n, 2) or np.any(np.isnan(arr)) or np.any(arr[:, 0] > arr[:, 1]):
-        raise ConfigurationError(f"limits must be {n} pairs (lower <= upper), got {values!r}")
-    return tuple((float(lo), float(hi)) for lo, hi in arr)
-
-
-def _bounds(values: Any, n: int, what: str) -> tuple[float, ...]:
-    if values is None:
-        return (math.inf,) * n
-    arr = np.broadcast_to(np.asarray(values, float), (n,))
-    if np.any(~(arr > 0)):
-        raise ConfigurationError(f"{what} must be positive (inf: none), got {values!r}")
-    return tuple(float(x) for x in arr)
-
-
-def _mimic(values: Any, n: int) -> tuple[tuple[int, int, float, float], ...]:
-    """Mimic entries `(body, master, multiplier, offset)`, sorted by body and checked."""
-    if not values:
-        return ()
-    items = [(b, *v) for b, v in values.items()] if isinstance(values, dict) else list(values)
-    out = []
-    for item in items:
-        try:
-            body, master, multiplier, offset = item
-            body, master = int(body), int(master)
-            multiplier, offset = float(multiplier), float(offset)
-        except (TypeError, ValueError):
-            raise ConfigurationError(
-                f"a mimic entry is (body, master, multiplier, offset), got {item!r}"
-            ) from None
-        if not (0 <= body < n and 0 <= master < n) or body == master:
-            raise ConfigurationError(
-                f"mimic entry {item!r}: body and master must be two different bodies 0..{n - 1}"
-            )
-        if not (math.isfinite(multiplier) and math.isfinite(offset)):
-            raise ConfigurationError(f"mimic entry {item!r}: multiplier and offset must be finite")
-        out.append((body, master, multiplier, offset))
-    bodies = [b for b, *_ in out]
-    if len(set(bodies)) != len(bodies):
-        raise ConfigurationError(f"mimic: a body mimics two joints, got {values!r}")
-    for body, master, *_ in out:
-        if master in bodies:
-            raise ConfigurationError(
-                f"mimic: body {body}'s master {master} is itself a mimic; give the master "
-                "at the end of the chain (compose the multipliers and offsets)"
-            )
-    return tuple(sorted(out))
 
 
 # Forward kinematics of a chain longer than this may loop (``lax.scan``) over its joints
@@ -359,12 +296,12 @@ class AbstractTree(AbstractArticulated):
     def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
         """World joint axes, motion subspaces and body inertias at the joint angles `q`
         of all bodies (`θ`: the coordinates for a tree without mimic joints; see
-        `lagrax._multibody.tree_equations.spatial_chain`)."""
+        `lagrax._multibody.articulated.tree_equations.spatial_chain`)."""
         return spatial_chain(self, q, params, scan)
 
     def link_energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         """`(T, V)` by one outward pass in link frames at the joint angles and rates of
-        all bodies (see `lagrax._multibody.tree_equations.spatial_energies`)."""
+        all bodies (see `lagrax._multibody.articulated.tree_equations.spatial_energies`)."""
         return spatial_energies(self, q, qd, params)
 
     def _check_moves(self) -> None:
@@ -540,12 +477,12 @@ class Tree(AbstractTree):
         self.joint_types = types
         self.parents = parents
         self.axes, self.rotations, self.up = structure(types, axes, rotations, up)
-        self.joint_names = _names(joint_names, n, "joint", "joint_names")
-        self.body_names = _names(body_names, n, "body", "body_names")
-        self.limits = _limits(limits, n)
-        self.velocity_limits = _bounds(velocity_limits, n, "velocity_limits")
-        self.effort_limits = _bounds(effort_limits, n, "effort_limits")
-        self.mimic = _mimic(mimic, n)
+        self.joint_names = names_of(joint_names, n, "joint", "joint_names")
+        self.body_names = names_of(body_names, n, "body", "body_names")
+        self.limits = joint_limits_of(limits, n)
+        self.velocity_limits = positive_bounds(velocity_limits, n, "velocity_limits")
+        self.effort_limits = positive_bounds(effort_limits, n, "effort_limits")
+        self.mimic = mimic_entries(mimic, n)
 
     def params(
         self,

@@ -14,10 +14,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import is_traced, physical
-from .._core.custom_types import Params, Point, Rotation, Scalar, Vector
-from .._core.errors import ShapeError
-from .common import (
+from ..._core.checks import is_traced, physical
+from ..._core.custom_types import Params, Point, Rotation, Scalar, Vector
+from ..._core.errors import ShapeError
+from ..common import (
     batch,
     check_shape,
     dot_last,
@@ -29,7 +29,7 @@ from .common import (
     value,
     vee,
 )
-from .inertia import check_inertia
+from ..inertia import check_inertia
 
 ParamLike = Any
 """A parameter-valued field: a constant (number or array), or a callable `params -> value`

@@ -44,27 +44,27 @@ joints' configuration block is zero.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import abc
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._core.blocking import blocked
-from .._core.checks import finite, traced
-from .._systems.dynamics_derivatives import _program, _state_space
-from .._systems.lagrangian_checks import finite_derivatives, float_arrays
-from .._systems.sensitivity import (
+from ..._core.blocking import blocked
+from ..._core.checks import finite, traced
+from ..._core.custom_types import Params
+from ..._systems.abstract import AbstractSystem
+from ..._systems.dynamics_derivatives import choose_program, state_space
+from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
+from ..._systems.sensitivity import (
     ForwardDynamicsDerivatives,
     InverseDynamicsDerivatives,
-    _jacobian_wrt_params,
     by_solves,
+    jacobian_wrt_params,
 )
-from . import derivative_recursions as dr
-from . import floating_recursions as fr
-
-if TYPE_CHECKING:
-    from .floating import FloatingBaseSystem
+from ..algorithms import derivative_recursions as dr
+from ..algorithms import floating_recursions as fr
 
 
 def retract(q: Any, delta: Any) -> jnp.ndarray:
@@ -83,7 +83,7 @@ def twist_adjoint(twist: Any) -> jnp.ndarray:
     return jnp.block([[w, v], [jnp.zeros_like(w), w]])
 
 
-def _inverse_jacobians(system: FloatingBaseSystem, q, v, vdot, params):
+def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
     """`(τ, ∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`: the analytic
     recursion with a free root (`derivative_recursions.free_root_derivatives`), reduced
     to the coordinates for mimic joints, with the joint damping's `∂τ/∂v`; a lone rigid
@@ -114,20 +114,20 @@ def _inverse_jacobians(system: FloatingBaseSystem, q, v, vdot, params):
     return tau + system._damping(params, v), jq, jv + damping, mass
 
 
-def _forward_body(system: FloatingBaseSystem, t, q, v, params, tau, wrt_params: bool):
+def _forward_body(system: FloatingDerivatives, t, q, v, params, tau, wrt_params: bool):
     vdot = system.accelerations(t, q, v, params, tau)
     _, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
     dparams = None
     if wrt_params:
-        dparams = _jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
+        dparams = jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
     return by_solves(vdot, jq, jv, mass, dparams)
 
 
-def _inverse_body(system: FloatingBaseSystem, t, q, v, vdot, params, wrt_params: bool):
+def _inverse_body(system: FloatingDerivatives, t, q, v, vdot, params, wrt_params: bool):
     tau, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
     dparams = None
     if wrt_params:
-        dparams = _jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
+        dparams = jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
     return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
 
 
@@ -136,12 +136,12 @@ _inverse_program = eqx.filter_jit(_inverse_body)
 
 
 def forward_dynamics_derivatives(
-    system: FloatingBaseSystem, q, qd, params, tau, t, wrt_params: bool
+    system: FloatingDerivatives, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`FloatingBaseSystem.forward_dynamics_derivatives` (documented there)."""
     q, v, tau = finite_inputs(system, "tau", *system._inputs(q, qd=qd, tau=tau))
     tau = jnp.zeros_like(v) if tau is None else tau
-    program, eager = _program(system, _forward, _forward_body, q, v, tau, params, t)
+    program, eager = choose_program(system, _forward, _forward_body, q, v, tau, params, t)
     out = blocked(program)(
         system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -149,18 +149,18 @@ def forward_dynamics_derivatives(
 
 
 def inverse_dynamics_derivatives(
-    system: FloatingBaseSystem, q, qd, qdd, params, t, wrt_params: bool
+    system: FloatingDerivatives, q, qd, qdd, params, t, wrt_params: bool
 ) -> InverseDynamicsDerivatives:
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
     q, v, vdot = finite_inputs(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
-    program, eager = _program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
+    program, eager = choose_program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
     out = blocked(program)(
         system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params
     )
     return finite_derivatives(system, out, q, v, params, None, t, "inverse_dynamics")
 
 
-def finite_inputs(system: FloatingBaseSystem, third: str, q, v, w):
+def finite_inputs(system: FloatingDerivatives, third: str, q, v, w):
     """The inputs, checked finite: a NaN in the base's position, which the dynamics do
     not read, would otherwise pass unnoticed. Eagerly a `NonFiniteError` naming the
     input; traced, through `equinox.error_if`."""
@@ -178,10 +178,140 @@ def finite_inputs(system: FloatingBaseSystem, third: str, q, v, w):
 
 
 def linearize(
-    system: FloatingBaseSystem, q_eq, qd_eq, params, tau_eq, t
+    system: FloatingDerivatives, q_eq, qd_eq, params, tau_eq, t
 ) -> tuple[jax.Array, jax.Array]:
     """`FloatingBaseSystem.linearize` (documented there): `(A, B)`."""
     out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
     (v,) = system._inputs(q_eq, qd=qd_eq)[1:]
-    a_mat, b_mat = _state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
+    a_mat, b_mat = state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
     return a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype))), b_mat
+
+
+class FloatingDerivatives(AbstractSystem):
+    """The derivatives calls of a floating-base system, on the tangent space of its
+    configuration: the interface [`FloatingBaseSystem`][lagrax.chains.FloatingBaseSystem]
+    implements (its recursions, `_at`, and the reductions by the mimic map), below it so
+    that the system imports its derivatives and not the other way round."""
+
+    robot: eqx.AbstractVar[Any]
+
+    @abc.abstractmethod
+    def _inputs(self, q: Any, **velocities: Any) -> list[Any]: ...
+
+    @abc.abstractmethod
+    def _at(self, q: Any, params: Params) -> fr.FloatingChain: ...
+
+    @abc.abstractmethod
+    def _full(self, v: Any) -> Any: ...
+
+    @abc.abstractmethod
+    def _mass(self, fc: fr.FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]: ...
+
+    @abc.abstractmethod
+    def _coupling(self, dtype: Any) -> jnp.ndarray: ...
+
+    @abc.abstractmethod
+    def _inverse(self, q: Any, v: Any, vdot: Any, params: Params) -> jnp.ndarray: ...
+
+    @abc.abstractmethod
+    def _damping(self, params: Params, v: Any) -> jnp.ndarray: ...
+
+    def forward_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        params: Params,
+        tau: Any = None,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> ForwardDynamicsDerivatives:
+        r"""`v̇` and its derivatives at one state, in one call (Pinocchio's
+        `computeABADerivatives` on a free-flyer model, the same numbers).
+
+        The derivatives with respect to the configuration are on its tangent space:
+        along `q ⊕ δ` (Pinocchio's `integrate`: the base moved by the twist
+        `δ[:6] = (δ_v, δ_ω)` in its own frame, the joints by `δ[6:]`), so `dq` is
+        `(6 + n) × (6 + n)`, not `(6 + n) × (7 + n)`. From the inverse dynamics at the
+        primal `v̇`:
+
+        $$
+        \frac{∂v̇}{∂q} = −M⁻¹ \frac{∂τ}{∂q}, \qquad
+        \frac{∂v̇}{∂v} = −M⁻¹ \frac{∂τ}{∂v}, \qquad \frac{∂v̇}{∂τ} = M⁻¹.
+        $$
+
+        **Arguments:** `q` `(7 + n,)`, `qd` = `v` `(6 + n,)`, `params`, `tau`
+        `(6 + n,)` (default zero), the time `t` (unused: the equations are autonomous),
+        and `wrt_params=True` to add `∂v̇/∂params`.
+
+        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives]
+        (`qdd` = `v̇`, `dq`, `dqd`, `dtau`, `dparams`).
+
+        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
+        or results, `MassMatrixError` for a mass matrix that is not positive-definite
+        (under `jit`, a `NonFiniteError` through `equinox.error_if`).
+        """
+        return forward_dynamics_derivatives(self, q, qd, params, tau, t, wrt_params)
+
+    def inverse_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        params: Params,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> InverseDynamicsDerivatives:
+        """`τ = M v̇ + b + ∂D/∂v` and its derivatives at one state, in one call
+        (Pinocchio's `computeRNEADerivatives` on a free-flyer model): `∂τ/∂q` on the
+        tangent space of the configuration (along `q ⊕ δ`, as
+        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives]),
+        `∂τ/∂v`, `∂τ/∂v̇ = M` and, with `wrt_params=True`, `∂τ/∂params`.
+
+        **Arguments:** `q` `(7 + n,)`, `qd` = `v` and `qdd` = `v̇` `(6 + n,)`,
+        `params`, the time `t` (unused), `wrt_params`.
+
+        **Returns:** an [`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives].
+
+        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
+        or results.
+        """
+        return inverse_dynamics_derivatives(self, q, qd, qdd, params, t, wrt_params)
+
+    def linearize(
+        self,
+        q_eq: Any,
+        qd_eq: Any,
+        params: Params,
+        tau_eq: Any = None,
+        *,
+        t: Any = 0.0,
+    ) -> tuple[jax.Array, jax.Array]:
+        r"""Linearization `δẋ = A δx + B δτ` on the tangent space, about
+        `(q_eq, v_eq, τ_eq)`.
+
+        The configuration is `q = q_eq ⊕ δ` (Pinocchio's `integrate`) and the state
+        `x = (δ, v)`, of size `2(6 + n)`. The base's twist is `V = J_r(δ) δ̇` (`J_r` the
+        right Jacobian of `SE(3)`'s exponential), so `δ̇ = V − ½ ad_V δ + O(δ²)`:
+
+        $$
+        A = \begin{pmatrix} −½\,\mathrm{ad}_{V_{eq}} ⊕ 0 & I \\
+        ∂v̇/∂q & ∂v̇/∂v \end{pmatrix}, \qquad
+        B = \begin{pmatrix} 0 \\ M⁻¹ \end{pmatrix},
+        $$
+
+        with `ad_V = [[ω×, v×], [0, ω×]]` for the base's `V = (v, ω)` (a zero block
+        for a base at rest, and for the joints). `τ`'s first six entries act on the
+        base: keep the columns of the inputs a robot has (`B[:, 6:]` for a free robot
+        with every joint driven).
+
+        **Arguments:** `q_eq` `(7 + n,)`, `qd_eq` = `v_eq` `(6 + n,)`, `params`, `tau_eq`
+        (default zero), `t` (unused).
+
+        **Returns:** `(A, B)`, shapes `(2(6 + n), 2(6 + n))` and `(2(6 + n), 6 + n)`.
+
+        **Raises:** as
+        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives].
+        """
+        return linearize(self, q_eq, qd_eq, params, tau_eq, t)

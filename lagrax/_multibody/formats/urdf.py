@@ -12,330 +12,17 @@ name the link or joint at fault.
 import math
 import os
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import ParameterError, URDFError, URDFWarning
-from .common import about_centres, float_dtype, steiner
-from .inertia import check_inertia
-from .limits import with_limits
-from .trees import Tree
-
-_MOVING = {"revolute": "R", "continuous": "R", "prismatic": "P"}
-_UNSUPPORTED = {
-    "floating": "a floating joint is not supported yet (lagrax trees are fixed to the world)",
-    "planar": "planar joints are not supported (model them as two prismatic joints and a "
-    "revolute one)",
-}
-
-
-def rpy_matrix(rpy: Any) -> np.ndarray:
-    """URDF's fixed-axis roll–pitch–yaw: `R = Rz(yaw) Ry(pitch) Rx(roll)`."""
-    r, p, y = (float(v) for v in rpy)
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(r),
-        math.sin(r),
-        math.cos(p),
-        math.sin(p),
-        *(
-            math.cos(y),
-            math.sin(y),
-        ),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-@dataclass
-class _Inertial:
-    mass: float
-    com: np.ndarray  # in the link frame
-    inertia: np.ndarray  # about the centre of mass, in the link frame
-
-
-@dataclass
-class _Joint:
-    name: str
-    kind: str
-    parent: str
-    child: str
-    xyz: np.ndarray
-    rot: np.ndarray
-    axis: np.ndarray
-    limits: tuple[float, float] = (-math.inf, math.inf)
-    velocity: float = math.inf
-    effort: float = math.inf
-    damping: float = 0.0
-    mimic: tuple[str, float, float] | None = None  # (master joint, multiplier, offset)
-
-
-@dataclass
-class _Body:
-    """A moving body: one moving joint and every link fixed to its child link."""
-
-    joint: _Joint
-    parent: int
-    rot: np.ndarray  # the joint's fixed rotation in the parent body's frame
-    offset: np.ndarray  # the joint's position in the parent body's frame
-    mass: float = 0.0
-    moment: np.ndarray = field(default_factory=lambda: np.zeros(3))  # Σ m c
-    inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))  # about origin
-
-
-def _floats(element: ET.Element | None, attr: str, default: Any, n: int, where: str):
-    if element is None or element.get(attr) is None:
-        return default
-    text = element.get(attr, "")
-    try:
-        values = [float(v) for v in text.split()]
-    except ValueError:
-        values = []
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise URDFError(f"{where}: <{element.tag} {attr}={text!r}> must be {n} finite number(s)")
-    return values[0] if n == 1 else np.asarray(values)
-
-
-def _origin(element: ET.Element, where: str) -> tuple[np.ndarray, np.ndarray]:
-    origin = element.find("origin")
-    xyz = _floats(origin, "xyz", np.zeros(3), 3, where)
-    rpy = _floats(origin, "rpy", np.zeros(3), 3, where)
-    return np.asarray(xyz, float), rpy_matrix(rpy)
-
-
-def _inertial(link: ET.Element, strict: bool = False, check: bool = True) -> _Inertial | None:
-    """A link's `<inertial>` (`None`: it has none), checked: a negative mass, an
-    `<inertia>` that is not symmetric positive-semidefinite are errors; one that violates
-    the triangle inequality is a `URDFWarning` (an error with `strict`). `check=False`:
-    the `<inertia>` as given (a link merged into a floating base, whose sum is checked)."""
-    name = link.get("name")
-    where = f"link {name!r}"
-    inertial = link.find("inertial")
-    if inertial is None:
-        return None
-    mass_el = inertial.find("mass")
-    if mass_el is None or mass_el.get("value") is None:
-        raise URDFError(f"{where}: <inertial> has no <mass value=...>")
-    mass = _floats(mass_el, "value", None, 1, where)
-    if mass < 0:
-        raise URDFError(f"{where}: mass {mass:g} is negative; masses must be positive")
-    xyz, rot = _origin(inertial, where)
-    el = inertial.find("inertia")
-    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-    if el is None or any(el.get(k) is None for k in keys):
-        raise URDFError(
-            f"{where}: <inertial> needs <inertia ixx= ixy= ixz= iyy= iyz= izz=> (all six)"
-        )
-    ixx, ixy, ixz, iyy, iyz, izz = (_floats(el, k, None, 1, where) for k in keys)
-    tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    if np.max(np.abs(tensor)) <= _POINT * max(mass, 1.0):
-        # round-off around a point mass (`ixx="0" ... ixz="1.35525e-20"`, or -5.4e-20 on
-        # the diagonal): its inertia about the centre of mass is zero
-        tensor = np.zeros((3, 3))
-    if not check:
-        return _Inertial(mass, xyz, rot @ tensor @ rot.T)
-    try:  # semidefinite: a point mass or a slender rod is physical
-        check_inertia(
-            tensor, name=f"{where} <inertia>", semidefinite=True, rtol=_RTOL, triangle=strict
-        )
-    except ParameterError as err:
-        raise URDFError(f"{err} (in the URDF's <inertial> of {where})") from None
-    _warn_triangle(tensor, where, _RTOL)
-    return _Inertial(mass, xyz, rot @ tensor @ rot.T)
-
-
-_RTOL = 1e-6  # of a link's <inertia> checks, relative to its largest principal moment
-_POINT = 1e-12  # kg m² per kg (at least 1 kg): an <inertia> this small is a point mass's
-
-
-def _warn_triangle(tensor: np.ndarray, where: str, rtol: float) -> None:
-    """A `URDFWarning` naming the link if its principal moments violate `I1 + I2 ≥ I3`
-    by more than `rtol` of `I3` (CAD exports and hand-edited files often do, by a
-    little; Pinocchio accepts them, MuJoCo refuses them unless told to balance them)."""
-    i1, i2, i3 = np.linalg.eigvalsh(tensor)
-    if i1 + i2 < i3 - rtol * max(i3, 0.0):
-        warnings.warn(
-            f"{where}: its <inertia> violates the triangle inequality of principal moments, "
-            f"I1 + I2 = {i1 + i2:.6g} < I3 = {i3:.6g} (short by {(i3 - i1 - i2) / i3:.2%} of "
-            "I3): no rigid body has these moments. Loaded as given (the dynamics stay "
-            "defined: the inertia is positive-semidefinite); pass strict_inertia=True to "
-            "refuse such a file",
-            URDFWarning,
-            stacklevel=4,
-        )
-
-
-def _joint(element: ET.Element, links: dict) -> _Joint:
-    name = element.get("name")
-    if not name:
-        raise URDFError("a <joint> has no name attribute")
-    where = f"joint {name!r}"
-    kind = element.get("type")
-    if kind in _UNSUPPORTED:
-        raise URDFError(f"{where} has type {kind!r}: {_UNSUPPORTED[kind]}")
-    if kind not in (*_MOVING, "fixed"):
-        raise URDFError(
-            f"{where} has unknown type {kind!r}; URDF joints are revolute, continuous, "
-            "prismatic, fixed (and floating, planar: not supported)"
-        )
-    ends = []
-    for tag in ("parent", "child"):
-        el = element.find(tag)
-        link = None if el is None else el.get("link")
-        if link is None:
-            raise URDFError(f"{where} has no <{tag} link=...>")
-        if link not in links:
-            raise URDFError(f"{where}: its {tag} link {link!r} is not a <link> of the robot")
-        ends.append(link)
-    xyz, rot = _origin(element, where)
-    axis = np.asarray(_floats(element.find("axis"), "xyz", np.array([1.0, 0, 0]), 3, where))
-    if kind in _MOVING and np.linalg.norm(axis) == 0:
-        raise URDFError(f"{where}: its <axis xyz> is the zero vector")
-    joint = _Joint(name, kind, ends[0], ends[1], xyz, rot, axis)
-    mimic = element.find("mimic")
-    if mimic is not None and kind != "fixed":
-        master = mimic.get("joint")
-        if not master:
-            raise URDFError(f"{where}: its <mimic> has no joint=... (the joint it follows)")
-        multiplier = float(_floats(mimic, "multiplier", 1.0, 1, where))
-        offset = float(_floats(mimic, "offset", 0.0, 1, where))
-        joint.mimic = (master, multiplier, offset)
-    limit = element.find("limit")
-    if limit is not None and kind != "fixed":
-        if kind != "continuous":
-            lower = _floats(limit, "lower", 0.0, 1, where)
-            upper = _floats(limit, "upper", 0.0, 1, where)
-            if lower > upper:
-                raise URDFError(f"{where}: <limit lower={lower:g}> exceeds upper={upper:g}")
-            joint.limits = (lower, upper) if lower < upper else (-math.inf, math.inf)
-        velocity = _floats(limit, "velocity", math.inf, 1, where)
-        effort = _floats(limit, "effort", math.inf, 1, where)
-        joint.velocity = velocity if velocity > 0 else math.inf
-        joint.effort = effort if effort > 0 else math.inf
-    damping = _floats(element.find("dynamics"), "damping", 0.0, 1, where)
-    if damping < 0:
-        raise URDFError(f"{where}: <dynamics damping={damping:g}> is negative")
-    joint.damping = damping
-    return joint
-
-
-_XACRO = ("{http://www.ros.org/wiki/xacro}", "{http://wiki.ros.org/xacro}", "xacro:")
-
-
-def _parse(text: str) -> tuple[dict, list[_Joint]]:
-    try:
-        robot = ET.fromstring(text)
-    except ET.ParseError as err:
-        if "xacro:" in text:
-            raise URDFError(
-                f"not a URDF but a xacro file (XML with xacro macros): {err}; expand it into "
-                "a robot first: `xacro robot.urdf.xacro > robot.urdf`"
-            ) from None
-        raise URDFError(f"malformed URDF (not well-formed XML): {err}") from None
-    if robot.tag != "robot":
-        raise URDFError(f"a URDF's top element is <robot>, got <{robot.tag}>")
-    for el in robot.iter():
-        if isinstance(el.tag, str) and el.tag.startswith(_XACRO):
-            what = el.tag.rsplit("}", 1)[-1].removeprefix("xacro:")
-            label = f" name={el.get('name')!r}" if el.get("name") else ""
-            raise URDFError(
-                f"not a URDF but a xacro file: it contains <xacro:{what}{label}>, a xacro "
-                "macro, not a robot. Expand it into a robot first (`xacro robot.urdf.xacro "
-                "> robot.urdf`, with the macro called)"
-            )
-    links: dict[str, ET.Element] = {}
-    for link in robot.findall("link"):
-        name = link.get("name")
-        if not name:
-            raise URDFError("a <link> has no name attribute")
-        if name in links:
-            raise URDFError(f"link {name!r} is defined twice")
-        links[name] = link
-    if not links:
-        hint = (
-            " (an empty <robot> that declares the xacro namespace: xacro's output from a "
-            "file of macros that no robot calls)"
-            if "xacro" in text
-            else ""
-        )
-        raise URDFError(f"the URDF has no <link>: its <robot> describes no robot{hint}")
-    joints = [_joint(el, links) for el in robot.findall("joint")]
-    names = [j.name for j in joints]
-    for name in names:
-        if names.count(name) > 1:
-            raise URDFError(f"joint {name!r} is defined twice")
-    return links, joints
-
-
-def _structure(links: dict, joints: list[_Joint], root: str | None) -> tuple[str, dict, dict]:
-    """The root link, each link's parent joint and each link's child joints (file order);
-    refuses a link with two parents, a loop, and an ambiguous root."""
-    parent_of: dict[str, _Joint] = {}
-    children: dict[str, list[_Joint]] = {name: [] for name in links}
-    for j in joints:
-        if j.child in parent_of:
-            raise URDFError(
-                f"link {j.child!r} has two parents (joints {parent_of[j.child].name!r} and "
-                f"{j.name!r}): a URDF is a tree, closed loops are not allowed"
-            )
-        if j.child == j.parent:
-            raise URDFError(f"joint {j.name!r} connects link {j.child!r} to itself")
-        parent_of[j.child] = j
-        children[j.parent].append(j)
-    for start in links:  # every link has at most one parent: follow them
-        seen, link = {start}, start
-        while link in parent_of:
-            link = parent_of[link].parent
-            if link in seen:
-                raise URDFError(
-                    f"the joints form a loop through link {link!r} (joint "
-                    f"{parent_of[link].name!r}): a URDF is a tree"
-                )
-            seen.add(link)
-    roots = [name for name in links if name not in parent_of]
-    if root is None:
-        if len(roots) > 1:
-            raise URDFError(f"the URDF has several root links {roots}: pick one with root=...")
-        root = roots[0]
-    elif root not in links:
-        raise URDFError(f"root={root!r} is not a link of the robot (links: {list(links)})")
-    return root, parent_of, children
-
-
-def _keep(root: str, tip: str | None, links: dict, parent_of: dict, children: dict) -> set:
-    """Links kept: all below `root`; with a `tip`, the path root → tip and every link
-    fixed to a link of that path (moving branches off the path are dropped)."""
-    if tip is None:
-        out, stack = set(), [root]
-        while stack:
-            link = stack.pop()
-            out.add(link)
-            stack.extend(j.child for j in children[link])
-        return out
-    if tip not in links:
-        raise URDFError(f"tip={tip!r} is not a link of the robot (links: {list(links)})")
-    path, link = [tip], tip
-    while link != root:
-        if link not in parent_of:
-            raise URDFError(f"tip link {tip!r} is not below root link {root!r}")
-        link = parent_of[link].parent
-        path.append(link)
-    out, stack = set(path), list(path)
-    while stack:
-        for j in children[stack.pop()]:
-            if j.kind == "fixed" and j.child not in out:
-                out.add(j.child)
-                stack.append(j.child)
-    return out
+from ..._core.errors import URDFError, URDFWarning
+from ..articulated.trees import Tree
+from ..common import about_centres, float_dtype, steiner
+from ..limits import with_limits
+from .urdf_elements import MOVING, Body, JointElement, keep_links, parse, read_inertial, structure
 
 
 def from_urdf(
@@ -478,10 +165,10 @@ def from_urdf(
     panda, params = lagrax.chains.from_urdf(panda_urdf, locked={"panda_finger_joint1": 0.0})
     ```
     """
-    links, joints = _parse(_read(source))
+    links, joints = parse(_read(source))
     _lock(joints, locked)
-    root, parent_of, children = _structure(links, joints, root)
-    keep = _keep(root, tip, links, parent_of, children)
+    root, parent_of, children = structure(links, joints, root)
+    keep = keep_links(root, tip, links, parent_of, children)
     bodies, place, order = _place_bodies(root, keep, children)
     if not bodies and not floating_base:
         raise URDFError(
@@ -495,9 +182,9 @@ def from_urdf(
     if not massless_links and bodies:
         _check_mass_matrix(tree, params, bodies)
     if floating_base:
-        from .floating import base_from_urdf
+        from ..floating.loading import base_from_urdf
 
-        robot, params = base_from_urdf(tree, params, place, order, links, root, _inertial)
+        robot, params = base_from_urdf(tree, params, place, order, links, root, read_inertial)
         return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
     return with_limits(tree, params, limits, restitution)
 
@@ -517,7 +204,7 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
 
 
-def _lock(joints: list[_Joint], locked: Mapping[str, float] | None) -> None:
+def _lock(joints: list[JointElement], locked: Mapping[str, float] | None) -> None:
     """Turn every `locked` joint (and every mimic joint of a locked master, at
     `a · value + b`) into a fixed joint whose transform includes its motion by the value:
     a revolute joint's rotation `S Rot(axis, value)`, a prismatic one's origin
@@ -558,14 +245,14 @@ def _lock(joints: list[_Joint], locked: Mapping[str, float] | None) -> None:
     for name, v in values.items():
         j = by_name[name]
         axis = j.axis / np.linalg.norm(j.axis)
-        if _MOVING[j.kind] == "R":
+        if MOVING[j.kind] == "R":
             j.rot = j.rot @ _axis_rotation(axis, v)
         else:
             j.xyz = j.xyz + j.rot @ axis * v
         j.kind, j.mimic = "fixed", None
 
 
-def _mimic_map(bodies: list["_Body"], joints: list[_Joint]) -> tuple:
+def _mimic_map(bodies: list["Body"], joints: list[JointElement]) -> tuple:
     """`(body, master body, multiplier, offset)` of every body on a mimic joint, a chain
     of mimics followed to its end: `θ = a (a' θ'' + b') + b`."""
     index = {b.joint.name: i for i, b in enumerate(bodies)}
@@ -613,15 +300,15 @@ def _mimic_map(bodies: list["_Body"], joints: list[_Joint]) -> tuple:
 _Place = dict[str, tuple[int, np.ndarray, np.ndarray]]
 
 
-def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _Place, list[str]]:
+def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[Body], _Place, list[str]]:
     """One body per moving joint below `root`, depth-first (pre-order: a parent before
     its children) in file order, and every kept link's place `(body index, R, p)`: its
     frame in its body's frame (body −1: the world; a link on a fixed joint is placed in
     the body it is fixed to)."""
-    bodies: list[_Body] = []
+    bodies: list[Body] = []
     place: _Place = {}
     order: list[str] = []
-    stack: list[tuple[str, _Joint | None]] = [(root, None)]
+    stack: list[tuple[str, JointElement | None]] = [(root, None)]
     while stack:
         link, j = stack.pop()
         if j is None:
@@ -632,7 +319,7 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _P
             if j.kind == "fixed":
                 place[link] = (body, joint_rot, joint_pos)
             else:
-                bodies.append(_Body(j, body, joint_rot, joint_pos))
+                bodies.append(Body(j, body, joint_rot, joint_pos))
                 place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))
         order.append(link)
         stack.extend((c.child, c) for c in reversed(children[link]) if c.child in keep)
@@ -640,7 +327,7 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[_Body], _P
 
 
 def _merge_inertials(
-    bodies: list[_Body], place: _Place, order: list[str], links: dict, strict: bool
+    bodies: list[Body], place: _Place, order: list[str], links: dict, strict: bool
 ) -> None:
     """Add every link's `<inertial>` to its body: the mass, the first moment and the
     inertia about the body's origin (parallel-axis theorem); links fixed to the world are
@@ -650,7 +337,7 @@ def _merge_inertials(
         body, rot, pos = place[link]
         if body < 0:
             continue  # fixed to the world
-        inertial = _inertial(links[link], strict)
+        inertial = read_inertial(links[link], strict)
         if inertial is None:
             continue
         c = pos + rot @ inertial.com
@@ -662,15 +349,15 @@ def _merge_inertials(
 
 
 def _tree_and_params(
-    bodies: list[_Body], mimic: tuple, up: Any, g: float, dtype: Any
+    bodies: list[Body], mimic: tuple, up: Any, g: float, dtype: Any
 ) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] of the merged bodies and its params: each body's
     centre of mass and its inertia about it from the sums (the triangle inequality was
-    checked link by link: `_inertial`)."""
+    checked link by link: `read_inertial`)."""
     masses, coms, inertias = about_centres(bodies)
     joint_list = [b.joint for b in bodies]
     tree = Tree(
-        "".join(_MOVING[j.kind] for j in joint_list),
+        "".join(MOVING[j.kind] for j in joint_list),
         [b.parent for b in bodies],
         axes=[j.axis for j in joint_list],
         rotations=[b.rot for b in bodies],
@@ -691,7 +378,7 @@ def _tree_and_params(
         g=g,
         dtype=float_dtype(dtype),
     )
-    # The links' inertias were checked one by one (`_inertial`: semidefinite, and the
+    # The links' inertias were checked one by one (`read_inertial`: semidefinite, and the
     # triangle inequality warned about); the bodies' are their sums by the parallel-axis
     # theorem, so a second check here could only trip on round-off (a point-mass link:
     # moments of 1e-20 about its centre of mass) or repeat a warning as an error.
@@ -707,7 +394,7 @@ _SINGULAR_RTOL = 1e-9
 
 def _mass_matrix(tree: Tree, params: dict, q: np.ndarray) -> np.ndarray:
     """`M(q) = Jᵀ M_θ J` in NumPy by the composite-rigid-body algorithm (world frame,
-    the same conventions as `lagrax._multibody.recursions`)."""
+    the same conventions as `lagrax._multibody.algorithms.recursions`)."""
     big_a, big_b, big_c, slide = tree.joint_constants()
     k, a, b = tree.coupling()
     theta = q[k] * a + b
@@ -756,7 +443,7 @@ def _singular_pivot(mass: np.ndarray) -> tuple[int, float] | None:
     return None
 
 
-def _check_mass_matrix(tree: Tree, params: dict, bodies: list[_Body]) -> None:
+def _check_mass_matrix(tree: Tree, params: dict, bodies: list[Body]) -> None:
     """A `URDFError` naming the joint if `M` is singular at two random configurations
     (structurally singular: a joint moving no mass); a configuration-dependent
     singularity (a gimbal lock of massless links) is generically missed by both."""

@@ -31,10 +31,10 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.errors import MJCFError
-from .common import about_centres, float_dtype, steiner
-from .limits import with_limits
-from .trees import Tree
+from ..._core.errors import MJCFError
+from ..articulated.trees import Tree
+from ..common import about_centres, float_dtype, steiner
+from ..limits import with_limits
 
 # mujoco.mjtJoint: free, ball, slide, hinge
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
@@ -345,7 +345,7 @@ def _free_body(model, names: _Names) -> int | None:
 def _floating(tree: Tree, params: dict, base: "_Body"):
     """The [`FloatingTree`][lagrax.chains.FloatingTree] on `base` (the free body, with
     the bodies welded to it) and its params."""
-    from .floating import on_base
+    from ..floating.loading import on_base
 
     if not base.mass > 0:
         raise MJCFError(
@@ -479,7 +479,7 @@ def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict
 
 
 def _rotation(quat_xyzw: Any) -> jnp.ndarray:
-    from .floating_recursions import quaternion_rotation
+    from ..algorithms.floating_recursions import quaternion_rotation
 
     return quaternion_rotation(quat_xyzw)
 

@@ -8,9 +8,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from .._core.custom_types import Params, Scalar, Vector
+from ..._core.custom_types import Params, Scalar, Vector
+from ..common import coordinate, dot_last, point, small_sum, squared_norm, value
 from .bodies import ParamLike, PointFn
-from .common import coordinate, dot_last, point, small_sum, squared_norm, value
 
 
 class AbstractSpring(eqx.Module):

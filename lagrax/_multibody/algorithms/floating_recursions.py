@@ -5,7 +5,7 @@ joints…)` (the base origin in the world frame and the unit quaternion of the b
 rotation `R`, world from base) and `v = (v_b, ω_b, joint rates…)` with `v_b` the velocity
 of the base origin and `ω_b` the base's angular velocity, both in the base frame.
 
-The recursions of `lagrax._multibody.recursions` work in world coordinates at the world
+The recursions of `lagrax._multibody.algorithms.recursions` work in world coordinates at the world
 origin. There the base moves with the spatial velocity `v_B = S_B (v_b, ω_b)`, with the
 motion subspace of the root, the identity in the base's own frame, written in world
 coordinates:
@@ -42,10 +42,10 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import param_shapes
+from ..._core.checks import param_shapes
+from ..joints import revolute_flags
 from . import recursions as a
-from .joints import revolute_flags
-from .tree_equations import UNROLL_MAX_SPATIAL, _spatial_link, joint_trig
+from .links import UNROLL_MAX_SPATIAL, joint_trig, spatial_link
 
 
 def quaternion_rotation(quat: Any) -> jnp.ndarray:
@@ -148,7 +148,7 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
         rev = revolute_flags(tree.joint_types)
         values = (jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m"))
         per_link = (joint_trig(joints), big_a, big_b, big_c, slide, axes, rev, *values)
-        _, ys = passes.run(_spatial_link, (_tuples(rot), _tuples(p)), passes.links(per_link))
+        _, ys = passes.run(spatial_link, (_tuples(rot), _tuples(p)), passes.links(per_link))
         s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], dtype)
     a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in tree.up)

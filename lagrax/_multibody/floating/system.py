@@ -13,20 +13,17 @@ joints. Its coordinates are exactly Pinocchio's free-flyer convention
 The configuration's rate is then not the velocity but `q̇ = N(q) v`:
 `ṗ = R v_b`, `q̇_quat = ½ q_quat ⊗ (ω_b, 0)`, joint angles' rates the joint rates
 ([`configuration_rate`][lagrax.AbstractSystem.configuration_rate]). The equations are
-Featherstone's recursions with a free root (`lagrax._multibody.floating_recursions`).
+Featherstone's recursions with a free root (`lagrax._multibody.algorithms.floating_recursions`).
 """
 
-import math
-import warnings
 from typing import Any
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.blocking import blocked
-from .._core.checks import (
+from ..._core.blocking import blocked
+from ..._core.checks import (
     coords,
     eager_only,
     finite,
@@ -35,16 +32,15 @@ from .._core.checks import (
     physical,
     traced,
 )
-from .._core.custom_types import Params
-from .._core.errors import MassMatrixError, NonFiniteError, ShapeError, URDFError, URDFWarning
-from .._core.linalg import cholesky_solve
-from .._systems.abstract import AbstractSystem
-from .._systems.sensitivity import ForwardDynamicsDerivatives, InverseDynamicsDerivatives
-from . import floating_derivatives
-from . import floating_recursions as fr
-from .common import broadcast, float_dtype, steiner
-from .inertia import check_inertia
-from .trees import Tree
+from ..._core.custom_types import Params
+from ..._core.errors import MassMatrixError, NonFiniteError, ShapeError
+from ..._core.linalg import cholesky_solve
+from ..algorithms import floating_recursions as fr
+from ..articulated.trees import Tree
+from ..common import broadcast, float_dtype
+from ..inertia import check_inertia
+from . import derivatives as floating_derivatives
+from .derivatives import FloatingDerivatives
 
 BASE_VELOCITY_NAMES = ("base_vx", "base_vy", "base_vz", "base_wx", "base_wy", "base_wz")
 BASE_POSE_NAMES = ("base_x", "base_y", "base_z", "base_qx", "base_qy", "base_qz", "base_qw")
@@ -56,7 +52,7 @@ class FloatingTree(eqx.Module):
 
     The base is body `−1` of the tree (the bodies with parent `−1` hang from it; their
     joint `offset` and `rotations` are in the base frame). Its pose and velocity are
-    Pinocchio's free-flyer coordinates (see `lagrax._multibody.floating`): `q` of size
+    Pinocchio's free-flyer coordinates (see `lagrax._multibody.floating.system`): `q` of size
     `7 + n` (position, quaternion `(x, y, z, w)`, joints) and `v` of size `6 + n` (base
     linear and angular velocity in the base frame, joint rates).
 
@@ -156,7 +152,7 @@ def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
     return jnp.concatenate([jnp.zeros(6, v.dtype), rates])
 
 
-class FloatingBaseSystem(AbstractSystem):
+class FloatingBaseSystem(FloatingDerivatives):
     r"""The equations of motion of a [`FloatingTree`][lagrax.chains.FloatingTree]:
 
     $$
@@ -384,111 +380,6 @@ class FloatingBaseSystem(AbstractSystem):
             "configuration q is not finite",
         )
 
-    # ------------------------------------------------------------------ derivatives
-    def forward_dynamics_derivatives(
-        self,
-        q: Any,
-        qd: Any,
-        params: Params,
-        tau: Any = None,
-        t: Any = 0.0,
-        *,
-        wrt_params: bool = False,
-    ) -> ForwardDynamicsDerivatives:
-        r"""`v̇` and its derivatives at one state, in one call (Pinocchio's
-        `computeABADerivatives` on a free-flyer model, the same numbers).
-
-        The derivatives with respect to the configuration are on its tangent space:
-        along `q ⊕ δ` (Pinocchio's `integrate`: the base moved by the twist
-        `δ[:6] = (δ_v, δ_ω)` in its own frame, the joints by `δ[6:]`), so `dq` is
-        `(6 + n) × (6 + n)`, not `(6 + n) × (7 + n)`. From the inverse dynamics at the
-        primal `v̇`:
-
-        $$
-        \frac{∂v̇}{∂q} = −M⁻¹ \frac{∂τ}{∂q}, \qquad
-        \frac{∂v̇}{∂v} = −M⁻¹ \frac{∂τ}{∂v}, \qquad \frac{∂v̇}{∂τ} = M⁻¹.
-        $$
-
-        **Arguments:** `q` `(7 + n,)`, `qd` = `v` `(6 + n,)`, `params`, `tau`
-        `(6 + n,)` (default zero), the time `t` (unused: the equations are autonomous),
-        and `wrt_params=True` to add `∂v̇/∂params`.
-
-        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives]
-        (`qdd` = `v̇`, `dq`, `dqd`, `dtau`, `dparams`).
-
-        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
-        or results, `MassMatrixError` for a mass matrix that is not positive-definite
-        (under `jit`, a `NonFiniteError` through `equinox.error_if`).
-        """
-        return floating_derivatives.forward_dynamics_derivatives(
-            self, q, qd, params, tau, t, wrt_params
-        )
-
-    def inverse_dynamics_derivatives(
-        self,
-        q: Any,
-        qd: Any,
-        qdd: Any,
-        params: Params,
-        t: Any = 0.0,
-        *,
-        wrt_params: bool = False,
-    ) -> InverseDynamicsDerivatives:
-        """`τ = M v̇ + b + ∂D/∂v` and its derivatives at one state, in one call
-        (Pinocchio's `computeRNEADerivatives` on a free-flyer model): `∂τ/∂q` on the
-        tangent space of the configuration (along `q ⊕ δ`, as
-        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives]),
-        `∂τ/∂v`, `∂τ/∂v̇ = M` and, with `wrt_params=True`, `∂τ/∂params`.
-
-        **Arguments:** `q` `(7 + n,)`, `qd` = `v` and `qdd` = `v̇` `(6 + n,)`,
-        `params`, the time `t` (unused), `wrt_params`.
-
-        **Returns:** an [`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives].
-
-        **Raises:** `ShapeError` for wrong sizes; `NonFiniteError` for non-finite inputs
-        or results.
-        """
-        return floating_derivatives.inverse_dynamics_derivatives(
-            self, q, qd, qdd, params, t, wrt_params
-        )
-
-    def linearize(
-        self,
-        q_eq: Any,
-        qd_eq: Any,
-        params: Params,
-        tau_eq: Any = None,
-        *,
-        t: Any = 0.0,
-    ) -> tuple[jax.Array, jax.Array]:
-        r"""Linearization `δẋ = A δx + B δτ` on the tangent space, about
-        `(q_eq, v_eq, τ_eq)`.
-
-        The configuration is `q = q_eq ⊕ δ` (Pinocchio's `integrate`) and the state
-        `x = (δ, v)`, of size `2(6 + n)`. The base's twist is `V = J_r(δ) δ̇` (`J_r` the
-        right Jacobian of `SE(3)`'s exponential), so `δ̇ = V − ½ ad_V δ + O(δ²)`:
-
-        $$
-        A = \begin{pmatrix} −½\,\mathrm{ad}_{V_{eq}} ⊕ 0 & I \\
-        ∂v̇/∂q & ∂v̇/∂v \end{pmatrix}, \qquad
-        B = \begin{pmatrix} 0 \\ M⁻¹ \end{pmatrix},
-        $$
-
-        with `ad_V = [[ω×, v×], [0, ω×]]` for the base's `V = (v, ω)` (a zero block
-        for a base at rest, and for the joints). `τ`'s first six entries act on the
-        base: keep the columns of the inputs a robot has (`B[:, 6:]` for a free robot
-        with every joint driven).
-
-        **Arguments:** `q_eq` `(7 + n,)`, `qd_eq` = `v_eq` `(6 + n,)`, `params`, `tau_eq`
-        (default zero), `t` (unused).
-
-        **Returns:** `(A, B)`, shapes `(2(6 + n), 2(6 + n))` and `(2(6 + n), 6 + n)`.
-
-        **Raises:** as
-        [`forward_dynamics_derivatives`][lagrax.chains.FloatingBaseSystem.forward_dynamics_derivatives].
-        """
-        return floating_derivatives.linearize(self, q_eq, qd_eq, params, tau_eq, t)
-
     # ------------------------------------------------------------------ energies, momentum
     def center_of_mass(self, q: Any, params: Params) -> jnp.ndarray:
         """The whole robot's centre of mass in the world frame, shape `(3,)`."""
@@ -602,59 +493,3 @@ def _potential(
     up = jnp.asarray(robot.tree.up, total.dtype)
     g = jnp.asarray(params["g"], total.dtype)
     return g * total[3, 3] * (up @ (_com(total) + position))
-
-
-def base_from_urdf(
-    tree: Tree, params: dict, place: dict, order: list, links: dict, root: str, inertial: Any
-) -> tuple[FloatingTree, dict]:
-    """`from_urdf(..., floating_base=True)`: the base is the root link with every link
-    fixed to it (merged by the parallel-axis theorem, as the tree's bodies are)."""
-    mass, moment, inertia_o = 0.0, np.zeros(3), np.zeros((3, 3))
-    for link in order:
-        body, rot, pos = place[link]
-        if body >= 0:
-            continue
-        try:
-            part = inertial(links[link])
-        except URDFError as err:  # checked on the merged base below
-            part = inertial(links[link], check=False)
-            warnings.warn(
-                f"link {link!r} (fixed to the floating base {root!r}): {err}; merged into "
-                "the base as given (the base's merged inertia is checked)",
-                URDFWarning,
-                stacklevel=3,
-            )
-        if part is None:
-            continue
-        c = pos + rot @ part.com
-        mass += part.mass
-        moment = moment + part.mass * c
-        inertia_o = inertia_o + rot @ part.inertia @ rot.T
-        inertia_o = inertia_o + steiner(part.mass, c)
-    if not mass > 0 or not math.isfinite(mass):
-        raise URDFError(
-            f"root link {root!r} (with the links fixed to it) has mass {mass:g}: a floating "
-            "base needs a positive mass; give it an <inertial>"
-        )
-    com = moment / mass
-    inertia = inertia_o - steiner(mass, com)
-    inertia = 0.5 * (inertia + inertia.T)
-    return on_base(tree, params, (mass, com, inertia), root, f"link {root!r}")
-
-
-def on_base(
-    tree: Tree, params: dict, base: tuple, name: str, what: str
-) -> tuple[FloatingTree, dict]:
-    """The [`FloatingTree`][lagrax.chains.FloatingTree] of `tree` on a base named `name`
-    whose `(mass, com, inertia)` (the inertia about the centre of mass, base frame) a
-    loader merged, and `params` plus `base_m`, `base_com`, `base_inertia` (the inertia
-    checked, named `what` in its error)."""
-    mass, com, inertia = base
-    dtype = params["m"].dtype
-    out = dict(params)
-    out["base_m"] = jnp.asarray(mass, dtype)
-    out["base_com"] = jnp.asarray(com, dtype)
-    out["base_inertia"] = check_inertia(
-        jnp.asarray(inertia, dtype)[None], name=f"{what} inertia", semidefinite=True
-    )[0]
-    return FloatingTree(tree, base_name=name), out

@@ -1,28 +1,51 @@
 """Chains' and trees' structure-aware equations: what the recursions need of a chain
 or a tree (`AbstractArticulated`), their kinematics as a `recursions.Chain`, and
 `ChainEquations`, which their `LagrangianSystem` evaluates instead of differentiating
-its energies (see `lagrax._multibody.recursions`)."""
+its energies (see `lagrax._multibody.algorithms.recursions`)."""
 
 import abc
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.blocking import BLOCK
-from .._core.checks import param_shapes
-from .._core.custom_types import Params
-from .._core.errors import ShapeError
-from .._core.linalg import cholesky_solve
-from .._systems.derivatives import AbstractEquations
-from . import recursions as a
-from .derivative_recursions import rnea_derivatives
-from .joints import revolute_flags
+from ..._core.blocking import BLOCK
+from ..._core.checks import param_shapes
+from ..._core.custom_types import Params
+from ..._core.errors import ShapeError
+from ..._core.linalg import cholesky_solve
+from ..._systems.derivatives import AbstractEquations
+from ..algorithms import recursions as a
+from ..algorithms.derivative_recursions import rnea_derivatives
+from ..algorithms.links import UNROLL_MAX_SPATIAL, joint_trig, spatial_link
+from ..joints import revolute_flags
 
-if TYPE_CHECKING:
-    from .trees import AbstractTree
+
+class TreeStructure(Protocol):
+    """What the equations read of a spatial chain or tree (an
+    [`AbstractTree`][lagrax.chains.AbstractTree], which is defined above this module):
+    its structure, all static, and the parameter check."""
+
+    n: int
+    joint_types: str
+    parents: tuple[int, ...]
+    axes: tuple[tuple[float, float, float], ...]
+    up: tuple[float, float, float]
+
+    @property
+    def n_bodies(self) -> int: ...
+
+    def joint_constants(self) -> Any: ...
+
+    def coupling_matrix(self) -> np.ndarray: ...
+
+    def joint_angles(self, q) -> Any: ...
+
+    def joint_rates(self, qd) -> Any: ...
+
+    def _check_params(self, params: Params) -> None: ...
 
 
 class AbstractArticulated(eqx.Module):
@@ -64,7 +87,6 @@ def _check(n: int, q) -> None:
 # structural zeros: fastest to run); longer ones loop over the links with ``lax.scan``,
 # whose compile time does not grow with n.
 UNROLL_MAX_PLANAR = 3
-UNROLL_MAX_SPATIAL = 2
 
 
 def _planar_link(carry, x):
@@ -91,38 +113,6 @@ def planar_chain(n: int, q, params: Params, scan: bool | None = None) -> a.Chain
     return a.Chain(passes, a.PLANAR, s, inertia, (0.0, 0.0, g))
 
 
-def joint_trig(q) -> tuple[jnp.ndarray, jnp.ndarray, jnp.ndarray]:
-    """`(q, sin q, 1 − cos q)` of joint angles `(n,)`, for `_spatial_link`: computed for
-    all joints at once, before a pass (XLA would otherwise repeat the sine and the cosine
-    in every fused loop that reads them, up to nine times a joint)."""
-    return q, jnp.sin(q), 1 - jnp.cos(q)
-
-
-def _spatial_link(carry, x):
-    rot, origin = carry
-    (q, sn, cs), big_a, big_b, big_c, slide, axis, rev, offset, com, inertia, m = x
-    origin = a.vadd(origin, a.matvec(rot, a.vadd(offset, a.vscale(slide, q))))
-    joint = tuple(
-        tuple(
-            a.add(big_a[r][k], a.add(a.mul(sn, big_b[r][k]), a.mul(cs, big_c[r][k])))
-            for k in range(3)
-        )
-        for r in range(3)
-    )
-    cols = tuple(zip(*joint, strict=True))
-    rot = tuple(tuple(a.dot(row, col) for col in cols) for row in rot)
-    z = a.matvec(rot, axis)
-    prismatic = a.sub(1.0, rev)
-    s = a.vscale(z, rev) + a.vadd(a.vscale(a.cross(origin, z), rev), a.vscale(z, prismatic))
-    centre = a.vadd(origin, a.matvec(rot, com))
-    r_bar = [a.matvec(inertia, row) for row in rot]  # rows of R Ī (Ī symmetric)
-    world = [[None] * 3 for _ in range(3)]
-    for r_ in range(3):
-        for k in range(r_, 3):
-            world[r_][k] = world[k][r_] = a.dot(r_bar[r_], rot[k])
-    return (rot, origin), (s, a.spatial_inertia(m, tuple(map(tuple, world)), centre))
-
-
 def _energy_link(carry, x):
     # In link frames: the angular velocity w, the velocity v of the link origin and the
     # `up` direction, each carried from the parent through the joint rotation J (`Jᵀ`),
@@ -141,7 +131,7 @@ def _energy_link(carry, x):
 
 
 def spatial_energies(
-    chain: "AbstractTree", q, qd, params: Params
+    chain: TreeStructure, q, qd, params: Params
 ) -> tuple[jnp.ndarray, jnp.ndarray]:
     """`(T, V)` of a spatial chain or tree by one outward pass in link frames:
     `ω_i = J_iᵀ ω_p + a_i q̇_i`, the origin's velocity `v_i = J_iᵀ (v_p + ω_p × d_i +
@@ -182,7 +172,7 @@ def spatial_energies(
     return jnp.sum(kinetic), jnp.sum(potential)
 
 
-def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = None) -> a.Chain:
+def spatial_chain(chain: TreeStructure, q, params: Params, scan: bool | None = None) -> a.Chain:
     """A spatial chain or tree (a [`Tree`][lagrax.chains.Tree]: body `i` hangs from
     body `parents[i]`, and every pass runs over parents): world joint axes
     `z_i = R_i axis_i` through the joint origins `o_i`, `S_i = (z_i, o_i × z_i)`
@@ -199,7 +189,7 @@ def spatial_chain(chain: "AbstractTree", q, params: Params, scan: bool | None = 
     values = (jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m"))
     per_link = (joint_trig(q), big_a, big_b, big_c, slide, axes, rev, *values)
     eye = tuple(tuple(1.0 if i == j else 0.0 for j in range(3)) for i in range(3))
-    _, ys = passes.run(_spatial_link, (eye, (0.0, 0.0, 0.0)), passes.links(per_link))
+    _, ys = passes.run(spatial_link, (eye, (0.0, 0.0, 0.0)), passes.links(per_link))
     s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], q.dtype)
     a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in chain.up)
@@ -259,7 +249,7 @@ class ChainEquations(AbstractEquations):
 
     def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
         """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`, analytically in
-        `O(n²)` (see `lagrax._multibody.derivative_recursions`)."""
+        `O(n²)` (see `lagrax._multibody.algorithms.derivative_recursions`)."""
         return _derivatives_of(self.at(q, params), q, qd, qdd)
 
     def accelerations_and_derivatives(self, q, qd, params: Params, force):
@@ -294,7 +284,7 @@ class CoupledEquations(AbstractEquations):
     `q̇`. `q̈` by a Cholesky solve of the reduced `M` (NaN where it is not positive),
     since the articulated-body algorithm needs independent joints."""
 
-    chain: "AbstractTree"  # structure only (static fields)
+    chain: TreeStructure  # structure only (static fields)
 
     scan: bool | None = eqx.field(default=None, static=True)
 

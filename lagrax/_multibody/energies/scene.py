@@ -3,11 +3,11 @@
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._core.custom_types import Params, Scalar, Vector
-from .._core.errors import ArgumentTypeError, ConfigurationError
-from .._systems.lagrangian import DissipationFn, ForceFn, KineticFn, LagrangianSystem, PotentialFn
+from ..._core.custom_types import Params, Scalar, Vector
+from ..._core.errors import ArgumentTypeError, ConfigurationError
+from ..._systems.lagrangian import DissipationFn, ForceFn, KineticFn, LagrangianSystem, PotentialFn
+from ..common import value
 from .bodies import AbstractBody, ParamLike, PlanarBody, PointMass, SpatialBody
-from .common import value
 from .forces import (
     AbstractDamper,
     AbstractSpring,
@@ -16,6 +16,7 @@ from .forces import (
     TorsionalDamper,
     TorsionalSpring,
 )
+from .scene_equations import SceneEquations
 
 
 def _check_members(items, kind, name: str) -> None:
@@ -157,8 +158,6 @@ class Scene(eqx.Module):
             scalar = False
         equations = None
         if self._use_poses():
-            from .scene_equations import SceneEquations
-
             equations = SceneEquations(self)
         return LagrangianSystem(
             self.kinetic_energy,

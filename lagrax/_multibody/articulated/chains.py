@@ -14,16 +14,16 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import physical
-from .._core.custom_types import Params, Vector
-from .._core.errors import ConfigurationError, ShapeError
-from .._systems.lagrangian import LagrangianSystem
-from .bodies import Param, PlanarBody, SpatialBody
-from .common import broadcast, float_dtype
-from .inertia import check_inertia
-from .joints import parse_joint_types
-from .recursions import Chain
-from .scene import Scene
+from ..._core.checks import physical
+from ..._core.custom_types import Params, Vector
+from ..._core.errors import ConfigurationError, ShapeError
+from ..._systems.lagrangian import LagrangianSystem
+from ..algorithms.recursions import Chain
+from ..common import broadcast, float_dtype
+from ..energies.bodies import Param, PlanarBody, SpatialBody
+from ..energies.scene import Scene
+from ..inertia import check_inertia
+from ..joints import parse_joint_types
 from .tree_equations import AbstractArticulated, ChainEquations
 from .tree_equations import planar_chain as planar_articulated
 from .trees import UNROLL_MAX, AbstractTree, structure
@@ -182,7 +182,7 @@ class PlanarChain(AbstractArticulated):
 
     def articulated(self, q, params: Params, scan: bool | None = None) -> Chain:
         """Motion subspaces and link inertias at `q` (see
-        `lagrax._multibody.tree_equations.planar_chain`)."""
+        `lagrax._multibody.articulated.tree_equations.planar_chain`)."""
         self._check_params(params)
         return planar_articulated(self.n, q, params, scan)
 

@@ -22,18 +22,18 @@ matrix. The gravity and spring forces `G = ∂V/∂q` are one reverse-mode gradi
 `V`. These equal the autodiff Lagrangian of the same energies to round-off (tested).
 """
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
 
-from .._core.custom_types import Params
-from .._core.errors import ConfigurationError, ShapeError
-from .._core.linalg import cholesky_solve
-from .._systems.derivatives import AbstractEquations
+from ..._core.custom_types import Params
+from ..._core.errors import ConfigurationError, ShapeError
+from ..._core.linalg import cholesky_solve
+from ..._systems.derivatives import AbstractEquations
+from ..common import batch, per_item, value
 from .bodies import AbstractBody
-from .common import batch, per_item, value
-from .scene import Scene
 
 
 def _body_terms(body: AbstractBody, q, qd, params: Params, with_bias: bool):
@@ -64,12 +64,25 @@ def _body_terms(body: AbstractBody, q, qd, params: Params, with_bias: bool):
     return body.rotation_terms(mass, bias, (prim[1], j_o, vel[1], acc[1]), params, q.dtype)
 
 
+class PoseScene(Protocol):
+    """What [`SceneEquations`][] reads of a scene (a [`lagrax.bodies.Scene`][]): its
+    bodies, its potential energy, and that it has no hand-written kinetic energy."""
+
+    @property
+    def bodies(self) -> Sequence[AbstractBody]: ...
+
+    @property
+    def kinetic(self) -> Any: ...
+
+    def potential_energy(self, q, params: Params) -> Any: ...
+
+
 class SceneEquations(AbstractEquations):
     """The equations of a scene's `LagrangianSystem` from its bodies' pose maps (see the
     module docstring): `M` from one forward-mode Jacobian of the poses, the velocity
     products from one second-order forward derivative along `q̇`, `G = ∂V/∂q`."""
 
-    scene: Scene
+    scene: PoseScene
 
     def __check_init__(self):
         if self.scene.kinetic is not None:

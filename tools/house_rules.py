@@ -1,0 +1,124 @@
+"""The house rules no off-the-shelf linter checks, run by `.ci/run` and pre-commit.
+
+`lint-imports` (pyproject's `[tool.importlinter]`) holds the floors and forbids import
+circles; ruff holds the size of a function in statements and branches (`PLR0915`,
+`C901`); `deptry` holds the declared dependencies. What is left is checked here, on the
+syntax tree of every module of `lagrax/`:
+
+- **private names stay private**: no module imports another module's `_name` (a
+  function, class or constant). Importing a private *module* (`from .._core import
+  errors`, `from . import _rk4`) is how the wings are reached and is allowed.
+- **rooms stay small**: no module over `MAX_MODULE_LINES` lines.
+- **functions stay readable**: no function over `MAX_FUNCTION_LINES` code lines (its
+  lines less the docstring, comments and blank lines).
+
+Usage: `python tools/house_rules.py` prints each breach and exits 1 if there is any.
+"""
+
+from __future__ import annotations
+
+import ast
+import io
+import sys
+import tokenize
+from pathlib import Path
+
+MAX_MODULE_LINES = 600
+MAX_FUNCTION_LINES = 80
+PACKAGE = "lagrax"
+
+
+def _module_name(path: Path, root: Path) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _resolve(node: ast.ImportFrom, module: str, is_package: bool) -> str | None:
+    """The absolute module an `ImportFrom` reads from, or None outside the package."""
+    if node.level == 0:
+        name = node.module or ""
+        return name if name == PACKAGE or name.startswith(PACKAGE + ".") else None
+    base = module.split(".")
+    if not is_package:
+        base = base[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _is_module(name: str, root: Path) -> bool:
+    path = root.joinpath(*name.split("."))
+    return path.with_suffix(".py").exists() or (path / "__init__.py").exists()
+
+
+def private_imports(path: Path, tree: ast.Module, root: Path) -> list[str]:
+    module = _module_name(path, root)
+    out = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        source = _resolve(node, module, path.name == "__init__.py")
+        if source is None or source == module:
+            continue
+        for alias in node.names:
+            name = alias.name
+            if name.startswith("_") and not name.startswith("__"):
+                if not _is_module(f"{source}.{name}", root):
+                    out.append(f"{path}:{node.lineno}: imports the private name {source}.{name}")
+    return out
+
+
+def _code_lines(source: str, node: ast.AST) -> int:
+    """Lines of `node` that hold code: not blank, not only a comment, not its docstring."""
+    lines = set(range(node.lineno, node.end_lineno + 1))  # type: ignore[attr-defined]
+    body = getattr(node, "body", [])
+    if (
+        body
+        and isinstance(body[0], ast.Expr)
+        and isinstance(body[0].value, ast.Constant)
+        and isinstance(body[0].value.value, str)
+    ):
+        lines -= set(range(body[0].lineno, body[0].end_lineno + 1))  # type: ignore[operator]
+    code = set()
+    tokens = tokenize.generate_tokens(io.StringIO(source).readline)
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT}
+    for tok in tokens:
+        if tok.type not in skip:
+            code.update(range(tok.start[0], tok.end[0] + 1))
+    return len(lines & code)
+
+
+def long_functions(path: Path, tree: ast.Module, source: str) -> list[str]:
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            n = _code_lines(source, node)
+            if n > MAX_FUNCTION_LINES:
+                out.append(
+                    f"{path}:{node.lineno}: {node.name} has {n} code lines "
+                    f"(at most {MAX_FUNCTION_LINES})"
+                )
+    return out
+
+
+def main(argv: list[str]) -> int:
+    root = Path(argv[1]) if len(argv) > 1 else Path(__file__).resolve().parents[1]
+    breaches = []
+    for path in sorted((root / PACKAGE).rglob("*.py")):
+        source = path.read_text(encoding="utf-8")
+        tree = ast.parse(source, filename=str(path))
+        rel = path.relative_to(root)
+        n_lines = source.count("\n")
+        if n_lines > MAX_MODULE_LINES:
+            breaches.append(f"{rel}: {n_lines} lines (at most {MAX_MODULE_LINES})")
+        breaches += [b.replace(str(path), str(rel)) for b in private_imports(path, tree, root)]
+        breaches += [b.replace(str(path), str(rel)) for b in long_functions(path, tree, source)]
+    for line in breaches:
+        print(line)
+    print(f"house rules: {len(breaches)} breach(es)")
+    return 1 if breaches else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
