@@ -43,7 +43,7 @@ from .options import Kept, lanes_option, sweep_options, what_to_keep
 from .progress import progress_bar, progress_default
 from .result import ChunkResult
 from .store import SweepStore
-from .unused import read_params
+from .unused import refuse_unused
 
 
 def sweep(
@@ -244,7 +244,7 @@ def sweep(
     tdt = jnp.asarray(0.0, dtype).dtype
     tau_fn, tau_const = split_tau(system, tau, qd_probe)  # (one force per velocity)
     if not allow_unused:
-        _refuse_unused(system, tau_fn, tau_const, members)
+        refuse_unused(system, tau_fn, tau_const, members)
     final = isinstance(keep, str) and keep == "final"
     balance = final and _has_power(system, tau_fn, tau_const, members, t0)
     kept = what_to_keep(keep, n_save, t0, t1, balance)
@@ -254,6 +254,24 @@ def sweep(
         check_events(config.events, jnp.asarray(t0, tdt), q0s[0], qd0s[0], members.first())
         schedule = "lockstep"  # the lane queue has no event handling
     # --- chunks and devices: defaults from the device (see defaults)
+    where = (devices, client, checkpoint, store)
+    info, cut, runner, (ckpt, sink) = _placement(where, members, kept, chunk_size, n_lanes)
+    setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
+    times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
+    spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
+    # --- checkpoint: what defines the results (the fingerprint), and what is on disk
+    settings = _settings(t0, t1, kept, dt0_, members, keep, tau_const)
+    defined = [members.params_of(), q0s, qd0s]
+    fp = "" if ckpt is None and sink is None else fingerprint(setup, defined, settings)
+    run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
+    return _collect(system, runner, spec, (members, kept, cut), (ckpt, sink, fp), run, progress)
+
+
+def _placement(where: tuple, members: Members, kept: Kept, chunk_size, n_lanes) -> tuple:
+    """`(info, cut, runner, (checkpoint, store))`: the devices (or the Dask cluster's
+    worker threads), how the batch is cut into chunks and lanes (a resumed sweep keeps
+    the chunks on disk), and the function that runs the chunks."""
+    devices, client, checkpoint, store = where
     info = device_info(device_list(devices))
     lanes = lanes_option(n_lanes, chunk_size, info.count)
     ckpt = Path(checkpoint) if checkpoint is not None else None
@@ -270,13 +288,16 @@ def sweep(
         runner = functools.partial(_run, threads=cut.threads)
     else:
         runner = functools.partial(run_on_cluster, client)
-    setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
-    times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
-    spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
-    # --- checkpoint: what defines the results (the fingerprint), and what is on disk
-    settings = _settings(t0, t1, kept, dt0_, members, keep, tau_const)
-    defined = [members.params_of(), q0s, qd0s]
-    fp = "" if ckpt is None and sink is None else fingerprint(setup, defined, settings)
+    return info, cut, runner, (ckpt, sink)
+
+
+def _collect(system, runner, spec, batch: tuple, storage: tuple, run: dict, progress):
+    """Run the chunks and gather the result: written to the zarr store (which is the
+    checkpoint, the result staying on disk), or in memory, resuming from and writing to
+    the checkpoint directory when there is one."""
+    members, kept, cut = batch
+    ckpt, sink, fp = storage
+    q0s, qd0s = members.q0s, members.qd0s
     n_chunks = -(-members.size // cut.chunk_size)
     dof = dof_labels(system.coordinate_names, qd0s.shape[1])
     q_dof = (
@@ -284,7 +305,6 @@ def sweep(
         if q0s.shape[1] == qd0s.shape[1]
         else dof_labels(system.configuration_names, q0s.shape[1])
     )
-    run = _how_it_ran(config, rtol, atol, settings, schedule, info, cut)
     if sink is not None:  # the store is the checkpoint; the result stays on disk
         done = sink.prepare(fp, cut.chunk_size, members, n_chunks, dof, q_dof)
         runner(spec, members, dict.fromkeys(done), lambda c, r: sink.write(c, r, kept), progress)
@@ -518,50 +538,6 @@ def dof_labels(names: tuple[str, ...] | None, n: int) -> np.ndarray:
     if names is None or len(names) != n:
         return np.arange(n)
     return np.asarray(names, dtype=str)
-
-
-def _top_name(path: tuple) -> str:
-    """The top-level entry of `params` a leaf lies under (a dict key or a field)."""
-    return jtu.keystr(path[:1], simple=True) if path else jtu.keystr(path)
-
-
-def _refuse_unused(system, tau_fn, tau_const, members: Members) -> None:
-    """A `ConfigurationError` when a swept parameter is read by nothing the solve
-    evaluates (see `unused`): for a `Grid`, its swept names; for batched `params`, the
-    leaves whose values differ between members."""
-    member = members.first()
-    q, qd = jnp.asarray(members.q0s[0]), jnp.asarray(members.qd0s[0])
-    read = read_params(system, tau_fn, q, qd, member, tau_const)
-    if read is None:
-        return
-    paths = [path for path, _ in jtu.tree_flatten_with_path(member)[0]]
-    grid = members.grid
-    if grid is not None:
-        # a swept name is read when any leaf under it is
-        names = [_top_name(p) for p in paths]
-        names_read = {k for k, r in zip(names, read, strict=True) if r}
-        # an element `m[3]` is read when its parameter is
-        leaf = {k: grid.elements.get(k, (k,))[0] for k in grid.axes}
-        unused = [k for k in grid.axes if leaf[k] not in names_read and k not in grid.states]
-        all_names = list(dict.fromkeys(names))
-    else:
-        leaves = jtu.tree_leaves(members.params)
-        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in leaves]
-        names = ["params" + jtu.keystr(p) for p in paths]
-        unused = [k for k, r, v in zip(names, read, varies, strict=True) if v and not r]
-        names_read = {k for k, r in zip(names, read, strict=True) if r}
-        all_names = names
-    if not unused:
-        return
-    read_list = [k for k in all_names if k in names_read]
-    it = "it" if len(unused) == 1 else "them"
-    raise ConfigurationError(
-        f"the sweep varies {', '.join(unused)} but no energy, force, tau or constraint of "
-        f"the system reads {it}, so every member would give the same result (the system "
-        f"reads {', '.join(read_list) or 'no parameter'}). A misspelt name? Sweep a "
-        f"parameter the model reads, or pass allow_unused=True to sweep {it} anyway (e.g. "
-        "as a label)."
-    )
 
 
 def _is_state(x: Any) -> bool:

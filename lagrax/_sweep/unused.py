@@ -23,8 +23,11 @@ import jax
 import jax.extend.core as jcore
 import jax.numpy as jnp
 import jax.tree_util as jtu
+import numpy as np
 
+from .._core.errors import ConfigurationError
 from .._systems.vector_field import LagrangianVectorField
+from .grid import Members
 
 _CALL_KEYS = ("jaxpr", "call_jaxpr", "fun_jaxpr")
 _cache: dict[Any, tuple[bool, ...]] = {}
@@ -103,3 +106,47 @@ def read_params(system: Any, tau_fn: Any, q: Any, qd: Any, params: Any, tau: Any
             _cache.clear()
         _cache[key] = read
     return read
+
+
+def _top_name(path: tuple) -> str:
+    """The top-level entry of `params` a leaf lies under (a dict key or a field)."""
+    return jtu.keystr(path[:1], simple=True) if path else jtu.keystr(path)
+
+
+def refuse_unused(system, tau_fn, tau_const, members: Members) -> None:
+    """A `ConfigurationError` when a swept parameter is read by nothing the solve
+    evaluates (see `unused`): for a `Grid`, its swept names; for batched `params`, the
+    leaves whose values differ between members."""
+    member = members.first()
+    q, qd = jnp.asarray(members.q0s[0]), jnp.asarray(members.qd0s[0])
+    read = read_params(system, tau_fn, q, qd, member, tau_const)
+    if read is None:
+        return
+    paths = [path for path, _ in jtu.tree_flatten_with_path(member)[0]]
+    grid = members.grid
+    if grid is not None:
+        # a swept name is read when any leaf under it is
+        names = [_top_name(p) for p in paths]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        # an element `m[3]` is read when its parameter is
+        leaf = {k: grid.elements.get(k, (k,))[0] for k in grid.axes}
+        unused = [k for k in grid.axes if leaf[k] not in names_read and k not in grid.states]
+        all_names = list(dict.fromkeys(names))
+    else:
+        leaves = jtu.tree_leaves(members.params)
+        varies = [bool(np.any(np.asarray(x) != np.asarray(x)[:1])) for x in leaves]
+        names = ["params" + jtu.keystr(p) for p in paths]
+        unused = [k for k, r, v in zip(names, read, varies, strict=True) if v and not r]
+        names_read = {k for k, r in zip(names, read, strict=True) if r}
+        all_names = names
+    if not unused:
+        return
+    read_list = [k for k in all_names if k in names_read]
+    it = "it" if len(unused) == 1 else "them"
+    raise ConfigurationError(
+        f"the sweep varies {', '.join(unused)} but no energy, force, tau or constraint of "
+        f"the system reads {it}, so every member would give the same result (the system "
+        f"reads {', '.join(read_list) or 'no parameter'}). A misspelt name? Sweep a "
+        f"parameter the model reads, or pass allow_unused=True to sweep {it} anyway (e.g. "
+        "as a label)."
+    )
