@@ -112,8 +112,6 @@ def orbit_map(
     ds.max_multiplier.plot()   # over (slope, M); ds.stable.mean() is the stable share
     ```
     """
-    import xarray as xr
-
     unknown = set(options) - set(_OPTIONS)
     if unknown:
         raise ConfigurationError(
@@ -148,6 +146,15 @@ def orbit_map(
         first,
     )
     orbits = _solve_all(cfg, inp, period_of, x0s.astype(dtype), batched, int(batch_size))
+
+    return _map_dataset(system, members, orbits, inp)
+
+
+def _map_dataset(system: AbstractSystem, members: Members, orbits: Any, inp: Any):
+    """The stability map as a labelled `xarray.Dataset`: each member's orbit (NaN where
+    none was found), its multipliers and stability, how the search ended, and the
+    failures counted by kind."""
+    import xarray as xr
 
     shape = members.shape
     dims = list(members.dims)
