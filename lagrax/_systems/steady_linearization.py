@@ -197,8 +197,14 @@ def _body(system, t, q0, qd0, params, tau0, qi, ui):
         return jnp.concatenate([u[iq], qdd[iu]])
 
     x0 = jnp.concatenate([jnp.zeros((len(qi),), q0.dtype), qd0[iu]])
-    a_mat, b_mat = jax.jacfwd(rates, argnums=(0, 1))(x0, tau0)
-    return a_mat, b_mat, rates(x0, tau0)[len(qi) :]
+    n_x = x0.shape[0]
+    basis = jnp.eye(n_x + n, dtype=q0.dtype)
+
+    def along(tangent):  # one JVP per basis direction of (x, τ); the primal once
+        return jax.jvp(rates, (x0, tau0), (tangent[:n_x], tangent[n_x:]))
+
+    primal, cols = jax.vmap(along, out_axes=(None, 1))(basis)
+    return cols[:, :n_x], cols[:, n_x:], primal[len(qi) :]
 
 
 _compiled = eqx.filter_jit(_body)
