@@ -6,6 +6,8 @@ matrices and eigenvalues read off the general steady-motion linearization."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 
@@ -148,6 +150,7 @@ def benchmark_bicycle(**overrides) -> tuple[ConstrainedSystem, dict[str, jax.Arr
     body = SpatialBody(_masses, _inertias, _all_poses, None)
     gravity = lambda p: _vec(0.0, 0.0, p["g"])  # noqa: E731  (z down)
     free = Scene([body], gravity=gravity, n_dof=8, name="bicycle (four free bodies)").system()
+    free = dataclasses.replace(free, coordinate_names=COORDINATES)
     system = ConstrainedSystem(
         free, front_on_ground, velocity_constraints=rolling, name="benchmark bicycle"
     )
