@@ -101,6 +101,8 @@ def test_bad_independent_indices(four_bar_equilibrium):
         system.linearize(q, jnp.zeros(3), p, independent=[0, 1])
     with pytest.raises(lx.ConfigurationError, match="distinct indices"):
         system.linearize(q, jnp.zeros(3), p, independent=[5])
+    with pytest.raises(lx.ConfigurationError, match="tol must be"):
+        system.linearize(q, jnp.zeros(3), p, independent=[0], tol=0.0)
     with pytest.raises(lx.ConstraintError, match="not on its constraints"):
         system.linearize(q + 0.1, jnp.zeros(3), p, independent=[0])
 

@@ -34,6 +34,7 @@ import numpy as np
 from .._core.checks import finite, is_traced
 from .._core.closures import closes_over_tracers
 from .._core.errors import ConfigurationError, ConstraintError, LagraxError
+from .lagrangian_checks import float_arrays
 
 if TYPE_CHECKING:
     from .constrained import ConstrainedSystem
@@ -49,8 +50,11 @@ def steady_linearize(
     tau = jnp.zeros_like(q) if tau_op is None else system._state(q, tau=tau_op)[1]
     dtype = jnp.result_type(q, qd, tau, float)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-    m1 = int(system._phi(q, params).shape[0])
-    m = m1 + int(system._amat(q, params).shape[0])
+    tol = float(tol)
+    if not (tol > 0.0 and np.isfinite(tol)):
+        raise ConfigurationError(f"tol must be a finite positive number, got tol={tol}")
+    m1 = jax.eval_shape(lambda a: system._phi(a, params), q).shape[0]
+    m = m1 + jax.eval_shape(lambda a: system._amat(a, params), q).shape[0]
     qi, ui = _indices(system, independent, q.shape[0], m1, m)
     traced = is_traced(q, qd, tau, params, t) or closes_over_tracers(system)
     if not traced:
@@ -59,7 +63,8 @@ def steady_linearize(
         finite(tau, "tau_op")
         _check_operating_point(system, q, qd, params, qi, ui, tol)
     program = _body if closes_over_tracers(system) else (_compiled if traced else _eager)
-    a_mat, b_mat, udot = program(system, t, q, qd, params, tau, qi, ui)
+    args = params if traced else float_arrays(params)  # a float parameter: no recompile
+    a_mat, b_mat, udot = program(system, t, q, qd, args, tau, qi, ui)
     if not traced:
         _check_steady(system, np.asarray(udot), ui, tol)
         finite(a_mat, "the linearization A")
