@@ -138,7 +138,20 @@ def benchmark_bicycle(**overrides) -> tuple[ConstrainedSystem, dict[str, jax.Arr
     defaults the benchmark's values; keyword arguments override them
     (`benchmark_bicycle(mB=60.0, c=0.1)`).
 
+    **Returns:** `(system, params)`; the upright motion at speed `v` is `q = 0`,
+    `q̇ = (v, 0, 0, 0, 0, 0, −v/r_R, −v/r_F)`, linearized with
+    `independent=((0, 1, 2, 3, 5, 6, 7), (3, 5, 6))` (all coordinates but the pitch; the
+    lean, steer and rear wheel rates).
+
     **Raises:** `ArgumentTypeError` for an unknown parameter name.
+
+    **Example:**
+
+    ```python
+    bike, params = lagrax.models.benchmark_bicycle()
+    M, C1, K0, K2 = lagrax.models.bicycle_matrices(bike, params)   # the paper's, to 1e-12
+    eigs = lagrax.models.bicycle_eigenvalues(bike, params, jnp.linspace(0.0, 10.0, 101))
+    ```
     """
     unknown = set(overrides) - set(BENCHMARK)
     if unknown:
