@@ -490,21 +490,20 @@ class ConstrainedSystem(AbstractSystem):
 
         With `independent=(q_i, u_i)` (index sequences; one for both with holonomic
         constraints only): about a steady motion, in the minimal state `x = (q_i, u_i)`
-        (Peterson, Gede & Hubbard 2014). `δq = P_q δq_i`, `q̇ = P_u(q) u_i` with
-        `P = [1; −K_d⁻¹K_i]` (`K = J` for `P_q`, `[J; A]` for `P_u`); `A = ∂ẋ/∂x`,
-        `B = ∂ẋ/∂τ` by one forward-mode Jacobian (maths on the constraints page).
+        (Peterson, Gede & Hubbard 2014): `δq = P_q δq_i`, `q̇ = P_u(q) u_i`, `P = [1;
+        −K_d⁻¹K_i]` (`K = J` for `P_q`, `[J; A]` for `P_u`), by autodiff (constraints page).
 
         Besides the motion along the constraints, `A` holds the Baumgarte dynamics of the
         drift across them: for each holonomic constraint the eigenvalues
         `−α ± √(α² − β²)` of `φ̈ + 2α φ̇ + β² φ = 0` (a pendulum in Cartesian
         coordinates hanging at rest: `±i √(g/l)` and those two).
 
-        **Arguments:** the state `q_eq`, `qd_eq` (shape `(n,)`), `params`, the input
-        `tau_eq` (default zero), the time `t`; `independent` (default `None`) and `tol`,
-        the largest constraint residual and reduced acceleration taken as zero.
+        **Arguments:** the state `q_eq`, `qd_eq` (`(n,)`), `params`, the input `tau_eq`
+        (default zero), the time `t`; `independent` (default `None`), `tol` (the largest
+        constraint residual and reduced acceleration taken as zero).
 
-        **Returns:** `(A, B)` of shapes `(2n, 2n)` and `(2n, n)`; with `independent`, of
-        `(q_i, u_i)` (sorted indices), `(k, k)` and `(k, n)`, `k = len(q_i) + len(u_i)`.
+        **Returns:** `(A, B)`, `(2n, 2n)` and `(2n, n)`; with `independent`, `(k, k)` and
+        `(k, n)` in the state `(q_i, u_i)` (sorted), `k = len(q_i) + len(u_i)`.
 
         **Raises:** as
         [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives];
