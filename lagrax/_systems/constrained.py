@@ -1,7 +1,7 @@
 """Holonomic constraints `φ(q) = 0` and velocity (non-holonomic) constraints
 `A(q) q̇ = 0` by Lagrange multipliers: `ConstrainedSystem`."""
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import equinox as eqx
 import jax
@@ -29,6 +29,7 @@ from .abstract import AbstractSystem
 from .kkt import solve_kkt
 from .lagrangian import LagrangianSystem
 from .sensitivity import ForwardDynamicsDerivatives
+from .steady_linearization import steady_linearize
 
 ConstraintFn = Callable[[Vector, Params], ConstraintValues]
 VelocityConstraintFn = Callable[[Vector, Params], ConstraintJacobian]
@@ -479,25 +480,40 @@ class ConstrainedSystem(AbstractSystem):
         tau_eq: Velocities | None = None,
         *,
         t: Time = 0.0,
+        independent: Sequence[int] | tuple[Sequence[int], Sequence[int]] | None = None,
+        tol: float = 1e-8,
     ) -> tuple[jax.Array, jax.Array]:
         r"""Linearization `δẋ = A δx + B δτ` of the constrained state equations
         `ẋ = (q̇, q̈(q, q̇, τ))` in the redundant coordinates, about `(x_eq, τ_eq)`:
         `A = [[0, I], [∂q̈/∂q, ∂q̈/∂q̇]]`, `B = [[0], [∂q̈/∂τ]]` from
         [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives].
 
+        With `independent=(q_i, u_i)` (index sequences; one for both with holonomic
+        constraints only): about a steady motion, in the minimal state `x = (q_i, u_i)`
+        (Peterson, Gede & Hubbard 2014): `δq = P_q δq_i`, `q̇ = P_u(q) u_i`, `P = [1;
+        −K_d⁻¹K_i]` (`K = J` for `P_q`, `[J; A]` for `P_u`), by autodiff (constraints page).
+
         Besides the motion along the constraints, `A` holds the Baumgarte dynamics of the
         drift across them: for each holonomic constraint the eigenvalues
         `−α ± √(α² − β²)` of `φ̈ + 2α φ̇ + β² φ = 0` (a pendulum in Cartesian
         coordinates hanging at rest: `±i √(g/l)` and those two).
 
-        **Arguments:** the state `q_eq`, `qd_eq` (shape `(n,)`), `params`, the input
-        `tau_eq` (default zero) and the time `t`.
+        **Arguments:** the state `q_eq`, `qd_eq` (`(n,)`), `params`, the input `tau_eq`
+        (default zero), the time `t`; `independent` (default `None`), `tol` (the largest
+        constraint residual and reduced acceleration taken as zero).
 
-        **Returns:** `(A, B)` of shapes `(2n, 2n)` and `(2n, n)`.
+        **Returns:** `(A, B)`, `(2n, 2n)` and `(2n, n)`; with `independent`, `(k, k)` and
+        `(k, n)` in the state `(q_i, u_i)` (sorted), `k = len(q_i) + len(u_i)`.
 
         **Raises:** as
-        [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives].
+        [`forward_dynamics_derivatives`][lagrax.ConstrainedSystem.forward_dynamics_derivatives];
+        with `independent`: `LagraxError` naming each nonzero reduced acceleration (not
+        steady), `ConstraintError` naming dependent coordinates or speeds with a singular
+        Jacobian block (or a point off the constraints), `ConfigurationError` for indices
+        of the wrong number. Under `jit`, a run-time error by `equinox.error_if`.
         """
+        if independent is not None:
+            return steady_linearize(self, q_eq, qd_eq, params, tau_eq, t, independent, tol)
         return api.constrained_linearize(self, q_eq, qd_eq, params, tau_eq, t)
 
     def multipliers(

@@ -1,5 +1,8 @@
 """Ready-made scenes: each returns `(system, params)` with default parameter values."""
 
+from ._bicycle import benchmark_bicycle as benchmark_bicycle
+from ._bicycle import bicycle_eigenvalues as bicycle_eigenvalues
+from ._bicycle import bicycle_matrices as bicycle_matrices
 from ._cartesian_pendulum import cartesian_pendulum as cartesian_pendulum
 from ._four_bar import four_bar as four_bar
 from ._free_rigid_body import free_rigid_body_euler_angles as free_rigid_body_euler_angles
@@ -18,4 +21,7 @@ __all__ = [
     "arm7",
     "torso_two_arms",
     "urdf_path",
+    "benchmark_bicycle",
+    "bicycle_matrices",
+    "bicycle_eigenvalues",
 ]
