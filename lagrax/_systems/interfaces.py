@@ -65,6 +65,9 @@ class Constrained(Protocol):
     def system(self) -> Energies: ...
 
     @property
+    def coordinate_names(self) -> tuple[str, ...] | None: ...
+
+    @property
     def constraints(self) -> Any: ...
 
     @property

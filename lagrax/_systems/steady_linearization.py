@@ -24,7 +24,7 @@ accelerations `u̇_i` must vanish there (a steady motion)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -34,16 +34,14 @@ import numpy as np
 from .._core.checks import finite, is_traced
 from .._core.closures import closes_over_tracers
 from .._core.errors import ConfigurationError, ConstraintError, LagraxError
+from .interfaces import Constrained
 from .lagrangian_checks import float_arrays
-
-if TYPE_CHECKING:
-    from .constrained import ConstrainedSystem
 
 Independent = tuple[tuple[int, ...], tuple[int, ...]]
 
 
 def steady_linearize(
-    system: ConstrainedSystem, q_op, qd_op, params, tau_op, t, independent, tol: float
+    system: Constrained, q_op, qd_op, params, tau_op, t, independent, tol: float
 ) -> tuple[jax.Array, jax.Array]:
     """`ConstrainedSystem.linearize(..., independent=...)` (documented there)."""
     q, qd = system._state(q_op, qd_op)
