@@ -37,6 +37,7 @@ from .._solve import events as _events
 from .._solve.events import Event
 from .._solve.simulate import simulate
 from .._systems.abstract import AbstractSystem
+from . import sections
 
 
 class PeriodicOrbit(eqx.Module):
@@ -123,9 +124,10 @@ class _Inputs(eqx.Module):
     tol: Array
 
 
-def _return_map(cfg: _Config, inp: _Inputs, x, params, shifted: bool):
+def _return_map(cfg: _Config, inp: _Inputs, x, params, shifted):
     """`(P(x), (P(x), τ, code))`: the return map, the return time, and a result code
-    (`successful`, or why the map could not be evaluated)."""
+    (`successful`, or why the map could not be evaluated). `shifted`: where (a traced
+    flag) a start on the near side of the section is not counted as a crossing."""
     system = cfg.system
     n = x.shape[0] // 2
     q, qd = x[:n], x[n:]
@@ -144,9 +146,9 @@ def _return_map(cfg: _Config, inp: _Inputs, x, params, shifted: bool):
         px = jnp.concatenate([sol.q_end, sol.qd_end])
         return px, (px, sol.t_end - inp.t0, code)
     section = cfg.section
-    level = jnp.zeros((), x.dtype)
-    if shifted:
-        level = _start_level(system, section, inp.t0, q, qd, params)
+    level = jnp.where(
+        shifted, _start_level(system, section, inp.t0, q, qd, params), jnp.zeros((), x.dtype)
+    )
     event = Event(
         _Level(section.condition, level), direction=section.direction, terminal=True, max_events=1
     )
@@ -195,11 +197,12 @@ def _search(cfg: _Config, inp: _Inputs):
     """The search under `jit`: `(orbit, first_code)`, `first_code` the result of the
     return map at the (projected) guess."""
     params = inp.params
-    x0 = _onto_section(cfg, inp, inp.x0)
+    project, unusable = _mode(cfg, inp)
+    x0 = _onto_section(cfg, inp, inp.x0, project)
 
     def evaluate(x):
         jac, (px, tau, code) = jax.jacfwd(
-            lambda y: _return_map(cfg, inp, y, params, shifted=True), has_aux=True
+            lambda y: _return_map(cfg, inp, y, params, shifted=project), has_aux=True
         )(x)
         return px - x, jac, tau, code
 
@@ -211,6 +214,7 @@ def _search(cfg: _Config, inp: _Inputs):
         return code, converged
 
     f, jac, tau, code = evaluate(x0)
+    code = RESULTS.where(unusable, RESULTS.orbit_bad_section, code)
     first_code = code
     code, converged = status(x0, f, jac, tau, code, 0)
     zero = jnp.zeros((), jnp.int32)
@@ -223,7 +227,7 @@ def _search(cfg: _Config, inp: _Inputs):
     def body(s: _Newton):
         step = jnp.linalg.solve(s.jacobian - eye, -s.residual)
         bad = ~jnp.all(jnp.isfinite(step))
-        x = _onto_section(cfg, inp, s.x + jnp.where(bad, 0.0, step))
+        x = _onto_section(cfg, inp, s.x + jnp.where(bad, 0.0, step), project)
         f, jac, tau, code = evaluate(x)
         code = RESULTS.where(bad, RESULTS.orbit_singular, code)
         code, converged = status(x, f, jac, tau, code, s.k + 1)
@@ -255,23 +259,23 @@ def _search(cfg: _Config, inp: _Inputs):
     return orbit, first_code
 
 
-def _onto_section(cfg: _Config, inp: _Inputs, x):
-    """`x` projected onto the section `g(t0, x) = 0` (a few Gauss–Newton steps along
-    `∇g`; unchanged without a section or where `∇g = 0`): the guess, and each Newton
-    iterate (whose step is tangent to the section only to first order)."""
-    section = cfg.section
-    if section is None:
+def _mode(cfg: _Config, inp: _Inputs):
+    """`(project, unusable)` at the guess (traced flags; see `sections`): whether the
+    iterates are projected onto the section (the reset maps it into itself), and whether
+    the section cannot serve from the guess at all."""
+    if cfg.section is None:
+        return jnp.asarray(False), jnp.asarray(False)
+    at = sections.analyse(cfg.section, inp.t0, inp.x0, inp.params)
+    return at.project, at.unusable
+
+
+def _onto_section(cfg: _Config, inp: _Inputs, x, project):
+    """`x` projected onto the section `g(t0, x) = 0` where `project` (a few Gauss–Newton
+    steps along `∇g`; unchanged without a section): the guess, and each Newton iterate
+    (whose step is tangent to the section only to first order)."""
+    if cfg.section is None:
         return x
-    n = x.shape[0] // 2
-
-    def g(y):
-        return jnp.asarray(section.condition(inp.t0, y[:n], y[n:], inp.params), y.dtype)
-
-    for _ in range(3):
-        value, grad = jax.value_and_grad(g)(x)
-        norm2 = jnp.sum(grad**2)
-        x = jnp.where(norm2 > 0, x - value * grad / jnp.where(norm2 > 0, norm2, 1.0), x)
-    return x
+    return jnp.where(project, sections.project(cfg.section, inp.t0, x, inp.params), x)
 
 
 _search_jit = eqx.filter_jit(_search)
@@ -374,9 +378,16 @@ def periodic_orbit(
         system, q0, qd0, params, section, period, events, t0, t_max, tol, max_iter, rtol,
         atol, solver, max_steps,
     )  # fmt: skip
+    eager = cfg.section is not None and not checks.is_traced(inp)
+    if eager:
+        sections.check_guess(cfg.section, inp.t0, inp.x0, inp.params)
     orbit, first_code = _search_jit(cfg, inp)
-    if not checks.is_traced(inp) and first_code == RESULTS.orbit_no_return:
+    if eager and first_code == RESULTS.orbit_no_return:
         raise PeriodicOrbitError(_no_crossing_message(cfg, inp))
+    if eager and not bool(orbit.ok):
+        message = _wrong_way_message(cfg, inp, orbit)
+        if message is not None:
+            raise PeriodicOrbitError(message)
     return orbit
 
 
@@ -439,11 +450,39 @@ def _prepare(
     return cfg, inp
 
 
+def _start(cfg: _Config, inp: _Inputs):
+    """The search's first state, eagerly: the guess, projected where the section allows."""
+    project, _ = _mode(cfg, inp)
+    return _onto_section(cfg, inp, inp.x0, project), bool(project)
+
+
+def _first_crossing(cfg: _Config, inp: _Inputs, x):
+    assert cfg.section is not None
+    return sections.first_crossing(
+        cfg.system, cfg.section, inp.t0, inp.t0 + inp.span, x, inp.params, rtol=inp.rtol,
+        atol=inp.atol, solver=cfg.solver, max_steps=cfg.max_steps,
+    )  # fmt: skip
+
+
+def _wrong_way_message(cfg: _Config, inp: _Inputs, orbit: PeriodicOrbit) -> str | None:
+    """Why a search from a post-reset guess failed, where the motion first crosses the
+    section the other way (`None` otherwise, and for a projected guess: the motion from
+    a state on the section may rightly cross it the other way first, as a walker's
+    swing foot at mid-stance)."""
+    assert cfg.section is not None
+    x, projected = _start(cfg, inp)
+    if projected or cfg.section.direction == 0:
+        return None
+    why = f"the search ended with: {RESULTS[orbit.result]}"
+    return sections.crossing_message(_first_crossing(cfg, inp, x), cfg.section, why)
+
+
 def _no_crossing_message(cfg: _Config, inp: _Inputs) -> str:
-    """Why the guess never reached the section: the condition's range along the motion."""
+    """Why the guess never reached the section: the condition's range along the motion,
+    and a crossing the other way."""
     assert cfg.section is not None
     n = inp.x0.shape[0] // 2
-    x = _onto_section(cfg, inp, inp.x0)
+    x, projected = _start(cfg, inp)
     q, qd = x[:n], x[n:]
     sol = simulate(
         cfg.system, q, qd, inp.params, t0=inp.t0, t1=inp.t0 + inp.span, n_save=401,
@@ -465,9 +504,23 @@ def _no_crossing_message(cfg: _Config, inp: _Inputs) -> str:
         else "the solve failed at once"
     )
     direction = {0: "", 1: " upwards", -1: " downwards"}[cfg.section.direction]
-    return (
-        f"the motion from the guess (projected onto the section) q={np.asarray(q).tolist()}, "
+    where = " (projected onto the section)" if projected else ""
+    message = (
+        f"the motion from the guess{where} q={np.asarray(q).tolist()}, "
         f"qd={np.asarray(qd).tolist()} never crosses the section{direction} within "
-        f"t_max={float(inp.span):.6g} (from t0={float(inp.t0):.6g}): {span}. Check the "
-        "section's condition and direction, start nearer the orbit, or raise t_max"
+        f"t_max={float(inp.span):.6g} (from t0={float(inp.t0):.6g}; "
+        f"{sections.describe(cfg.section)}): {span}. "
+    )
+    if cfg.section.direction != 0:
+        crossing = _first_crossing(cfg, inp, x)
+        if crossing is not None and crossing[0] != cfg.section.direction:
+            s, t, _, _, rate = crossing
+            return message + (
+                f"It crosses the section {sections.WORDS[s]} instead, at t = {t:.6g} (the "
+                f"condition's rate ġ = {rate:.6g} there), which direction="
+                f"{cfg.section.direction:+d} does not count: if that crossing is the event, "
+                f"give direction={s:+d}"
+            )
+    return message + (
+        "Check the section's condition and direction, start nearer the orbit, or raise t_max"
     )
