@@ -31,6 +31,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
+from .._core.checks import free_joint_state
 from .._core.errors import MJCFError
 from .common import about_centres, float_dtype, steiner
 from .limits import with_limits
@@ -499,8 +500,11 @@ def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     allowed).
 
     **Returns:** `(q, v)`, of the same shapes.
+
+    **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
+    whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
     """
-    qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
+    qpos, qvel = free_joint_state(qpos, qvel, ("qpos", "qvel"), (7, 6))
     quat = jnp.concatenate([qpos[..., 4:7], qpos[..., 3:4]], axis=-1)
     rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
     linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., :3])
@@ -515,8 +519,11 @@ def to_mujoco_state(q: Any, v: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`.
 
     **Returns:** `(qpos, qvel)`, of the same shapes.
+
+    **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
+    and `v`.
     """
-    q, v = jnp.asarray(q), jnp.asarray(v)
+    q, v = free_joint_state(q, v, ("q", "v"), (7, 6))
     rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., 3:7])
     linear = jnp.einsum("...ij,...j->...i", rot, v[..., :3])
     qpos = jnp.concatenate([q[..., :3], q[..., 6:7], q[..., 3:6], q[..., 7:]], axis=-1)
