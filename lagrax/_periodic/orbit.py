@@ -12,11 +12,11 @@ The return map `P` takes a state `x = (q, q̇)` to the state one period later:
 The orbit is a fixed point `P(x*) = x*`, found by Newton's method on `F(x) = P(x) − x`
 in the full state space, with `DP` from forward-mode derivatives through `simulate`
 (`jax.jacfwd`: the crossing time's derivative and the reset's Jacobian give the saltation
-term). With a section, `P` lands on the section for every `x`, so the range of `DP` is
-the section's tangent space: `DP` has the trivial eigenvalue 0 (the direction across the
-section) and `DP − I` is regular exactly when no multiplier *on the section* is 1, so no
-bordering (return time as an unknown, phase condition) is needed, and the fixed point lies
-on the section.
+term). With a section, `P` lands on the reset's image of the section for every `x`, so
+`DP` has rank `2n − 1`: the trivial eigenvalue 0 (along the flow) and `DP − I` regular
+exactly when no other multiplier is 1, so no bordering (return time as an unknown, phase
+condition) is needed. The fixed point lies on the section where the reset maps it into
+itself, and just after the reset otherwise (`sections`).
 """
 
 from collections.abc import Callable, Sequence
@@ -46,9 +46,10 @@ class PeriodicOrbit(eqx.Module):
 
     **Fields:** (under `vmap` every field gains the batch axes in front)
 
-    - `q`, `qd`: the fixed point `x* = (q*, q̇*)`, shape `(n,)`. With a section it lies
-      on the section (after the reset, for an impact); with a period it is the state at
-      `t0` (mod `T`).
+    - `q`, `qd`: the fixed point `x* = (q*, q̇*)`, shape `(n,)`. With a section, the
+      state just after the reset (the post-impact state: on the section where the reset
+      maps it into itself, as the legs' swap does to `θ_ns + θ_s = 2γ`); with a period,
+      the state at `t0` (mod `T`).
     - `period`: the return time `τ(x*)` (with a section), or the given period.
     - `residual`: `‖P(x) − x‖_∞` at the returned `x`.
     - `jacobian`: `DP(x*)`, the Jacobian of the return map in the full state space,
@@ -66,7 +67,9 @@ class PeriodicOrbit(eqx.Module):
       `orbit_not_converged` (no convergence within `max_iter`: typically no orbit near
       the guess), `orbit_no_return` (an iterate's motion did not reach the section within
       `t_max`), `orbit_singular` (a multiplier at 1: a fold or a family of orbits),
-      `event_cascade` (a Zeno cascade of impacts), or a solve's own failure
+      `orbit_bad_section` (the section cannot serve from the guess: see
+      [`lagrax.periodic_orbit`][]), `event_cascade` (a Zeno cascade of impacts), or a
+      solve's own failure
       (`max_steps_reached`, `non_finite_state`, …). `RESULTS[orbit.result]` is the message.
       A failed search never reports `ok`: its other fields are the last iterate's.
     """
@@ -321,12 +324,20 @@ def periodic_orbit(
     $$
 
     (`Φ_x` the flow's state transition matrix, `f⁻` the vector field at the crossing,
-    `R` the reset) with no special code. With a section, `P(x)` lies on the (post-reset)
-    section for every `x`, so `DP` has the trivial eigenvalue 0 across it and `DP − I`
-    is singular only at a multiplier 1 on the section: no return-time unknown or phase
-    condition is needed, and the fixed point lies on the section. The guess, and each
-    Newton iterate, is projected onto the section `g(t0, x) = 0` (along `∇g`); a start
-    that round-off puts on the near side of the section is not counted as a crossing.
+    `R` the reset) with no special code. With a section, `P(x)` lies on the reset's
+    image of the section for every `x`, so `DP` has the trivial eigenvalue 0 (along the
+    flow) and `DP − I` is singular only at another multiplier 1: no return-time unknown
+    or phase condition is needed.
+
+    **The section as written for `simulate`.** Where the reset maps the section into
+    itself (none; a leg swap with the symmetric section `θ_ns + θ_s = 2γ`) the fixed
+    point lies on the section: the guess and each Newton iterate are projected onto
+    `g(t0, x) = 0` (along `∇g`), and a start that round-off puts on the near side is not
+    counted as a crossing. Where the reset's image is off the section (a guarded heel
+    strike, `jnp.where(swing leg ahead, foot height, 1.0)`, is `1` once the legs have
+    swapped), the map `x⁺ ↦ R(flow to the next crossing)` is used unprojected, and the
+    fixed point is the state just after the reset: give a post-reset guess. Which of
+    the two is decided at the guess.
 
     **Stability.** The Floquet multipliers are the eigenvalues `μ` of `DP(x*)` (the
     monodromy matrix for a period); with a section, the `2n − 1` on the section (the
@@ -358,8 +369,14 @@ def periodic_orbit(
     **Returns:** a [`PeriodicOrbit`][lagrax.PeriodicOrbit].
 
     **Raises:** `PeriodicOrbitError` when, called outside `jit`, the motion from the
-    guess never reaches the section within `t_max` (under `jit`: `result` is
-    `orbit_no_return`); `ConfigurationError` for neither or both of `section` and
+    guess never reaches the section within `t_max` (saying where it crosses the other
+    way; under `jit`: `result` is `orbit_no_return`), or the section cannot serve from
+    the guess: its condition is constant there (`∇g = 0`) and it has no reset; the guess
+    is on the section while the reset's image is not (pass the post-reset state; under
+    `jit`: `result` is `orbit_bad_section`); or, from a post-reset guess, the search
+    failed where the motion first crosses the section the other way (the wrong
+    `direction`). Each message names the section, the condition's value, gradient or
+    rate, and what to do. `ConfigurationError` for neither or both of `section` and
     `period`, `events` with a section, a period, `t_max`, `tol` or `max_iter` that is not
     positive; `ArgumentTypeError` for a section that is not an `Event`, or a condition
     or reset that does not take `(t, q, qd, params)`; `ShapeError` for a condition that is
