@@ -90,7 +90,13 @@ def analyse(section: Event, t0, x, params) -> SectionAt:
         project_ok = norm > 0
         unusable = norm == 0
     else:
-        image_on = on(image_value, image_norm, image)
+        # the image as near the section as the projection got (a rough guess far from a
+        # curved section: three Gauss–Newton steps leave a residual that R carries over)
+        left, left_grad = jax.value_and_grad(g)(onto)
+        left_norm = jnp.sqrt(jnp.sum(left_grad**2))
+        off = jnp.abs(left) / jnp.where(left_norm > 0, left_norm, 1.0)
+        near = (left_norm > 0) & (jnp.abs(image_value) <= 10 * off * image_norm)
+        image_on = (image_norm > 0) & (on(image_value, image_norm, image) | near)
         project_ok = (norm > 0) & image_on
         unusable = on(value, norm, x) & ~image_on
     return SectionAt(value, norm, onto, image_value, image_norm, project_ok, unusable)
