@@ -383,3 +383,108 @@ def test_bad_input_is_refused():
         lx.periodic_orbit(FORCED, [0.1], [0.0], FORCING, period=-1.0)
     with pytest.raises(lx.ArgumentTypeError, match="section must be a lagrax.Event"):
         lx.periodic_orbit(FORCED, [0.1], [0.0], FORCING, section=lambda t, q, qd, p: q[0])
+
+
+# ------------------------------------- the heel strike as users write it for simulate
+
+
+def _guarded(t, q, qd, p):
+    """The swing foot's height above the slope, counted once the swing leg is 0.05 rad
+    ahead of the stance leg (no scuffing at mid-stance); `1` before."""
+    ns, s, slope = q[0], q[1], p["slope"]
+    height = (p["a"] + p["b"]) * (jnp.cos(s - slope) - jnp.cos(ns - slope))
+    return jnp.where(s - ns > 0.05, height, 1.0)
+
+
+GUARDED = lx.Event(_guarded, direction=-1, reset=_heel_strike)
+
+
+def _off(orbit):
+    """A guess 0.01 rad and 0.04 rad/s off the fixed point."""
+    return orbit.q + jnp.array([0.01, -0.01]), orbit.qd + jnp.array([0.04, -0.04])
+
+
+def test_guarded_heel_strike_against_the_smooth_section(gait):
+    # the same Event as simulate's: the condition is 1 (∇g = 0) just after the strike,
+    # where the fixed point of x⁺ ↦ R(flow to the next crossing) lies
+    smooth, reference, slope = gait
+    params = {**GOSWAMI, "slope": slope}
+    q0, qd0 = _off(smooth)
+    assert float(_guarded(0.0, q0, qd0, params)) == 1.0
+    orbit = lx.periodic_orbit(WALKER, q0, qd0, params, section=GUARDED, **TIGHT, tol=1e-12)
+    assert bool(orbit.ok), lx.RESULTS[orbit.result]
+    assert np.max(np.abs(np.asarray(orbit.state) - np.asarray(smooth.state))) <= 1e-10
+    assert np.max(np.abs(np.asarray(orbit.state) - reference)) <= 1e-9  # and SciPy's
+    assert abs(float(orbit.period) - float(smooth.period)) <= 1e-10
+    mu, mu_smooth = np.asarray(orbit.multipliers), np.asarray(smooth.multipliers)
+    order, order_smooth = (
+        np.lexsort((mu.imag, np.abs(mu))),
+        np.lexsort((mu_smooth.imag, np.abs(mu_smooth))),
+    )
+    assert np.max(np.abs(mu[order] - mu_smooth[order_smooth])) <= 1e-10
+    # the walker really is there just after the strike: simulate with the same Event
+    sol = lx.simulate(WALKER, orbit.q, orbit.qd, params, t1=1.0, events=GUARDED, **TIGHT)
+    record = sol.events[0]
+    assert int(record.count) == 1 and abs(float(record.times[0] - orbit.period)) <= 1e-10
+    after = _heel_strike(0.0, record.q[0], record.qd[0], params)
+    assert np.max(np.abs(np.concatenate(after) - np.asarray(orbit.state))) <= 1e-10
+
+
+def test_a_constant_condition_without_reset_is_diagnosed(gait):
+    smooth, _, slope = gait
+    params = {**GOSWAMI, "slope": slope}
+    no_reset = lx.Event(_guarded, direction=-1)
+    with pytest.raises(lx.PeriodicOrbitError) as info:
+        lx.periodic_orbit(WALKER, *_off(smooth), params, section=no_reset)
+    message = str(info.value)
+    assert "section _guarded" in message and "value 1" in message and "∇g = 0" in message
+    assert "give the impact as the section's reset" in message
+    assert "max_steps" not in message
+    solve = jax.jit(
+        lambda q, qd: lx.periodic_orbit(WALKER, q, qd, params, section=no_reset, max_iter=1)
+    )
+    orbit = solve(*_off(smooth))
+    assert orbit.result == lx.RESULTS.orbit_bad_section and not bool(orbit.ok)
+
+
+def test_a_guess_on_the_section_with_the_reset_off_it_is_diagnosed(gait):
+    smooth, _, slope = gait
+    params = {**GOSWAMI, "slope": slope}
+    sol = lx.simulate(WALKER, smooth.q, smooth.qd, params, t1=1.0, events=GUARDED, **TIGHT)
+    before = (sol.events[0].q[0], sol.events[0].qd[0])  # the state at the strike
+    assert abs(float(_guarded(0.0, *before, params))) <= 1e-9
+    with pytest.raises(lx.PeriodicOrbitError) as info:
+        lx.periodic_orbit(WALKER, *before, params, section=GUARDED)
+    message = str(info.value)
+    assert "section _guarded" in message and "reset _heel_strike" in message
+    assert "the reset's image is not (the condition is 1 there, ∇g = 0)" in message
+    assert "q0, qd0 = section.reset(t0, q0, qd0, params)" in message
+    # that advice works: from the post-reset state the orbit is found
+    after = _heel_strike(0.0, *before, params)
+    orbit = lx.periodic_orbit(WALKER, *after, params, section=GUARDED, **TIGHT, tol=1e-12)
+    assert np.max(np.abs(np.asarray(orbit.state) - np.asarray(smooth.state))) <= 1e-10
+
+
+def test_a_first_crossing_the_other_way_is_diagnosed(gait):
+    # direction=+1 by mistake: the heel strike (downwards) is not counted, the walker falls
+    smooth, _, slope = gait
+    params = {**GOSWAMI, "slope": slope}
+    upwards = lx.Event(_guarded, direction=1, reset=_heel_strike)
+    with pytest.raises(lx.PeriodicOrbitError) as info:
+        lx.periodic_orbit(WALKER, *_off(smooth), params, section=upwards, t_max=2.0)
+    message = str(info.value)
+    assert "section _guarded (crossing upwards, direction=+1" in message
+    assert "first crosses the section downwards, at t = " in message
+    assert "the condition's rate is ġ = -" in message and "give direction=-1" in message
+    assert "max_steps" not in message
+
+
+def test_a_section_crossed_only_the_other_way_is_diagnosed():
+    # the damped pendulum's energy falls through -0.5 once: downwards, never upwards
+    level = lx.Event(lambda t, q, qd, p: 0.5 * qd[0] ** 2 - jnp.cos(q[0]) + 0.5, direction=1)
+    with pytest.raises(lx.PeriodicOrbitError) as info:
+        lx.periodic_orbit(FORCED, [0.1], [2.0], {**FORCING, "A": 0.0}, section=level, t_max=5.0)
+    message = str(info.value)
+    assert "never crosses the section " in message and "<lambda> (crossing upwards" in message
+    assert "It crosses the section downwards instead, at t = " in message
+    assert "give direction=-1" in message

@@ -171,10 +171,19 @@ def call_energy(fn: Callable, role: str, label: str, params: Params, *args: Any)
 # --------------------------------------------------------------------------- arrays
 
 
-def coords(q: Any, name: str, n_dof: int | None, system_name: str, host: bool = False) -> Any:
+def coords(
+    q: Any,
+    name: str,
+    n_dof: int | None,
+    system_name: str,
+    host: bool = False,
+    size: str = "degrees of freedom",
+) -> Any:
     """`q` as a 1-D floating array of length `n_dof` (when given), or a `ShapeError`.
 
-    `host=True` converts with NumPy (no device transfer), for `simulate`'s set-up.
+    `name` is the caller's argument (`q0` for `simulate`, `q_eq` for `linearize`), as
+    the messages say it; `size` what `n_dof` counts. `host=True` converts with NumPy (no
+    device transfer), for `simulate`'s set-up.
     """
     try:
         q = np.asarray(q) if host else jnp.asarray(q)
@@ -196,15 +205,23 @@ def coords(q: Any, name: str, n_dof: int | None, system_name: str, host: bool = 
             " (use jax.vmap for batches)"
         )
     if n_dof is not None and q.shape[0] != n_dof:
-        raise ShapeError(
-            f"{name} has length {q.shape[0]} but {system_name} has {n_dof} degrees of freedom"
-        )
+        raise ShapeError(f"{name} has length {q.shape[0]} but {system_name} has {n_dof} {size}")
     return q
 
 
-def same_shape(name: str, v: Any, q: Any) -> None:
+def same_shape(name: str, v: Any, q: Any, q_name: str = "q") -> None:
     if v.shape != q.shape:
-        raise ShapeError(f"{name} has shape {v.shape} but q has shape {q.shape}; they must match")
+        raise ShapeError(
+            f"{name} has shape {v.shape} but {q_name} has shape {q.shape}; they must match"
+        )
+
+
+def configuration_size(n_configuration: int | None, n_dof: int | None) -> str:
+    """What the size of `q` counts, for `coords`'s message: the degrees of freedom, or
+    (a floating base's position and quaternion) the configuration's coordinates."""
+    if n_configuration == n_dof:
+        return "degrees of freedom"
+    return f"configuration coordinates (and {n_dof} velocities)"
 
 
 def finite(x: jax.Array, name: str) -> jax.Array:

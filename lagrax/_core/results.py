@@ -42,6 +42,12 @@ class RESULTS(dfx.RESULTS):
         "Jacobian DP - I: a Floquet multiplier at 1 (a fold, or a family of orbits such "
         "as a conservative system's), or a non-finite return map."
     )
+    orbit_bad_section = (
+        "The Poincare section cannot serve from the guess: its condition is constant there "
+        "(grad g = 0, a guard) and it has no reset, or the guess is on the section while "
+        "the reset's image is not (pass the post-reset state). Call periodic_orbit outside "
+        "jit for the values."
+    )
 
 
 def code_of(result: RESULTS):

@@ -30,7 +30,7 @@ from .._core import checks
 from .._core.custom_types import Coordinates, Params, Velocities
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._systems.abstract import AbstractSystem
-from .orbit import PeriodicOrbit, _Config, _Inputs, _prepare, _search
+from .orbit import PeriodicOrbit, SearchConfig, SearchInputs, newton_search, prepare_search
 
 
 class Bifurcation(eqx.Module):
@@ -104,14 +104,16 @@ def _setter(parameter: str | Callable[[Any, Any], Any]) -> Callable[[Any, Any], 
     )
 
 
-def _solve_at(cfg: _Config, inp: _Inputs, set_param, period_of, value, x):
+def _solve_at(cfg: SearchConfig, inp: SearchInputs, set_param, period_of, value, x):
     params = set_param(inp.params, value)
     span = inp.span if period_of is None else jnp.asarray(period_of(params), inp.span.dtype)
-    return _search(cfg, eqx.tree_at(lambda i: (i.x0, i.params, i.span), inp, (x, params, span)))[0]
+    return newton_search(
+        cfg, eqx.tree_at(lambda i: (i.x0, i.params, i.span), inp, (x, params, span))
+    )[0]
 
 
 @eqx.filter_jit
-def _branch(cfg: _Config, inp: _Inputs, set_param, period_of, values):
+def _branch(cfg: SearchConfig, inp: SearchInputs, set_param, period_of, values):
     def step(carry, value):
         x1, v1, x2, v2, have = carry  # the last two orbits found (have: how many)
         slope = jnp.where(v1 != v2, (value - v1) / jnp.where(v1 != v2, v1 - v2, 1.0), 0.0)
@@ -134,7 +136,7 @@ def _branch(cfg: _Config, inp: _Inputs, set_param, period_of, values):
 
 
 @eqx.filter_jit
-def _one(cfg: _Config, inp: _Inputs, set_param, period_of, value, x):
+def _one(cfg: SearchConfig, inp: SearchInputs, set_param, period_of, value, x):
     return _solve_at(cfg, inp, set_param, period_of, value, x)
 
 
@@ -233,7 +235,7 @@ def continue_orbits(
         solver=None, max_steps=None,
     )  # fmt: skip
     opts.update(options)
-    cfg, inp = _prepare(
+    cfg, inp = prepare_search(
         system, q0, qd0, first, section, period0, opts["events"], opts["t0"], opts["t_max"],
         opts["tol"], opts["max_iter"], opts["rtol"], opts["atol"], opts["solver"],
         opts["max_steps"],

@@ -12,11 +12,11 @@ The return map `P` takes a state `x = (q, q̇)` to the state one period later:
 The orbit is a fixed point `P(x*) = x*`, found by Newton's method on `F(x) = P(x) − x`
 in the full state space, with `DP` from forward-mode derivatives through `simulate`
 (`jax.jacfwd`: the crossing time's derivative and the reset's Jacobian give the saltation
-term). With a section, `P` lands on the section for every `x`, so the range of `DP` is
-the section's tangent space: `DP` has the trivial eigenvalue 0 (the direction across the
-section) and `DP − I` is regular exactly when no multiplier *on the section* is 1, so no
-bordering (return time as an unknown, phase condition) is needed, and the fixed point lies
-on the section.
+term). With a section, `P` lands on the reset's image of the section for every `x`, so
+`DP` has rank `2n − 1`: the trivial eigenvalue 0 (along the flow) and `DP − I` regular
+exactly when no other multiplier is 1, so no bordering (return time as an unknown, phase
+condition) is needed. The fixed point lies on the section where the reset maps it into
+itself, and just after the reset otherwise (`sections`).
 """
 
 from collections.abc import Callable, Sequence
@@ -37,6 +37,7 @@ from .._solve import events as _events
 from .._solve.events import Event
 from .._solve.simulate import simulate
 from .._systems.abstract import AbstractSystem
+from . import sections
 
 
 class PeriodicOrbit(eqx.Module):
@@ -45,9 +46,10 @@ class PeriodicOrbit(eqx.Module):
 
     **Fields:** (under `vmap` every field gains the batch axes in front)
 
-    - `q`, `qd`: the fixed point `x* = (q*, q̇*)`, shape `(n,)`. With a section it lies
-      on the section (after the reset, for an impact); with a period it is the state at
-      `t0` (mod `T`).
+    - `q`, `qd`: the fixed point `x* = (q*, q̇*)`, shape `(n,)`. With a section, the
+      state just after the reset (the post-impact state: on the section where the reset
+      maps it into itself, as the legs' swap does to `θ_ns + θ_s = 2γ`); with a period,
+      the state at `t0` (mod `T`).
     - `period`: the return time `τ(x*)` (with a section), or the given period.
     - `residual`: `‖P(x) − x‖_∞` at the returned `x`.
     - `jacobian`: `DP(x*)`, the Jacobian of the return map in the full state space,
@@ -65,7 +67,9 @@ class PeriodicOrbit(eqx.Module):
       `orbit_not_converged` (no convergence within `max_iter`: typically no orbit near
       the guess), `orbit_no_return` (an iterate's motion did not reach the section within
       `t_max`), `orbit_singular` (a multiplier at 1: a fold or a family of orbits),
-      `event_cascade` (a Zeno cascade of impacts), or a solve's own failure
+      `orbit_bad_section` (the section cannot serve from the guess: see
+      [`lagrax.periodic_orbit`][]), `event_cascade` (a Zeno cascade of impacts), or a
+      solve's own failure
       (`max_steps_reached`, `non_finite_state`, …). `RESULTS[orbit.result]` is the message.
       A failed search never reports `ok`: its other fields are the last iterate's.
     """
@@ -102,7 +106,7 @@ class _Level(eqx.Module):
         return self.condition(t, q, qd, params) - self.level
 
 
-class _Config(eqx.Module):
+class SearchConfig(eqx.Module):
     """What fixes the compiled search (static) besides the arrays."""
 
     system: AbstractSystem
@@ -113,7 +117,7 @@ class _Config(eqx.Module):
     max_iter: int = eqx.field(static=True)
 
 
-class _Inputs(eqx.Module):
+class SearchInputs(eqx.Module):
     x0: Array
     params: Any
     t0: Array
@@ -123,9 +127,10 @@ class _Inputs(eqx.Module):
     tol: Array
 
 
-def _return_map(cfg: _Config, inp: _Inputs, x, params, shifted: bool):
+def _return_map(cfg: SearchConfig, inp: SearchInputs, x, params, shifted):
     """`(P(x), (P(x), τ, code))`: the return map, the return time, and a result code
-    (`successful`, or why the map could not be evaluated)."""
+    (`successful`, or why the map could not be evaluated). `shifted`: where (a traced
+    flag) a start on the near side of the section is not counted as a crossing."""
     system = cfg.system
     n = x.shape[0] // 2
     q, qd = x[:n], x[n:]
@@ -144,9 +149,9 @@ def _return_map(cfg: _Config, inp: _Inputs, x, params, shifted: bool):
         px = jnp.concatenate([sol.q_end, sol.qd_end])
         return px, (px, sol.t_end - inp.t0, code)
     section = cfg.section
-    level = jnp.zeros((), x.dtype)
-    if shifted:
-        level = _start_level(system, section, inp.t0, q, qd, params)
+    level = jnp.where(
+        shifted, _start_level(system, section, inp.t0, q, qd, params), jnp.zeros((), x.dtype)
+    )
     event = Event(
         _Level(section.condition, level), direction=section.direction, terminal=True, max_events=1
     )
@@ -191,15 +196,16 @@ class _Newton(eqx.Module):
     done: Array
 
 
-def _search(cfg: _Config, inp: _Inputs):
+def newton_search(cfg: SearchConfig, inp: SearchInputs):
     """The search under `jit`: `(orbit, first_code)`, `first_code` the result of the
     return map at the (projected) guess."""
     params = inp.params
-    x0 = _onto_section(cfg, inp, inp.x0)
+    project, unusable = _mode(cfg, inp)
+    x0 = _onto_section(cfg, inp, inp.x0, project)
 
     def evaluate(x):
         jac, (px, tau, code) = jax.jacfwd(
-            lambda y: _return_map(cfg, inp, y, params, shifted=True), has_aux=True
+            lambda y: _return_map(cfg, inp, y, params, shifted=project), has_aux=True
         )(x)
         return px - x, jac, tau, code
 
@@ -211,6 +217,7 @@ def _search(cfg: _Config, inp: _Inputs):
         return code, converged
 
     f, jac, tau, code = evaluate(x0)
+    code = RESULTS.where(unusable, RESULTS.orbit_bad_section, code)
     first_code = code
     code, converged = status(x0, f, jac, tau, code, 0)
     zero = jnp.zeros((), jnp.int32)
@@ -223,7 +230,7 @@ def _search(cfg: _Config, inp: _Inputs):
     def body(s: _Newton):
         step = jnp.linalg.solve(s.jacobian - eye, -s.residual)
         bad = ~jnp.all(jnp.isfinite(step))
-        x = _onto_section(cfg, inp, s.x + jnp.where(bad, 0.0, step))
+        x = _onto_section(cfg, inp, s.x + jnp.where(bad, 0.0, step), project)
         f, jac, tau, code = evaluate(x)
         code = RESULTS.where(bad, RESULTS.orbit_singular, code)
         code, converged = status(x, f, jac, tau, code, s.k + 1)
@@ -255,26 +262,26 @@ def _search(cfg: _Config, inp: _Inputs):
     return orbit, first_code
 
 
-def _onto_section(cfg: _Config, inp: _Inputs, x):
-    """`x` projected onto the section `g(t0, x) = 0` (a few Gauss–Newton steps along
-    `∇g`; unchanged without a section or where `∇g = 0`): the guess, and each Newton
-    iterate (whose step is tangent to the section only to first order)."""
-    section = cfg.section
-    if section is None:
+def _mode(cfg: SearchConfig, inp: SearchInputs):
+    """`(project, unusable)` at the guess (traced flags; see `sections`): whether the
+    iterates are projected onto the section (the reset maps it into itself), and whether
+    the section cannot serve from the guess at all."""
+    if cfg.section is None:
+        return jnp.asarray(False), jnp.asarray(False)
+    at = sections.analyse(cfg.section, inp.t0, inp.x0, inp.params)
+    return at.project, at.unusable
+
+
+def _onto_section(cfg: SearchConfig, inp: SearchInputs, x, project):
+    """`x` projected onto the section `g(t0, x) = 0` where `project` (a few Gauss–Newton
+    steps along `∇g`; unchanged without a section): the guess, and each Newton iterate
+    (whose step is tangent to the section only to first order)."""
+    if cfg.section is None:
         return x
-    n = x.shape[0] // 2
-
-    def g(y):
-        return jnp.asarray(section.condition(inp.t0, y[:n], y[n:], inp.params), y.dtype)
-
-    for _ in range(3):
-        value, grad = jax.value_and_grad(g)(x)
-        norm2 = jnp.sum(grad**2)
-        x = jnp.where(norm2 > 0, x - value * grad / jnp.where(norm2 > 0, norm2, 1.0), x)
-    return x
+    return jnp.where(project, sections.project(cfg.section, inp.t0, x, inp.params), x)
 
 
-_search_jit = eqx.filter_jit(_search)
+_search_jit = eqx.filter_jit(newton_search)
 
 
 def periodic_orbit(
@@ -317,12 +324,20 @@ def periodic_orbit(
     $$
 
     (`Φ_x` the flow's state transition matrix, `f⁻` the vector field at the crossing,
-    `R` the reset) with no special code. With a section, `P(x)` lies on the (post-reset)
-    section for every `x`, so `DP` has the trivial eigenvalue 0 across it and `DP − I`
-    is singular only at a multiplier 1 on the section: no return-time unknown or phase
-    condition is needed, and the fixed point lies on the section. The guess, and each
-    Newton iterate, is projected onto the section `g(t0, x) = 0` (along `∇g`); a start
-    that round-off puts on the near side of the section is not counted as a crossing.
+    `R` the reset) with no special code. With a section, `P(x)` lies on the reset's
+    image of the section for every `x`, so `DP` has the trivial eigenvalue 0 (along the
+    flow) and `DP − I` is singular only at another multiplier 1: no return-time unknown
+    or phase condition is needed.
+
+    **The section as written for `simulate`.** Where the reset maps the section into
+    itself (none; a leg swap with the symmetric section `θ_ns + θ_s = 2γ`) the fixed
+    point lies on the section: the guess and each Newton iterate are projected onto
+    `g(t0, x) = 0` (along `∇g`), and a start that round-off puts on the near side is not
+    counted as a crossing. Where the reset's image is off the section (a guarded heel
+    strike, `jnp.where(swing leg ahead, foot height, 1.0)`, is `1` once the legs have
+    swapped), the map `x⁺ ↦ R(flow to the next crossing)` is used unprojected, and the
+    fixed point is the state just after the reset: give a post-reset guess. Which of
+    the two is decided at the guess.
 
     **Stability.** The Floquet multipliers are the eigenvalues `μ` of `DP(x*)` (the
     monodromy matrix for a period); with a section, the `2n − 1` on the section (the
@@ -354,8 +369,14 @@ def periodic_orbit(
     **Returns:** a [`PeriodicOrbit`][lagrax.PeriodicOrbit].
 
     **Raises:** `PeriodicOrbitError` when, called outside `jit`, the motion from the
-    guess never reaches the section within `t_max` (under `jit`: `result` is
-    `orbit_no_return`); `ConfigurationError` for neither or both of `section` and
+    guess never reaches the section within `t_max` (saying where it crosses the other
+    way; under `jit`: `result` is `orbit_no_return`), or the section cannot serve from
+    the guess: its condition is constant there (`∇g = 0`) and it has no reset; the guess
+    is on the section while the reset's image is not (pass the post-reset state; under
+    `jit`: `result` is `orbit_bad_section`); or, from a post-reset guess, the search
+    failed where the motion first crosses the section the other way (the wrong
+    `direction`). Each message names the section, the condition's value, gradient or
+    rate, and what to do. `ConfigurationError` for neither or both of `section` and
     `period`, `events` with a section, a period, `t_max`, `tol` or `max_iter` that is not
     positive; `ArgumentTypeError` for a section that is not an `Event`, or a condition
     or reset that does not take `(t, q, qd, params)`; `ShapeError` for a condition that is
@@ -370,17 +391,24 @@ def periodic_orbit(
     orbit.ok, orbit.period, abs(orbit.multipliers), orbit.stable
     ```
     """
-    cfg, inp = _prepare(
+    cfg, inp = prepare_search(
         system, q0, qd0, params, section, period, events, t0, t_max, tol, max_iter, rtol,
         atol, solver, max_steps,
     )  # fmt: skip
+    eager = cfg.section is not None and not checks.is_traced(inp)
+    if eager:
+        sections.check_guess(cfg.section, inp.t0, inp.x0, inp.params)
     orbit, first_code = _search_jit(cfg, inp)
-    if not checks.is_traced(inp) and first_code == RESULTS.orbit_no_return:
+    if eager and first_code == RESULTS.orbit_no_return:
         raise PeriodicOrbitError(_no_crossing_message(cfg, inp))
+    if eager and not bool(orbit.ok):
+        message = _wrong_way_message(cfg, inp, orbit)
+        if message is not None:
+            raise PeriodicOrbitError(message)
     return orbit
 
 
-def _prepare(
+def prepare_search(
     system, q0, qd0, params, section, period, events, t0, t_max, tol, max_iter, rtol, atol,
     solver, max_steps,
 ):  # fmt: skip
@@ -430,20 +458,48 @@ def _prepare(
         tol = 100 * max(rtol, atol) if eager else 100 * jnp.maximum(rtol, atol)
     x0 = jnp.concatenate([jnp.asarray(q0), jnp.asarray(qd0)])
     span = period if section is None else t_max
-    cfg = _Config(system, section, events, solver, max_steps, int(max_iter))
+    cfg = SearchConfig(system, section, events, solver, max_steps, int(max_iter))
     arr = jnp.asarray
-    inp = _Inputs(
+    inp = SearchInputs(
         x0, params, arr(t0, dtype), arr(span, dtype), arr(rtol, dtype), arr(atol, dtype),
         arr(tol, dtype),
     )  # fmt: skip
     return cfg, inp
 
 
-def _no_crossing_message(cfg: _Config, inp: _Inputs) -> str:
-    """Why the guess never reached the section: the condition's range along the motion."""
+def _start(cfg: SearchConfig, inp: SearchInputs):
+    """The search's first state, eagerly: the guess, projected where the section allows."""
+    project, _ = _mode(cfg, inp)
+    return _onto_section(cfg, inp, inp.x0, project), bool(project)
+
+
+def _first_crossing(cfg: SearchConfig, inp: SearchInputs, x):
+    assert cfg.section is not None
+    return sections.first_crossing(
+        cfg.system, cfg.section, inp.t0, inp.t0 + inp.span, x, inp.params, rtol=inp.rtol,
+        atol=inp.atol, solver=cfg.solver, max_steps=cfg.max_steps,
+    )  # fmt: skip
+
+
+def _wrong_way_message(cfg: SearchConfig, inp: SearchInputs, orbit: PeriodicOrbit) -> str | None:
+    """Why a search from a post-reset guess failed, where the motion first crosses the
+    section the other way (`None` otherwise, and for a projected guess: the motion from
+    a state on the section may rightly cross it the other way first, as a walker's
+    swing foot at mid-stance)."""
+    assert cfg.section is not None
+    x, projected = _start(cfg, inp)
+    if projected or cfg.section.direction == 0:
+        return None
+    why = f"the search ended with: {RESULTS[orbit.result]}"
+    return sections.crossing_message(_first_crossing(cfg, inp, x), cfg.section, why)
+
+
+def _no_crossing_message(cfg: SearchConfig, inp: SearchInputs) -> str:
+    """Why the guess never reached the section: the condition's range along the motion,
+    and a crossing the other way."""
     assert cfg.section is not None
     n = inp.x0.shape[0] // 2
-    x = _onto_section(cfg, inp, inp.x0)
+    x, projected = _start(cfg, inp)
     q, qd = x[:n], x[n:]
     sol = simulate(
         cfg.system, q, qd, inp.params, t0=inp.t0, t1=inp.t0 + inp.span, n_save=401,
@@ -465,9 +521,23 @@ def _no_crossing_message(cfg: _Config, inp: _Inputs) -> str:
         else "the solve failed at once"
     )
     direction = {0: "", 1: " upwards", -1: " downwards"}[cfg.section.direction]
-    return (
-        f"the motion from the guess (projected onto the section) q={np.asarray(q).tolist()}, "
+    where = " (projected onto the section)" if projected else ""
+    message = (
+        f"the motion from the guess{where} q={np.asarray(q).tolist()}, "
         f"qd={np.asarray(qd).tolist()} never crosses the section{direction} within "
-        f"t_max={float(inp.span):.6g} (from t0={float(inp.t0):.6g}): {span}. Check the "
-        "section's condition and direction, start nearer the orbit, or raise t_max"
+        f"t_max={float(inp.span):.6g} (from t0={float(inp.t0):.6g}; "
+        f"{sections.describe(cfg.section)}): {span}. "
+    )
+    if cfg.section.direction != 0:
+        crossing = _first_crossing(cfg, inp, x)
+        if crossing is not None and crossing[0] != cfg.section.direction:
+            s, t, _, _, rate = crossing
+            return message + (
+                f"It crosses the section {sections.WORDS[s]} instead, at t = {t:.6g} (the "
+                f"condition's rate ġ = {rate:.6g} there), which direction="
+                f"{cfg.section.direction:+d} does not count: if that crossing is the event, "
+                f"give direction={s:+d}"
+            )
+    return message + (
+        "Check the section's condition and direction, start nearer the orbit, or raise t_max"
     )

@@ -23,17 +23,19 @@ from .._sweep.dataset import member_labels, short_label, statuses
 from .._sweep.driver import dof_labels
 from .._sweep.grid import Grid, Members
 from .._systems.abstract import AbstractSystem
-from .orbit import _Config, _Inputs, _prepare, _search
+from .orbit import SearchConfig, SearchInputs, newton_search, prepare_search
 
 _OPTIONS = ("t0", "t_max", "tol", "max_iter", "rtol", "atol", "solver", "max_steps", "events")
 
 
 @eqx.filter_jit
-def _solve_all(cfg: _Config, inp: _Inputs, period_of, x0s, params, batch_size: int):
+def _solve_all(cfg: SearchConfig, inp: SearchInputs, period_of, x0s, params, batch_size: int):
     def one(member):
         x0, p = member
         span = inp.span if period_of is None else jnp.asarray(period_of(p), inp.span.dtype)
-        return _search(cfg, eqx.tree_at(lambda i: (i.x0, i.params, i.span), inp, (x0, p, span)))[0]
+        return newton_search(
+            cfg, eqx.tree_at(lambda i: (i.x0, i.params, i.span), inp, (x0, p, span))
+        )[0]
 
     n = x0s.shape[0]
     if batch_size >= n:
@@ -133,7 +135,7 @@ def orbit_map(
     first = members.first()
     period_of = period if callable(period) else None
     period0 = period_of(first) if period_of is not None else period
-    cfg, inp = _prepare(
+    cfg, inp = prepare_search(
         system, members.q0s[0], members.qd0s[0], first, section, period0, opts["events"],
         opts["t0"], opts["t_max"], opts["tol"], opts["max_iter"], opts["rtol"],
         opts["atol"], opts["solver"], opts["max_steps"],

@@ -32,10 +32,11 @@ def arrays(system: AbstractSystem, q0, qd0, params, tau, eager: bool):
             f"as its first argument, got {type(system).__name__}: {system!r}"
         )
     n, name = system.n_dof, system.name
-    q0 = checks.coords(q0, "q", system.n_configuration, name, host=eager)
-    qd0 = checks.coords(qd0, "qd", n, name, host=eager)
+    size = checks.configuration_size(system.n_configuration, n)
+    q0 = checks.coords(q0, "q0", system.n_configuration, name, host=eager, size=size)
+    qd0 = checks.coords(qd0, "qd0", n, name, host=eager)
     if system.n_configuration == n:  # (else each has its own size: q̇ = N(q) v)
-        checks.same_shape("qd", qd0, q0)
+        checks.same_shape("qd0", qd0, q0, "q0")
     dtype = np.result_type(q0, qd0) if eager else jnp.result_type(q0, qd0)
     q0, qd0 = q0.astype(dtype), qd0.astype(dtype)
     tdt = np.dtype(dtype)

@@ -7,7 +7,7 @@ from typing import Any
 import equinox as eqx
 import jax.numpy as jnp
 
-from .._core.checks import coords, same_shape
+from .._core.checks import configuration_size, coords, same_shape
 from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 
 
@@ -195,29 +195,39 @@ class AbstractSystem(eqx.Module):
     def _coords(self, q: Coordinates, name: str = "q", host: bool = False):
         return coords(q, name, self.n_dof, self.name, host=host)
 
-    def _state(self, q: Coordinates, qd: Velocities | None = None, **others: Any):
-        """`q` (and `qd`, …) as 1-D arrays of one shape and dtype, or a `ShapeError`."""
-        q = self._coords(q, "q")
+    def _state(
+        self,
+        q: Coordinates,
+        qd: Velocities | None = None,
+        *,
+        q_name: str = "q",
+        qd_name: str = "qd",
+        **others: Any,
+    ):
+        """`q` (and `qd`, …) as 1-D arrays of one shape and dtype, or a `ShapeError`
+        naming the caller's arguments (`q_name`, `qd_name`, the keys of `others`)."""
+        q = self._coords(q, q_name)
         out = [q]
-        named = {"qd": qd, **others} if qd is not None else dict(others)
+        named = {qd_name: qd, **others} if qd is not None else dict(others)
         for key, value in named.items():
             if value is None:
                 out.append(None)
                 continue
             v = self._coords(value, key)
-            same_shape(key, v, q)
+            same_shape(key, v, q, q_name)
             out.append(v.astype(jnp.result_type(q, v)))
         return out
 
 
 def host_state(system: AbstractSystem, q: Coordinates, qd: Velocities):
-    """`(q, q̇)` as NumPy arrays, with `_state`'s checks and no device transfer, for
-    `simulate`'s per-call set-up. A function, not a method: equinox binds a method of a
-    Module by building a `BoundMethod` Module around it, which walks the system's
-    pytree (~50 µs for a 7-link chain)."""
+    """`(q0, q̇0)` as NumPy arrays, with `_state`'s checks (the messages naming `q0`
+    and `qd0`) and no device transfer, for `sweep`'s set-up. A function, not a method:
+    equinox binds a method of a Module by building a `BoundMethod` Module around it,
+    which walks the system's pytree (~50 µs for a 7-link chain)."""
     n, name = system.n_dof, system.name
-    q = coords(q, "q", system.n_configuration, name, host=True)
-    qd = coords(qd, "qd", n, name, host=True)
+    size = configuration_size(system.n_configuration, n)
+    q = coords(q, "q0", system.n_configuration, name, host=True, size=size)
+    qd = coords(qd, "qd0", n, name, host=True)
     if system.n_configuration == n:
-        same_shape("qd", qd, q)
+        same_shape("qd0", qd, q, "q0")
     return q, qd

@@ -53,11 +53,11 @@ def inverse_dynamics_derivatives(
 
 def linearize(system: Energies, q_eq, qd_eq, params, tau_eq, t) -> tuple[jax.Array, jax.Array]:
     """`LagrangianSystem.linearize` (documented there): `(A, B)`."""
-    q, qd = system._state(q_eq, qd_eq)
+    q, qd = system._state(q_eq, qd_eq, q_name="q_eq", qd_name="qd_eq")
     if tau_eq is None:
         tau = jnp.zeros_like(q)
     else:
-        (tau,) = system._state(q, tau=tau_eq)[1:]
+        (tau,) = system._state(q, q_name="q_eq", tau_eq=tau_eq)[1:]
     dtype = jnp.result_type(q, qd, tau)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
     program, eager = choose_program(
@@ -97,6 +97,9 @@ def constrained_linearize(
     system: Constrained, q_eq, qd_eq, params, tau_eq, t
 ) -> tuple[jax.Array, jax.Array]:
     """`ConstrainedSystem.linearize` (documented there): `(A, B)`."""
+    q_eq, qd_eq, tau_eq = system._state(
+        q_eq, qd_eq, q_name="q_eq", qd_name="qd_eq", tau_eq=tau_eq
+    )  # (the messages name the caller's arguments)
     out = constrained_forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
     return state_space(out)
 

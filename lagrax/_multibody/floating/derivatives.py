@@ -136,10 +136,12 @@ _inverse_program = eqx.filter_jit(_inverse_body)
 
 
 def forward_dynamics_derivatives(
-    system: FloatingDerivatives, q, qd, params, tau, t, wrt_params: bool
+    system: FloatingDerivatives, q, qd, params, tau, t, wrt_params: bool, names=("q", "qd", "tau")
 ) -> ForwardDynamicsDerivatives:
-    """`FloatingBaseSystem.forward_dynamics_derivatives` (documented there)."""
-    q, v, tau = finite_inputs(system, "tau", *system._inputs(q, qd=qd, tau=tau))
+    """`FloatingBaseSystem.forward_dynamics_derivatives` (documented there); `names`:
+    the caller's arguments, for the messages."""
+    checked = system._inputs(q, names[0], **{names[1]: qd, names[2]: tau})
+    q, v, tau = finite_inputs(system, names, *checked)
     tau = jnp.zeros_like(v) if tau is None else tau
     program, eager = choose_program(system, _forward, _forward_body, q, v, tau, params, t)
     out = blocked(program)(
@@ -152,7 +154,7 @@ def inverse_dynamics_derivatives(
     system: FloatingDerivatives, q, qd, qdd, params, t, wrt_params: bool
 ) -> InverseDynamicsDerivatives:
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
-    q, v, vdot = finite_inputs(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
+    q, v, vdot = finite_inputs(system, ("q", "qd", "qdd"), *system._inputs(q, qd=qd, qdd=qdd))
     program, eager = choose_program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
     out = blocked(program)(
         system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params
@@ -160,11 +162,10 @@ def inverse_dynamics_derivatives(
     return finite_derivatives(system, out, q, v, params, None, t, "inverse_dynamics")
 
 
-def finite_inputs(system: FloatingDerivatives, third: str, q, v, w):
+def finite_inputs(system: FloatingDerivatives, names: tuple[str, str, str], q, v, w):
     """The inputs, checked finite: a NaN in the base's position, which the dynamics do
     not read, would otherwise pass unnoticed. Eagerly a `NonFiniteError` naming the
-    input; traced, through `equinox.error_if`."""
-    names = ("q", "qd", third)
+    input (`names`: the caller's arguments); traced, through `equinox.error_if`."""
     if not traced(system, q, v, w):
         for name, x in zip(names, (q, v, w), strict=True):
             if x is not None:
@@ -181,8 +182,9 @@ def linearize(
     system: FloatingDerivatives, q_eq, qd_eq, params, tau_eq, t
 ) -> tuple[jax.Array, jax.Array]:
     """`FloatingBaseSystem.linearize` (documented there): `(A, B)`."""
-    out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False)
-    (v,) = system._inputs(q_eq, qd=qd_eq)[1:]
+    names = ("q_eq", "qd_eq", "tau_eq")
+    out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False, names)
+    (v,) = system._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
     a_mat, b_mat = state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
     return a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype))), b_mat
 
@@ -196,7 +198,7 @@ class FloatingDerivatives(AbstractSystem):
     robot: eqx.AbstractVar[Any]
 
     @abc.abstractmethod
-    def _inputs(self, q: Any, **velocities: Any) -> list[Any]: ...
+    def _inputs(self, q: Any, q_name: str = "q", **velocities: Any) -> list[Any]: ...
 
     @abc.abstractmethod
     def _at(self, q: Any, params: Params) -> fr.FloatingChain: ...

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..._core.blocking import blocked
 from ..._core.checks import (
+    configuration_size,
     coords,
     eager_only,
     finite,
@@ -222,10 +223,12 @@ class FloatingBaseSystem(FloatingDerivatives):
         return BASE_POSE_NAMES + self.robot.tree.coordinate_names()
 
     # ------------------------------------------------------------------ inputs
-    def _inputs(self, q: Any, **velocities: Any) -> list[Any]:
+    def _inputs(self, q: Any, q_name: str = "q", **velocities: Any) -> list[Any]:
         """`q` (size `7 + n`) and the velocity-sized arrays (`qd`, `tau`, …: size
-        `6 + n`; `None` kept) as arrays of one dtype."""
-        q = coords(q, "q", self.n_configuration, self.name)
+        `6 + n`; `None` kept) as arrays of one dtype; the messages name `q_name` and the
+        keys."""
+        size = configuration_size(self.n_configuration, self.n_dof)
+        q = coords(q, q_name, self.n_configuration, self.name, size=size)
         out = [q]
         for key, value in velocities.items():
             if value is None:
@@ -362,7 +365,7 @@ class FloatingBaseSystem(FloatingDerivatives):
         if not traced(self, q, v, tau, params):
             # the inputs first: a NaN in the base's position, which the dynamics do not
             # read, would otherwise pass unnoticed
-            floating_derivatives.finite_inputs(self, "tau", q, v, tau)
+            floating_derivatives.finite_inputs(self, ("q", "qd", "tau"), q, v, tau)
             vdot = self.accelerations(t, q, v, params, tau)
             if not np.all(np.isfinite(np.asarray(vdot))):
                 self.check_state(q, v, params)

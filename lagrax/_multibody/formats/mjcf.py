@@ -31,7 +31,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.errors import MJCFError
+from ..._core.errors import ArgumentTypeError, MJCFError, ShapeError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
@@ -499,8 +499,11 @@ def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     allowed).
 
     **Returns:** `(q, v)`, of the same shapes.
+
+    **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
+    whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
     """
-    qpos, qvel = jnp.asarray(qpos), jnp.asarray(qvel)
+    qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7, 6))
     quat = jnp.concatenate([qpos[..., 4:7], qpos[..., 3:4]], axis=-1)
     rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
     linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., :3])
@@ -515,9 +518,42 @@ def to_mujoco_state(q: Any, v: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`.
 
     **Returns:** `(qpos, qvel)`, of the same shapes.
+
+    **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
+    and `v`.
     """
-    q, v = jnp.asarray(q), jnp.asarray(v)
+    q, v = _free_joint_state(q, v, ("q", "v"), (7, 6))
     rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., 3:7])
     linear = jnp.einsum("...ij,...j->...i", rot, v[..., :3])
     qpos = jnp.concatenate([q[..., :3], q[..., 6:7], q[..., 3:6], q[..., 7:]], axis=-1)
     return qpos, jnp.concatenate([linear, v[..., 3:]], axis=-1)
+
+
+def _free_joint_state(pos: Any, vel: Any, names: tuple[str, str], sizes: tuple[int, int]):
+    """`(pos, vel)` of a floating base (a free joint first, then the joints; leading
+    batch axes allowed) as arrays, or an error naming the caller's arguments: each must
+    have at least `sizes` entries on its last axis (the base's), as many joints each,
+    and the same batch axes."""
+    out = []
+    for name, x, size in zip(names, (pos, vel), sizes, strict=True):
+        try:
+            x = jnp.asarray(x)
+        except (TypeError, ValueError) as err:
+            raise ArgumentTypeError(
+                f"{name} must be an array of real numbers, got {type(x).__name__}: {err}"
+            ) from None
+        if x.ndim == 0 or x.shape[-1] < size:
+            raise ShapeError(
+                f"{name} must have {size} + n entries on its last axis (the free joint's "
+                f"{size}, then the n joints'), got shape {x.shape}"
+            )
+        out.append(x)
+    (p, v), (np_, nv) = out, sizes
+    if p.shape[-1] - np_ != v.shape[-1] - nv or p.shape[:-1] != v.shape[:-1]:
+        raise ShapeError(
+            f"{names[1]} has shape {v.shape} ({v.shape[-1] - nv} joints) but {names[0]} has "
+            f"shape {p.shape} ({p.shape[-1] - np_} joints): {names[1]}'s last axis must have "
+            f"{p.shape[-1] - np_ + nv} entries ({nv} + n) and the leading (batch) axes must "
+            "match"
+        )
+    return p, v
