@@ -13,8 +13,8 @@ import jax.numpy as jnp
 
 from .._core.custom_types import Params
 from .._core.errors import ArgumentTypeError
-from .._multibody.bodies import SpatialBody
-from .._multibody.scene import Scene
+from .._multibody.energies.bodies import SpatialBody
+from .._multibody.energies.scene import Scene
 from .._systems.constrained import ConstrainedSystem
 
 # Table 1 of the paper (SI units), in its names.
