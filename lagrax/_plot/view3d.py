@@ -269,8 +269,7 @@ def _camera_commands(p: Poses, size: float) -> list[dict]:
     target[:3, 3] = centre
     # the camera's position in meshcat's y-up frame under /Cameras/default/rotated:
     # world (x, y, z) is (x, z, −y) there
-    away = 1.8 * size
-    eye = [0.0, 0.0, away] if p.planar else [0.6 * away, 0.5 * away, 0.6 * away]
+    eye = [0.0, 0.0, 1.6 * size] if p.planar else [0.75 * size, 0.6 * size, 0.75 * size]
     # a plane is drawn upright: the floor grid would cut through it
     grid = [{"type": "set_property", "path": "/Grid", "property": "visible", "value": False}]
     return (grid if p.planar else []) + [
