@@ -4,6 +4,7 @@ a chromium binary; skipped without them), and bad input is refused."""
 import base64
 import io
 import shutil
+import sys
 from types import SimpleNamespace
 
 import jax.numpy as jnp
@@ -77,6 +78,16 @@ def test_bad_input_is_refused(arm7, planar):
         lx.plot.show3d(sol, tree, params=params, fps=0.0)
     with pytest.raises(ArgumentTypeError, match="cannot draw a str"):
         lx.plot.show3d(sol, "arm7")
+
+
+def test_a_sweeps_batch_and_a_missing_extra_are_named(arm7, monkeypatch):
+    tree, params, sol = arm7
+    batch = SimpleNamespace(ts=np.stack([sol.ts, sol.ts]), q=np.stack([sol.q, sol.q]))
+    with pytest.raises(ShapeError, match="pick one member first"):
+        lx.plot.show3d(batch, tree, params=params)
+    monkeypatch.setitem(sys.modules, "meshcat", None)  # as if the viz extra were missing
+    with pytest.raises(ImportError, match=r"pip install 'lagrax\[viz\]'"):
+        lx.plot.show3d(sol, tree, params=params)
 
 
 def test_page_is_standalone(arm7, tmp_path):

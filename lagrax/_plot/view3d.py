@@ -328,6 +328,7 @@ class View3D:
     - `poses`: the bodies' origins and rotations at each frame (`Poses`).
     - `fps`: frames per second of the recording.
     - `title`: the page's title.
+    - `play`: whether the page starts playing when it opens.
     """
 
     def __init__(self, poses: Poses, *, fps: float, title: str, play: bool = True) -> None:
