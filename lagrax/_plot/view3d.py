@@ -220,18 +220,26 @@ def _rod_quaternions(direction: np.ndarray) -> np.ndarray:
     return quat / np.linalg.norm(quat, axis=-1, keepdims=True)
 
 
-def _size(p: Poses) -> float:
-    """The scene's scale: the largest extent of every drawn origin (1 m when all coincide)."""
-    flat = p.origins.reshape(-1, 3)
+def _extent(points: np.ndarray) -> float:
+    """The largest side of the box around `points` `(..., 3)` (1 m when they coincide)."""
+    flat = points.reshape(-1, 3)
     extent = float(np.max(flat.max(axis=0) - flat.min(axis=0)))
     return extent if extent > 1e-9 else 1.0
+
+
+def _robot_size(p: Poses) -> float:
+    """The robot's own size, for its shapes: its largest extent in any one frame (a
+    floating robot that travels far is not drawn larger for it)."""
+    if p.origins.shape[1] < 2:
+        return 0.25 * _extent(p.origins)
+    return max(_extent(frame) for frame in p.origins)
 
 
 def _scene_commands(p: Poses, fps: float, play: bool) -> list[dict]:
     """meshcat commands (lowered to dicts) that draw `p` and animate it at `fps`."""
     mc, _ = _meshcat()
     g, anim_mod, cmd = mc.geometry, mc.animation, mc.commands
-    size = _size(p)
+    size = _robot_size(p)
     out: list[dict] = []
     clips: dict = {}
     quats = _quaternion_of(p.rotations)
@@ -258,13 +266,14 @@ def _scene_commands(p: Poses, fps: float, play: bool) -> list[dict]:
             clip.set_property(f, "scale", "vector3", [1.0, max(float(length[f]), 1e-9), 1.0])
     animation = anim_mod.Animation(clips=clips, default_framerate=fps)
     out.append(cmd.SetAnimation(animation, play=play, repetitions=1).lower())
-    return out + _camera_commands(p, size)
+    return out + _camera_commands(p)
 
 
-def _camera_commands(p: Poses, size: float) -> list[dict]:
+def _camera_commands(p: Poses) -> list[dict]:
     """The camera aimed at the middle of the motion, from the side (front of a plane)."""
     flat = p.origins.reshape(-1, 3)
     centre = 0.5 * (flat.min(axis=0) + flat.max(axis=0))
+    size = _extent(flat)
     target = np.eye(4)
     target[:3, 3] = centre
     # the camera's position in meshcat's y-up frame under /Cameras/default/rotated:
