@@ -181,3 +181,20 @@ def test_saved_page_plays_offline_in_chromium(arm7, browser, tmp_path):
     assert moved.sum() > 200, "the first and last frames look the same"
     errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     assert errors == [], errors
+
+
+def test_floating_base_page_turns_in_chromium(browser, tmp_path):
+    robot, params = lx.chains.from_urdf(lx.models.urdf_path("arm7"), floating_base=True)
+    q = np.zeros((2, 7 + robot.n))
+    q[:, 6] = 1.0
+    q[1, :7] = [0.3, 0.0, 0.2, np.sin(0.6), 0.0, 0.0, np.cos(0.6)]  # moved, turned about x
+    q[1, 8] = 0.8
+    sol = SimpleNamespace(ts=np.array([0.0, 1.0]), q=q)
+    path = lx.plot.show3d(sol, robot, params=params, fps=10.0, play=False).save(tmp_path / "f.html")
+    browser.get(path.as_uri())
+    assert browser.execute_script("return window.lagraxReady === true")
+    start = _image(browser, "viewer.animator.seek(0)")
+    end = _image(browser, "viewer.animator.seek(1.0)")
+    assert (np.abs(end - start).sum(axis=-1) > 30).sum() > 200
+    errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    assert errors == [], errors
