@@ -7,7 +7,9 @@ figure, or animation) it drew on, so the result can be restyled:
 - one trajectory: `joint_trajectories`, `phase_portrait`, `energy_error`,
   `arm_snapshots`, `summary`, `animate`;
 - many: `sweep_heatmap` (a quantity over a 1-D or 2-D `lagrax.sweep` grid);
-- methods: `work_precision` (the chart of `lagrax.bench.work_precision`).
+- methods: `work_precision` (the chart of `lagrax.bench.work_precision`);
+- in 3D, in the browser: `show3d` (a `View3D`: inline in Jupyter, `.save("run.html")` a
+  standalone offline page; the `viz` extra).
 
 Functions that draw a mechanism take its `geometry`: a function `points(q) -> (k, 2)`
 giving the planar points to join (base, joints, tip) at a configuration `q`, in metres.
@@ -24,6 +26,8 @@ import numpy as np
 from ._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from ._plot.axes import axes_for
 from ._plot.sweep import sweep_heatmap as sweep_heatmap
+from ._plot.view3d import View3D as View3D
+from ._plot.view3d import show3d as show3d
 from ._solve.solution import Solution
 from .chains import PlanarChain
 
@@ -425,4 +429,6 @@ __all__ = [
     "animate",
     "sweep_heatmap",
     "work_precision",
+    "show3d",
+    "View3D",
 ]
