@@ -1,0 +1,186 @@
+"""Contact (`lagrax.contact`) against the textbook's closed forms, the static load,
+the energy balance and central differences.
+
+Planar models throughout (a disk in `(x, y, θ)`, a point mass in `(x, y)`, a box in
+`(x, y, θ)` with four corner points), on a flat floor `y = 0`; an incline is gravity
+tilted by `θ` (`params["gx"], params["gy"]`), so that one compiled solve serves every
+slope and friction coefficient.
+"""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from lagrax.contact import ContactSystem, Plane, Sphere
+
+G = 9.81
+R = 0.1  # the disk's and the point mass's radius
+FLOOR = Plane([0.0, 1.0])
+TS = np.linspace(0.0, 1.0, 201)  # one shape of saves: one compiled solve per scene
+
+
+def _gravity(angle):
+    """Gravity tilted so that the floor is an incline of `angle` descending towards +x."""
+    return {"gx": G * np.sin(angle), "gy": -G * np.cos(angle)}
+
+
+def _potential(q, p):
+    return -p["m"] * (p["gx"] * q[0] + p["gy"] * q[1])
+
+
+# --------------------------------------------------------------------------- scenes
+@pytest.fixture(scope="module")
+def ball():
+    """A uniform sphere (`I = 2/5 m r²`) rolling or sliding in its plane, friction read
+    from params; every other contact coefficient the default (scaled from the scene)."""
+
+    def kinetic(q, qd, p):
+        return 0.5 * p["m"] * (qd[0] ** 2 + qd[1] ** 2) + 0.2 * p["m"] * R**2 * qd[2] ** 2
+
+    body = lx.LagrangianSystem(kinetic, _potential, n_dof=3)
+    sphere = Sphere(R, lambda q, p: q[:2], angle=lambda q, p: q[2])
+    scene = ContactSystem(
+        body,
+        sphere,
+        FLOOR,
+        friction=lambda p: p["mu"],
+        static_friction=lambda p: p["mus"],
+    )
+
+    def run(angle, mu, mus, qd0, t1, ts):
+        params = {"m": 1.0, "mu": mu, "mus": mus, **_gravity(angle)}
+        k = scene.coefficients(params)
+        rest = (params["m"] * G * np.cos(angle) / float(k.stiffness)) ** (1 / 1.5)
+        q0 = [0.0, R - rest, 0.0]  # resting on the floor
+        return lx.simulate(scene, q0, qd0, params, t1=t1, ts=ts, solver="kvaerno5")
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def point():
+    """A point mass with a sphere of radius R; friction and dissipation read from params
+    (so that jax.grad and a sweep see them), the stiffness the default."""
+    body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * p["m"] * qd @ qd, _potential, n_dof=2)
+    scene = ContactSystem(
+        body,
+        Sphere(R, lambda q, p: q),
+        FLOOR,
+        friction=lambda p: p["mu"],
+        dissipation=lambda p: p["c"],
+    )
+    return scene
+
+
+def _params(mu=0.0, c=0.0):
+    return {"m": 1.0, "mu": mu, "c": c, **_gravity(0.0)}
+
+
+# --------------------------------------------------------------------------- closed forms
+def test_sphere_rolls_down_an_incline_at_five_sevenths_g_sin(ball):
+    angle = np.deg2rad(15.0)
+    sol = ball(angle, 0.5, 1.0, [0.0, 0.0, 0.0], 1.0, TS)
+    ts = TS
+    assert bool(sol.ok)
+    keep = ts > 0.2  # after the start's transient
+    accel = 2.0 * np.polyfit(ts[keep], np.asarray(sol.q[keep, 0]), 2)[0]
+    expected = 5.0 / 7.0 * G * np.sin(angle)
+    assert abs(accel / expected - 1.0) < 1e-3
+    # rolling: the contact point does not slip (within the creep bound v_s)
+    slip = np.asarray(sol.qd[-1, 0] + R * sol.qd[-1, 2])
+    assert abs(slip) < 1e-4 * np.sqrt(G * R)
+
+
+def test_sphere_slides_and_spins_up_below_the_rolling_friction(ball):
+    angle, mu = np.deg2rad(30.0), 0.1  # mu < 2/7 tan(30°): slips throughout
+    sol = ball(angle, mu, mu, [0.0, 0.0, 0.0], 0.5, TS * 0.5)
+    ts = TS * 0.5
+    keep = ts > 0.1
+    accel = 2.0 * np.polyfit(ts[keep], np.asarray(sol.q[keep, 0]), 2)[0]
+    spin = np.polyfit(ts[keep], np.asarray(sol.qd[keep, 2]), 1)[0]
+    assert abs(accel / (G * (np.sin(angle) - mu * np.cos(angle))) - 1.0) < 1e-3
+    assert abs(-spin / (2.5 * mu * G * np.cos(angle) / R) - 1.0) < 1e-3
+
+
+def test_bowling_ball_rolls_from_two_sevenths_at_five_sevenths_v0(ball):
+    v0, mu = 2.0, 0.2
+    t_star = 2.0 * v0 / (7.0 * mu * G)
+    sol = ball(0.0, mu, mu, [v0, 0.0, 0.0], 0.5, TS * 0.5)
+    ts = TS * 0.5
+    slip = np.asarray(sol.qd[:, 0] + R * sol.qd[:, 2])
+    # the slip falls linearly while it slides: its line's zero is t*; after, it rolls
+    sliding = slip > 1e-2
+    found = -np.divide(*np.polyfit(ts[sliding], slip[sliding], 1)[::-1])
+    assert abs(found / t_star - 1.0) < 1e-3
+    assert np.all(np.abs(slip[ts > t_star + 0.01]) < 1e-4 * np.sqrt(G * R))
+    assert abs(float(sol.qd[-1, 0]) / (5.0 / 7.0 * v0) - 1.0) < 1e-3
+
+
+def test_ball_dropped_without_dissipation_rebounds_to_its_height(point):
+    params = _params()
+    sol = lx.simulate(point, [0.0, 1.0 + R], [0.0, 0.0], params, t1=0.7, n_save=141)
+    assert bool(sol.ok)
+    assert float(sol.qd[-1, 1]) > 0  # bounced: on its way up, in flight
+    apex = float(sol.q[-1, 1]) + float(sol.qd[-1, 1]) ** 2 / (2 * G) - R
+    assert abs(apex - 1.0) < 1e-4
+    assert float(np.max(np.abs(sol.energy_error))) < 1e-6
+    assert sol.contact_gap.shape == (141, 1) and sol.contact_force.shape == (141, 1, 2)
+
+
+def test_contact_events_locate_the_hertz_impact(point):
+    params = _params()
+    sol = lx.simulate(
+        point, [0.0, 1.0 + R], [0.0, 0.0], params, t1=0.7, n_save=141, events=point.events()
+    )
+    record = sol.events[0]
+    assert int(record.count) == 2  # onset and release
+    onset, release = np.asarray(record.times[:2])
+    assert abs(onset - np.sqrt(2.0 / G)) < 1e-9
+    # Hertz (p = 3/2, no damping): t_c = 2 (δ_max / v) ∫_0^1 (1 − x^(5/2))^(-1/2) dx,
+    # δ_max = (5 m v² / (4 k))^(2/5); gravity shortens it by O(g t_c / v) ~ 2e-3
+    k = float(point.coefficients(params).stiffness)
+    v = np.sqrt(2.0 * G)
+    delta_max = (5.0 * v**2 / (4.0 * k)) ** 0.4
+    integral = math.gamma(0.4) * math.gamma(0.5) / math.gamma(0.9) / 2.5
+    assert abs((release - onset) / (2.0 * delta_max / v * integral) - 1.0) < 5e-3
+    assert float(np.max(np.abs(sol.energy_error))) < 1e-6
+
+
+def test_box_on_a_slope_below_its_friction_angle_stays_put():
+    a, b, m = 0.1, 0.05, 1.0
+    inertia = m * (4 * a**2 + 4 * b**2) / 12
+
+    def kinetic(q, qd, p):
+        return 0.5 * p["m"] * (qd[0] ** 2 + qd[1] ** 2) + 0.5 * inertia * qd[2] ** 2
+
+    def corner(sx, sy):
+        def position(q, p):
+            c, s = jnp.cos(q[2]), jnp.sin(q[2])
+            return q[:2] + jnp.stack([c * sx * a - s * sy * b, s * sx * a + c * sy * b])
+
+        return Sphere(0.0, position)
+
+    body = lx.LagrangianSystem(kinetic, _potential, n_dof=3)
+    corners = [corner(sx, sy) for sx in (-1, 1) for sy in (-1, 1)]
+    box = ContactSystem(body, corners, FLOOR, friction=0.5)
+    angle = np.deg2rad(15.0)
+    params = {"m": m, **_gravity(angle)}
+    sol = lx.simulate(box, [0.0, b, 0.0], [0.0, 0.0, 0.0], params, t1=5.0, solver="kvaerno5")
+    assert bool(sol.ok)
+    assert abs(float(sol.q[-1, 0] - sol.q[0, 0])) <= 1e-3
+    # at rest the contact forces carry the weight: normal m g cos θ, tangential m g sin θ
+    total = np.asarray(jnp.sum(sol.contact_force[-1], axis=0))
+    assert abs(total[1] / (m * G * np.cos(angle)) - 1.0) < 1e-6
+    assert abs(-total[0] / (m * G * np.sin(angle)) - 1.0) < 1e-6
+
+
+def test_resting_normal_force_is_the_weight(point):
+    params = _params()
+    k = float(point.coefficients(params).stiffness)
+    rest = (G / k) ** (1 / 1.5)
+    forces = point.normal_forces(jnp.array([0.0, R - rest]), jnp.zeros(2), params)
+    assert abs(float(forces[0]) / G - 1.0) < 1e-12
