@@ -184,3 +184,73 @@ def test_resting_normal_force_is_the_weight(point):
     rest = (G / k) ** (1 / 1.5)
     forces = point.normal_forces(jnp.array([0.0, R - rest]), jnp.zeros(2), params)
     assert abs(float(forces[0]) / G - 1.0) < 1e-12
+
+
+# --------------------------------------------------------------------------- derivatives
+def _central(f, x, h):
+    return (f(x + h) - f(x - h)) / (2 * h)
+
+
+def test_gradient_through_a_slide_matches_central_differences(point):
+    t1, v0, mu = 0.3, 2.0, 0.3
+    k = float(point.coefficients(_params()).stiffness)
+    y_rest = R - (G / k) ** (1 / 1.5)
+    kw = dict(t1=t1, n_save=2, rtol=1e-12, atol=1e-12)
+
+    def distance(v, m):
+        sol = lx.simulate(point, jnp.stack([0.0, y_rest]), jnp.stack([v, 0.0]), _params(m), **kw)
+        return sol.q[-1, 0]
+
+    grads = jax.grad(distance, argnums=(0, 1))(v0, mu)
+    fd_v = _central(lambda v: float(distance(v, mu)), v0, 1e-4)
+    fd_mu = _central(lambda m: float(distance(v0, m)), mu, 1e-4)
+    assert abs(float(grads[0]) / fd_v - 1.0) < 1e-6
+    assert abs(float(grads[1]) / fd_mu - 1.0) < 1e-6
+    # and the closed form of the slide, x = v0 t − μ g t²/2
+    assert abs(float(grads[1]) / (-0.5 * G * t1**2) - 1.0) < 1e-6
+
+
+def test_gradient_through_a_bounce_matches_central_differences(point):
+    """The rebound's dependence on the Hunt–Crossley dissipation. (With respect to the
+    drop height the derivative is the small difference of large timing terms, and the
+    sensitivities, on the steps the state's error chooses, reach it only to ~1e-2: see
+    the contact guide.)"""
+    kw = dict(t1=0.7, n_save=2, rtol=1e-12, atol=1e-12)
+
+    def height(c):
+        sol = lx.simulate(point, jnp.stack([0.0, 1.0 + R]), jnp.zeros(2), _params(c=c), **kw)
+        return sol.q[-1, 1]
+
+    c0 = 0.05  # restitution about 0.8 at the impact speed sqrt(2 g)
+    grad = float(jax.grad(height)(c0))
+    assert abs(grad / _central(lambda c: float(height(c)), c0, 1e-5) - 1.0) < 1e-6
+
+
+# --------------------------------------------------------------------------- bad input
+def test_bad_geometry_and_coefficients_are_refused_naming_the_value():
+    body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, n_dof=2)
+    point = Sphere(0.0, lambda q, p: q)
+    with pytest.raises(lx.ConfigurationError, match="radius=-0.1"):
+        Sphere(-0.1, lambda q, p: q)
+    with pytest.raises(lx.ConfigurationError, match=r"normal=\[0.0, 0.0\]"):
+        Plane([0.0, 0.0])
+    with pytest.raises(lx.ConfigurationError, match="friction=-0.2"):
+        ContactSystem(body, point, FLOOR, friction=-0.2)
+    with pytest.raises(lx.ConfigurationError, match="stiffness=inf"):
+        ContactSystem(body, point, FLOOR, stiffness=float("inf"))
+    with pytest.raises(lx.ConfigurationError, match="static_friction=0.1 < friction=0.5"):
+        ContactSystem(body, point, FLOOR, friction=0.5, static_friction=0.1)
+    with pytest.raises(lx.ConfigurationError, match="needs a 3-D plane"):
+        ContactSystem(body, Sphere(0.1, lambda q, p: q, angle=None, rotation=jnp.eye), FLOOR)
+
+
+def test_a_bad_coefficient_read_from_params_is_refused_by_simulate(point):
+    with pytest.raises(lx.ConfigurationError, match="friction=-0.5"):
+        lx.simulate(point, [0.0, 1.0 + R], [0.0, 0.0], _params(mu=-0.5), t1=0.7, n_save=141)
+
+
+def test_a_scene_without_weight_needs_its_stiffness():
+    free = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, n_dof=2)  # no gravity
+    scene = ContactSystem(free, Sphere(0.1, lambda q, p: q), FLOOR)
+    with pytest.raises(lx.ConfigurationError, match="no gravity towards the plane"):
+        scene.check_state(jnp.array([0.0, 1.0]), jnp.zeros(2), {})

@@ -10,7 +10,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import coords, eager_only, traced
-from .._core.custom_types import Params
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
