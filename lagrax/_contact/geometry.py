@@ -17,8 +17,8 @@ class Plane(eqx.Module):
     the surface, with the unit normal `n` pointing out of the ground.
 
     In 2-D (`normal` of length 2: a planar model in its `(x, y)` plane) or 3-D. Any
-    normal: an incline of angle `θ` under gravity along `−y` has
-    `normal = (−sin θ, cos θ)` (descending towards `+x`).
+    normal: an incline of angle `θ` under gravity along `−y`, descending towards `+x`,
+    has `normal = (sin θ, cos θ)`.
 
     **Arguments:**
 
@@ -34,7 +34,7 @@ class Plane(eqx.Module):
 
     ```python
     floor = lagrax.contact.Plane([0.0, 0.0, 1.0])                  # z = 0
-    slope = lagrax.contact.Plane([-np.sin(0.3), np.cos(0.3)])      # planar incline
+    slope = lagrax.contact.Plane([np.sin(0.3), np.cos(0.3)])       # planar incline
     ```
     """
 
