@@ -203,6 +203,29 @@ def test_resting_normal_force_is_the_weight(point):
     assert abs(float(forces[0]) / G - 1.0) < 1e-12
 
 
+@pytest.mark.slow
+def test_a_free_sphere_on_a_floating_base_rolls_down_a_3d_incline():
+    """The spatial path: a floating base (quaternion configuration, body-frame
+    velocities) with `rotation=`, on a tilted 3-D plane, gravity along −z."""
+    robot = lx.chains.FloatingTree(lx.chains.Tree("", ()))
+    params = robot.params(base_m=1.0, base_inertia=0.4 * R**2 * np.eye(3), g=G)
+
+    def rotation(q, p):  # the base quaternion is (x, y, z, w)
+        return lx.rigid_body.quaternion_to_matrix(jnp.stack([q[6], q[3], q[4], q[5]]))
+
+    angle = np.deg2rad(15.0)
+    normal = np.array([np.sin(angle), 0.0, np.cos(angle)])  # descending towards +x
+    sphere = Sphere(R, lambda q, p: q[:3], rotation=rotation)
+    scene = ContactSystem(robot.system(), sphere, Plane(normal), friction=0.5, static_friction=1.0)
+    rest = (G * np.cos(angle) / float(scene.coefficients(params).stiffness)) ** (1 / 1.5)
+    q0 = jnp.array([*((R - rest) * normal), 0.0, 0.0, 0.0, 1.0])
+    sol = lx.simulate(scene, q0, jnp.zeros(6), params, t1=1.0, ts=TS, solver="kvaerno5")
+    downhill = np.asarray(sol.q[:, :3]) @ np.array([np.cos(angle), 0.0, -np.sin(angle)])
+    keep = TS > 0.2
+    accel = 2.0 * np.polyfit(TS[keep], downhill[keep], 2)[0]
+    assert abs(accel / (5.0 / 7.0 * G * np.sin(angle)) - 1.0) < 1e-3
+
+
 # --------------------------------------------------------------------------- derivatives
 def _central(f, x, h):
     return (f(x + h) - f(x - h)) / (2 * h)
