@@ -226,6 +226,17 @@ def test_a_free_sphere_on_a_floating_base_rolls_down_a_3d_incline():
     assert abs(accel / (5.0 / 7.0 * G * np.sin(angle)) - 1.0) < 1e-3
 
 
+def test_sweep_over_friction_slides_each_member_its_closed_form_distance(point):
+    v0, t1 = 2.0, 0.3
+    k = float(point.coefficients(_params()).stiffness)
+    y_rest = R - (G / k) ** (1 / 1.5)
+    mus = np.array([0.1, 0.3, 0.5])
+    ds = lx.sweep(point, [0.0, y_rest], [v0, 0.0], lx.samples(_params(), mu=mus), t1=t1)
+    assert ds.attrs["n_failed"] == 0
+    x = np.asarray(ds.q.isel(dof=0))
+    np.testing.assert_allclose(x, v0 * t1 - 0.5 * mus * G * t1**2, rtol=1e-6)
+
+
 # --------------------------------------------------------------------------- derivatives
 def _central(f, x, h):
     return (f(x + h) - f(x - h)) / (2 * h)
