@@ -135,7 +135,7 @@ class ContactSystem(AbstractSystem):
     dissipation: Coefficient
     stiction_velocity: Coefficient
     exponent: float = eqx.field(static=True)
-    reference: Any
+    reference: tuple[float, ...] | None = eqx.field(static=True)
     name: str = eqx.field(static=True)
 
     def __init__(
@@ -204,7 +204,7 @@ class ContactSystem(AbstractSystem):
                 f"ContactSystem's exponent must be finite and >= 1, got exponent={exponent!r}"
             )
         self.exponent = exponent
-        self.reference = None if reference is None else np.asarray(reference, dtype=float)
+        self.reference = None if reference is None else tuple(float(x) for x in np.ravel(reference))
         self.name = f"{system.name} (contact)" if name is None else name
 
     # ------------------------------------------------------------ shared with the system
@@ -424,8 +424,9 @@ class ContactSystem(AbstractSystem):
             raise ConfigurationError(
                 f"the contact of {self.name} scales its default stiffness, dissipation and "
                 "stiction velocity by the weight on the plane, and this scene has none at "
-                "its reference configuration (no gravity towards the plane): pass "
-                "stiffness=, dissipation= and stiction_velocity= explicitly"
+                "its reference configuration (no gravity towards the plane, or constraints "
+                "that carry it there): pass stiffness=, dissipation= and "
+                "stiction_velocity= explicitly, or a reference= where the spheres bear weight"
             )
 
     # ------------------------------------------------------------ the energy balance
