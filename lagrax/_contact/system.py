@@ -121,8 +121,8 @@ class ContactSystem(AbstractSystem):
         lambda q, p: p["m"] * 9.81 * q[1], n_dof=3)
     wheel = Sphere(0.1, lambda q, p: q[:2], angle=lambda q, p: q[2])
     scene = ContactSystem(disk, wheel, Plane([np.sin(0.2), np.cos(0.2)]), friction=0.5)
-    sol = lx.simulate(scene, [0.0, 0.1, 0.0], [0.0, 0.0, 0.0], {"m": 1.0}, t1=1.0,
-                      solver="kvaerno5")
+    q0 = [0.1 * np.sin(0.2), 0.1 * np.cos(0.2), 0.0]   # touching the slope
+    sol = lx.simulate(scene, q0, [0.0, 0.0, 0.0], {"m": 1.0}, t1=1.0, solver="kvaerno5")
     ```
     """
 
