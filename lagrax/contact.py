@@ -15,10 +15,14 @@ scene = ContactSystem(ball, Sphere(0.1, lambda q, p: q), Plane([0.0, 1.0]), fric
 sol = lx.simulate(scene, [0.0, 1.0], [1.0, 0.0], {"m": 1.0}, t1=2.0)
 sol.contact_force[:, 0]   # the force on the ball's contact point along the way
 ```
+
+[`body_sphere`][lagrax.contact.body_sphere] fixes a sphere to a tree's body by name (a
+robot's foot), from the tree's own kinematics.
 """
 
+from ._contact.bodies import body_sphere as body_sphere
 from ._contact.geometry import Plane as Plane
 from ._contact.geometry import Sphere as Sphere
 from ._contact.system import ContactSystem as ContactSystem
 
-__all__ = ["ContactSystem", "Plane", "Sphere"]
+__all__ = ["ContactSystem", "Plane", "Sphere", "body_sphere"]

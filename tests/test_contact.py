@@ -305,3 +305,45 @@ def test_a_scene_without_weight_needs_its_stiffness():
     scene = ContactSystem(free, Sphere(0.1, lambda q, p: q), FLOOR)
     with pytest.raises(lx.ConfigurationError, match="no gravity towards the plane"):
         scene.check_state(jnp.array([0.0, 1.0]), jnp.zeros(2), {})
+
+
+# --------------------------------------------------------------------------- trees
+_LEG = """<robot name="leg">
+  <link name="base"><inertial><mass value="2.0"/>
+    <inertia ixx="0.02" iyy="0.02" izz="0.02" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="thigh"><inertial><origin xyz="0 0 -0.1"/><mass value="0.3"/>
+    <inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="shank"><inertial><origin xyz="0 0 -0.1"/><mass value="0.2"/>
+    <inertia ixx="0.001" iyy="0.001" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="foot"/>
+  <joint name="hip" type="revolute"><parent link="base"/><child link="thigh"/>
+    <origin xyz="0.1 0.05 0" rpy="0.2 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/></joint>
+  <joint name="knee" type="revolute"><parent link="thigh"/><child link="shank"/>
+    <origin xyz="0 0 -0.2"/><axis xyz="1 0 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/></joint>
+  <joint name="ankle" type="fixed"><parent link="shank"/><child link="foot"/>
+    <origin xyz="0.01 0 -0.2"/></joint>
+</robot>"""
+
+
+def test_body_sphere_sits_where_pinocchio_places_the_frame():
+    pin = pytest.importorskip("pinocchio", reason="Pinocchio is the kinematics reference")
+    robot, params = lx.chains.from_urdf(_LEG, floating_base=True)
+    foot = lx.contact.body_sphere(robot, "shank", 0.02, offset=(0.01, 0.0, -0.2))
+    base = lx.contact.body_sphere(robot, robot.base_name, 0.0, offset=(0.0, 0.0, 0.1))
+    model = pin.buildModelFromXML(_LEG, pin.JointModelFreeFlyer())
+    data = model.createData()
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        quat = rng.normal(size=4)
+        q = np.concatenate([rng.normal(size=3), quat / np.linalg.norm(quat), rng.normal(size=2)])
+        pin.framesForwardKinematics(model, data, q)  # same (x, y, z, w) convention
+        placed = data.oMf[model.getFrameId("foot")]
+        np.testing.assert_allclose(foot.position(q, params), placed.translation, atol=1e-12)
+        np.testing.assert_allclose(foot.rotation(q, params), placed.rotation, atol=1e-12)
+        root = data.oMf[model.getFrameId("root_joint")]
+        expected = root.translation + root.rotation @ np.array([0.0, 0.0, 0.1])
+        np.testing.assert_allclose(base.position(q, params), expected, atol=1e-12)
+    with pytest.raises(lx.ConfigurationError, match="no body named 'toe'"):
+        lx.contact.body_sphere(robot, "toe", 0.02)
