@@ -31,6 +31,7 @@ _compilation_cache.configure()  # compiled programs kept on disk: see its docstr
 from . import bench as bench  # noqa: E402
 from . import bodies as bodies  # noqa: E402
 from . import chains as chains  # noqa: E402
+from . import contact as contact  # noqa: E402
 from . import integrators as integrators  # noqa: E402
 from . import models as models  # noqa: E402
 from . import newton_euler as newton_euler  # noqa: E402
@@ -114,6 +115,7 @@ __all__ = [
     "models",
     "bodies",
     "chains",
+    "contact",
     "newton_euler",
     "plot",
     "symbolic",

@@ -61,6 +61,10 @@ class Solution(eqx.Module):
       crossing (before a reset), padded with `inf` past `count` (`K` is the
       event's `max_events`; fixed shapes, so it works under `jit` and `vmap`);
       `None` without events.
+    - `contact_gap`, `contact_force`: for a
+      [`lagrax.contact.ContactSystem`][], each sphere's gap to the ground at `ts`
+      (negative: penetration), shape `(T, S)`, and the contact force on its contact point
+      (normal and friction, world frame), shape `(T, S, d)`; `None` otherwise.
 
     After a failed solve with `throw=False`, entries past the failure time are `inf`
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -83,6 +87,8 @@ class Solution(eqx.Module):
     velocity_constraint_violation: Float[Array, "T m2"] | None = None
     energy_scale: Float[Array, ""] | None = None
     events: "tuple[EventRecord, ...] | None" = None
+    contact_gap: Float[Array, "T S"] | None = None
+    contact_force: Float[Array, "T S d"] | None = None
 
     @property
     def ok(self) -> Array:

@@ -1,0 +1,2 @@
+"""Contact: spheres fixed to a system's bodies against a ground plane (see
+`lagrax.contact`)."""

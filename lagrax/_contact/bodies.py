@@ -1,0 +1,95 @@
+"""Spheres fixed to a tree's bodies, by name, from the kinematics the recursions use."""
+
+from typing import Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.errors import ArgumentTypeError, ConfigurationError
+from .._multibody.algorithms.floating_recursions import quaternion_rotation
+from .._multibody.articulated.trees import AbstractTree
+from .._multibody.floating.system import FloatingTree
+from .geometry import Sphere
+
+
+def _index(names: tuple[str, ...], body: Any, base: str | None) -> int:
+    """The body's index in the tree (`−1`: the floating base)."""
+    if isinstance(body, str):
+        if base is not None and body == base:
+            return -1
+        if body in names:
+            return names.index(body)
+        known = ([base] if base is not None else []) + list(names)
+        raise ConfigurationError(f"no body named {body!r} in this tree; its bodies are {known}")
+    if isinstance(body, (int, np.integer)) and not isinstance(body, bool):
+        low = -1 if base is not None else 0
+        if low <= int(body) < len(names):
+            return int(body)
+        raise ConfigurationError(
+            f"body index {body} is out of range: this tree has bodies {low} … {len(names) - 1}"
+        )
+    raise ArgumentTypeError(f"body must be a body's name or index, got {body!r}")
+
+
+def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0.0)) -> Sphere:
+    r"""A [`Sphere`][lagrax.contact.Sphere] fixed to a body of a tree (a URDF robot's
+    link, a foot), its centre at `offset` in the body's frame.
+
+    The centre and the body's rotation come from the tree's own forward kinematics
+    (`frames`, the recursions' joint transforms): for a fixed-base tree (a
+    [`Tree`][lagrax.chains.Tree] or [`SpatialChain`][lagrax.chains.SpatialChain], `q` its
+    coordinates) `c = o_i + R_i offset`; for a
+    [`FloatingTree`][lagrax.chains.FloatingTree] (`q = (p, quaternion (x, y, z, w),
+    joints)`) `c = p + R_b (o_i + R_i offset)`, with the rotation `R_b R_i` (the base
+    itself: its name, or index `−1`). A link that `from_urdf` merged into its parent body
+    (a foot on a fixed joint) is its parent body with the fixed joint's origin as `offset`.
+
+    **Arguments:**
+
+    - `robot`: a `FloatingTree`, `Tree` or `SpatialChain`.
+    - `body`: the body's name (`robot.body_names`, or a floating base's `base_name`) or
+      index.
+    - `radius`: the sphere's radius, `≥ 0`.
+    - `offset`: the centre in the body's frame, `(3,)` (default the body's origin).
+
+    **Returns:** a `Sphere` with `position` and `rotation`, for a
+    [`ContactSystem`][lagrax.contact.ContactSystem] of `robot.system()` on a 3-D plane.
+
+    **Raises:** `ConfigurationError` for an unknown body or an offset that is not three
+    finite numbers; `ArgumentTypeError` for a robot that is not a tree.
+    """
+    floating = isinstance(robot, FloatingTree)
+    tree = robot.tree if floating else robot
+    if not isinstance(tree, AbstractTree):
+        raise ArgumentTypeError(
+            f"body_sphere takes a FloatingTree, Tree or SpatialChain, got {type(robot).__name__}"
+        )
+    names = getattr(tree, "body_names", None) or tuple(f"body{k}" for k in range(tree.n_bodies))
+    i = _index(tuple(names), body, robot.base_name if floating else None)
+    arm = np.asarray(offset, dtype=float)
+    if arm.shape != (3,) or not np.all(np.isfinite(arm)):
+        raise ConfigurationError(f"offset must be three finite numbers, got offset={offset!r}")
+    arm_t = tuple(float(x) for x in arm)
+
+    def local(joints, params):
+        """The body's origin and rotation in the base (fixed tree: world) frame."""
+        if i < 0:
+            return jnp.zeros(3, joints.dtype), jnp.eye(3, dtype=joints.dtype)
+        origins, rots = tree.frames(joints, params)
+        return origins[i], rots[i]
+
+    def pose(q, params):
+        q = jnp.asarray(q)
+        if not floating:
+            o, rot = local(q, params)
+            return o + rot @ jnp.asarray(arm_t, rot.dtype), rot
+        o, rot = local(q[7:], params)
+        base = quaternion_rotation(q[3:7])
+        centre = q[:3] + base @ (o + rot @ jnp.asarray(arm_t, rot.dtype))
+        return centre, base @ rot
+
+    return Sphere(
+        radius,
+        lambda q, params: pose(q, params)[0],
+        rotation=lambda q, params: pose(q, params)[1],
+    )

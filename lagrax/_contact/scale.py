@@ -1,0 +1,82 @@
+r"""The default contact parameters, scaled from the scene.
+
+With no `stiffness`, `dissipation` or `stiction_velocity` given, a
+[`ContactSystem`][lagrax.contact.ContactSystem] takes them from its scene at a reference
+configuration `q_ref` (zero coordinates; a floating base upright, `base_qw = 1`; or the
+`reference=` the system was given), at rest:
+
+- the **weight** the spheres carry: the generalized force that holds the system at
+  rest, `h = −M(q_ref) q̈_free` (`q̈_free`: the accelerations at rest without
+  contact), shared out among the spheres as the minimum-norm normal forces `f` with
+  `J_nᵀ f = h` (`J_n`: the spheres' normal velocity Jacobian), `L = mean |f_i|` (a ball
+  on an incline: `m g cos θ`);
+- the **normal acceleration** of free fall, `g_n = max_i |n·J_i q̈_free|`;
+- the **size** `ℓ`: the largest radius or distance of a sphere's centre from the
+  spheres' centroid (one point alone: `ℓ = 1`).
+
+Then `δ_ref = 10⁻⁴ ℓ` is the static penetration under the load `L`:
+
+$$
+k = L/δ_{ref}^p, \qquad c = \tfrac43 \sqrt{p/(g_n δ_{ref})}, \qquad
+v_s = 10^{-4}\sqrt{g_n ℓ},
+$$
+
+`c` making a resting contact critically damped (its linearization about `δ_ref`, with
+the mass `L/g_n`), `v_s` the stiction velocity. They are functions of `params` only (not
+of the state), so the contact's elastic energy is a true potential, and derivatives with
+respect to `params` include theirs.
+"""
+
+import jax
+import jax.numpy as jnp
+
+PENETRATION = 1e-4  # δ_ref/ℓ: the static penetration, relative to the scene's size
+STICTION = 1e-4  # v_s/sqrt(g_n ℓ): the stiction velocity, relative to the scene's speed
+DAMPING_RATIO = 1.0  # of a resting contact, linearized
+
+
+def reference_configuration(system, reference, dtype):
+    """`q_ref`: the given `reference`, or zeros with a floating base's `base_qw = 1`."""
+    if reference is not None:
+        return jnp.asarray(reference, dtype)
+    q = jnp.zeros((system.n_configuration,), dtype)
+    names = system.configuration_names or ()
+    if "base_qw" in names:
+        q = q.at[names.index("base_qw")].set(1.0)
+    return q
+
+
+def scene_scale(contact, params, dtype):
+    """`(k, c, v_s, ok)`: the default stiffness, dissipation and stiction velocity of
+    `contact` (a `ContactSystem`) at `params`, and whether the scene has a weight on the
+    plane to scale them by (`ok` false: no gravity towards it)."""
+    system, p = contact.system, contact.exponent
+    q_ref = reference_configuration(system, contact.reference, dtype)
+    v0 = jnp.zeros((system.n_dof,), dtype)
+    free = system.accelerations(jnp.zeros((), dtype), q_ref, v0, params, None)
+    mass = system.mass_matrix(q_ref, params)
+    normal = jnp.asarray(contact.plane.normal, dtype)
+
+    def normal_rates(v):
+        return contact.point_velocities(q_ref, v, params)[0] @ normal
+
+    jac = jax.jacfwd(normal_rates)(v0)  # (S, n_dof)
+    gram = jac @ jac.T
+    ridge = 1e-12 * jnp.trace(gram) + jnp.finfo(dtype).tiny
+    loads = jnp.linalg.solve(
+        gram + ridge * jnp.eye(gram.shape[0], dtype=dtype), jac @ (-mass @ free)
+    )
+    load = jnp.mean(jnp.abs(loads))
+    g_n = jnp.max(jnp.abs(jac @ free))
+    centres = contact.centres(q_ref, params)
+    radii = jnp.asarray([s.radius for s in contact.spheres], dtype)
+    spread = jnp.max(jnp.linalg.norm(centres - jnp.mean(centres, axis=0, keepdims=True), axis=-1))
+    size = jnp.maximum(jnp.max(radii), spread)
+    size = jnp.where(size > 0, size, 1.0)
+    ok = jnp.isfinite(load) & (load > 0) & jnp.isfinite(g_n) & (g_n > 0)
+    load, g_n = jnp.where(ok, load, 1.0), jnp.where(ok, g_n, 1.0)
+    delta = PENETRATION * size
+    stiffness = load / delta**p
+    dissipation = 4.0 / 3.0 * DAMPING_RATIO * jnp.sqrt(p / (g_n * delta))
+    stiction = STICTION * jnp.sqrt(g_n * size)
+    return stiffness, dissipation, stiction, ok

@@ -1,0 +1,497 @@
+"""`ContactSystem`: a system whose spheres touch a ground plane."""
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core.checks import coords, eager_only, traced
+from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._solve.events import Event
+from .._systems.abstract import AbstractSystem
+from . import laws, scale
+from .geometry import Plane, Sphere
+
+Coefficient = float | Callable[[Any], Any] | None
+
+
+class Coefficients(NamedTuple):
+    """The contact's coefficients at one `params`: stiffness `k`, dissipation `c`,
+    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, and `ok`: all
+    valid (and, for defaults, the scene has a weight to scale them by)."""
+
+    stiffness: Any
+    dissipation: Any
+    friction: Any
+    static_friction: Any
+    stiction_velocity: Any
+    ok: Any
+
+
+def _coefficient(name: str, value: Coefficient, *, allow_none: bool) -> Coefficient:
+    """A number (checked now: finite, `>= 0`) or a function of `params` (checked when
+    `check_state` runs)."""
+    if value is None:
+        if not allow_none:
+            raise ConfigurationError(f"ContactSystem's {name} must be given")
+        return None
+    if callable(value):
+        return value
+    if isinstance(value, (bool, np.bool_)):
+        raise ArgumentTypeError(f"ContactSystem's {name} must be a real number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError) as err:
+        raise ArgumentTypeError(
+            f"ContactSystem's {name} must be a real number or a function of params, got {value!r}"
+        ) from err
+    if not (math.isfinite(x) and x >= 0):
+        raise ConfigurationError(
+            f"ContactSystem's {name} must be finite and >= 0, got {name}={value!r}"
+        )
+    return x
+
+
+class ContactSystem(AbstractSystem):
+    r"""A system whose [`Sphere`][lagrax.contact.Sphere]s touch a ground
+    [`Plane`][lagrax.contact.Plane]: compliant contact with Coulomb friction.
+
+    Each sphere `i`, with centre `c_i(q)` and radius `r_i`, has the gap
+    `g_i = n·c_i − offset − r_i` and the penetration `δ_i = −g_i`. The contact adds to
+    the wrapped system:
+
+    - the **normal force** (Hunt–Crossley), along `n` at the contact point
+      `c_i − r_i n`, never pulling:
+      `f_n = k δ^p max(0, 1 + (3/2) c δ̇)`. Its elastic part derives from the potential
+      `V_c = Σ k δ₊^{p+1}/(p+1)`, which is part of
+      [`energy`][lagrax.contact.ContactSystem.energy]; the rest is a dissipation, whose
+      power is part of [`input_power`][lagrax.contact.ContactSystem.input_power] (so
+      `Solution.work`), and `Solution.energy_error` stays the energy balance.
+      Restitution: `e ≈ 1 − c v` at the impact speed `v` for `c v ≪ 1` (see the
+      contact guide for the whole curve); `c = 0` is elastic.
+    - **friction** (regularized Coulomb with stiction), on the contact point's
+      tangential velocity `v_t` (which includes `ω × (−r n)`: a rolling sphere does not
+      slip): `F_t = −μ(s) f_n v_t/|v_t|`, `s = |v_t|/v_s`, `μ(s)` rising as
+      `μ_s s(2 − s)` to `μ_s` at `s = 1`, easing to `μ` by `s = 3`. A contact held by
+      friction creeps at `|v_t| ≤ v_s` (below `μ_s f_n`: `|v_t| = v_s (1 − √(1 − F/(μ_s
+      f_n)))`, about `v_s F/(2 μ_s f_n)`).
+
+    Both enter the wrapped system's dynamics as a generalized input force
+    `Q = Σ J_iᵀ F_i` (`J_i` the contact point's velocity Jacobian, with respect to the
+    velocities `v`: a floating base's too), so `simulate`, `sweep`, events and
+    `jax.grad` take a `ContactSystem` as they take the system itself.
+
+    **Arguments:**
+
+    - `system`: the system the spheres are fixed to (any `AbstractSystem`: a
+      `LagrangianSystem`, a chain's or tree's `system()`, a floating base).
+    - `spheres`: a `Sphere` or a sequence of them.
+    - `plane`: the ground, a `Plane` of the spheres' dimension.
+    - `friction`: the kinetic friction coefficient `μ ≥ 0` (default 0: frictionless).
+    - `static_friction`: `μ_s ≥ μ` (default `μ`).
+    - `stiffness`: `k` (force per length^p), `dissipation`: `c` (time per length),
+      `stiction_velocity`: `v_s`; default (`None`) scaled from the scene (see the
+      contact guide: a static penetration of `10⁻⁴` of the scene's size, a critically
+      damped resting contact, `v_s = 10⁻⁴ √(g ℓ)`).
+    - `exponent`: `p` (default 1.5, Hertz's sphere).
+    - `reference`: the configuration the defaults are scaled at (default zeros; a
+      floating base upright).
+    - `name`: a label for messages.
+
+    Each coefficient is a number or a function `f(params)`: a function reads it from
+    `params`, so that `jax.grad` and `sweep` can vary it (`friction=lambda p: p["mu"]`).
+
+    **Raises:** `ConfigurationError` for a coefficient that is negative or not finite,
+    `static_friction < friction`, a sphere whose plane dimension does not match or no
+    spheres; `ArgumentTypeError` for a system that is not an `AbstractSystem`. At run
+    time (`check_state`, which `simulate` calls on bad input) the same for coefficients
+    read from `params`, and a scene without weight on the plane when the defaults are
+    used.
+
+    **Example:**
+
+    ```python
+    from lagrax.contact import ContactSystem, Plane, Sphere
+    disk = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * (qd[0]**2 + qd[1]**2) + 0.25 * p["m"] * 0.1**2 * qd[2]**2,
+        lambda q, p: p["m"] * 9.81 * q[1], n_dof=3)
+    wheel = Sphere(0.1, lambda q, p: q[:2], angle=lambda q, p: q[2])
+    scene = ContactSystem(disk, wheel, Plane([np.sin(0.2), np.cos(0.2)]), friction=0.5)
+    q0 = [0.1 * np.sin(0.2), 0.1 * np.cos(0.2), 0.0]   # touching the slope
+    sol = lx.simulate(scene, q0, [0.0, 0.0, 0.0], {"m": 1.0}, t1=1.0, solver="kvaerno5")
+    ```
+    """
+
+    system: AbstractSystem
+    spheres: tuple[Sphere, ...]
+    plane: Plane
+    friction: Coefficient
+    static_friction: Coefficient
+    stiffness: Coefficient
+    dissipation: Coefficient
+    stiction_velocity: Coefficient
+    exponent: float = eqx.field(static=True)
+    reference: tuple[float, ...] | None = eqx.field(static=True)
+    name: str = eqx.field(static=True)
+
+    def __init__(
+        self,
+        system: AbstractSystem,
+        spheres: Sphere | Sequence[Sphere],
+        plane: Plane,
+        *,
+        friction: Coefficient = 0.0,
+        static_friction: Coefficient = None,
+        stiffness: Coefficient = None,
+        dissipation: Coefficient = None,
+        stiction_velocity: Coefficient = None,
+        exponent: float = 1.5,
+        reference: Any = None,
+        name: str | None = None,
+    ):
+        if not isinstance(system, AbstractSystem):
+            raise ArgumentTypeError(
+                f"ContactSystem wraps a lagrax system (an AbstractSystem), got "
+                f"{type(system).__name__}"
+            )
+        spheres = (spheres,) if isinstance(spheres, Sphere) else tuple(spheres)
+        if not spheres or not all(isinstance(s, Sphere) for s in spheres):
+            raise ConfigurationError(
+                f"ContactSystem needs one or more lagrax.contact.Sphere, got {spheres!r}"
+            )
+        if not isinstance(plane, Plane):
+            raise ArgumentTypeError(f"plane must be a lagrax.contact.Plane, got {plane!r}")
+        for s in spheres:
+            if s.angle is not None and plane.dim != 2:
+                raise ConfigurationError(
+                    "a Sphere with angle= (a planar body's orientation) needs a 2-D plane; "
+                    f"this plane is {plane.dim}-D: give rotation= instead"
+                )
+            if s.rotation is not None and plane.dim != 3:
+                raise ConfigurationError(
+                    "a Sphere with rotation= (a 3x3 rotation matrix) needs a 3-D plane; this "
+                    "plane is 2-D: give angle= instead"
+                )
+        self.system = system
+        self.spheres = spheres
+        self.plane = plane
+        self.friction = _coefficient("friction", friction, allow_none=False)
+        self.static_friction = _coefficient("static_friction", static_friction, allow_none=True)
+        mu, mus = self.friction, self.static_friction
+        if isinstance(mu, float) and isinstance(mus, float) and mus < mu:
+            raise ConfigurationError(
+                f"static_friction must be >= friction (stiction holds at least as much as "
+                f"sliding), got static_friction={mus!r} < friction={mu!r}"
+            )
+        self.stiffness = _coefficient("stiffness", stiffness, allow_none=True)
+        if isinstance(self.stiffness, float) and self.stiffness == 0:
+            raise ConfigurationError("ContactSystem's stiffness must be > 0, got stiffness=0")
+        self.dissipation = _coefficient("dissipation", dissipation, allow_none=True)
+        self.stiction_velocity = _coefficient(
+            "stiction_velocity", stiction_velocity, allow_none=True
+        )
+        if self.stiction_velocity == 0:
+            raise ConfigurationError(
+                "ContactSystem's stiction_velocity must be > 0, got stiction_velocity=0"
+            )
+        exponent = float(exponent)
+        if not (math.isfinite(exponent) and exponent >= 1):
+            raise ConfigurationError(
+                f"ContactSystem's exponent must be finite and >= 1, got exponent={exponent!r}"
+            )
+        self.exponent = exponent
+        self.reference = None if reference is None else tuple(float(x) for x in np.ravel(reference))
+        self.name = f"{system.name} (contact)" if name is None else name
+
+    # ------------------------------------------------------------ shared with the system
+    @property
+    def n_dof(self) -> int | None:
+        """The wrapped system's number of velocities."""
+        return self.system.n_dof
+
+    @property
+    def n_configuration(self) -> int | None:
+        """The wrapped system's configuration size."""
+        return self.system.n_configuration
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...] | None:
+        """The wrapped system's coordinate names."""
+        return self.system.coordinate_names
+
+    @property
+    def configuration_names(self) -> tuple[str, ...] | None:
+        """The wrapped system's configuration names."""
+        return self.system.configuration_names
+
+    @property
+    def final_maxima(self) -> tuple[str, ...]:
+        """The wrapped system's final maxima."""
+        return self.system.final_maxima
+
+    def configuration_rate(self, q, v):
+        """The wrapped system's `q̇ = N(q) v`."""
+        return self.system.configuration_rate(q, v)
+
+    def project_configuration(self, q):
+        """The wrapped system's projection onto its configuration manifold."""
+        return self.system.project_configuration(q)
+
+    def initial_state(self, q, qd, params):
+        """The wrapped system's initial state (the contact changes nothing there)."""
+        return self.system.initial_state(q, qd, params)
+
+    def mass_matrix(self, q, params, qd=None, *, t=0.0):
+        """The wrapped system's mass matrix (the contact adds no inertia)."""
+        return self.system.mass_matrix(q, params, qd, t=t)
+
+    def failure_hint(self, q, params):
+        """The wrapped system's hint."""
+        return self.system.failure_hint(q, params)
+
+    # ------------------------------------------------------------ geometry
+    def centres(self, q, params):
+        """The spheres' centres, shape `(S, d)`."""
+        out = []
+        for s in self.spheres:
+            c = jnp.asarray(s.position(q, params))
+            if c.shape != (self.plane.dim,):
+                raise ShapeError(
+                    f"a Sphere's position(q, params) of {self.name} returned shape {c.shape}; "
+                    f"the plane is {self.plane.dim}-D, so it must return ({self.plane.dim},)"
+                )
+            out.append(c)
+        return jnp.stack(out).astype(jnp.result_type(q, float))
+
+    def gaps(self, q, params):
+        """The gaps `g_i = n·c_i − offset − r_i`, shape `(S,)` (negative: penetration)."""
+        normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
+        radii = jnp.asarray([s.radius for s in self.spheres], normal.dtype)
+        return self.centres(q, params) @ normal - self.plane.offset - radii
+
+    def point_velocities(self, q, v, params):
+        """`(velocities, centres)`: the velocities of the spheres' contact points
+        `c_i − r_i n`, `ċ_i + ω_i × (−r_i n)`, and their centres, both `(S, d)`; linear
+        in the velocities `v`."""
+        rate = self.system.configuration_rate(q, v)
+        normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
+        centres, velocities = jax.jvp(lambda a: self.centres(a, params), (q,), (rate,))
+        out = []
+        for i, s in enumerate(self.spheres):
+            vel = velocities[i]
+            arm = -s.radius * normal  # from the centre to the contact point
+            if s.angle is not None and s.radius > 0:
+                _, omega = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
+                vel = vel + omega * jnp.stack([-arm[1], arm[0]])
+            if s.rotation is not None and s.radius > 0:
+                rot, rot_dot = jax.jvp(
+                    lambda a, s=s: jnp.asarray(s.rotation(a, params)), (q,), (rate,)
+                )
+                w = rot_dot @ rot.T  # [ω]× in the world frame
+                omega = 0.5 * jnp.stack([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1]])
+                vel = vel + jnp.cross(omega, arm)
+            out.append(vel)
+        return jnp.stack(out), centres
+
+    # ------------------------------------------------------------ coefficients
+    def coefficients(self, params, dtype=float) -> Coefficients:
+        """The contact's coefficients at `params` (functions of `params` evaluated,
+        defaults scaled from the scene), and whether they are valid."""
+
+        def value(c):
+            return jnp.asarray(c(params) if callable(c) else c, dtype)
+
+        ok = jnp.asarray(True)
+        if None in (self.stiffness, self.dissipation, self.stiction_velocity):
+            k0, c0, v0, ok = scale.scene_scale(self, params, dtype)
+        k = k0 if self.stiffness is None else value(self.stiffness)
+        c = c0 if self.dissipation is None else value(self.dissipation)
+        vs = v0 if self.stiction_velocity is None else value(self.stiction_velocity)
+        mu = value(self.friction)
+        mus = mu if self.static_friction is None else value(self.static_friction)
+        good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
+        good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
+        return Coefficients(k, c, mu, mus, vs, ok & jnp.all(jnp.stack(good)))
+
+    # ------------------------------------------------------------ forces
+    def contact_state(self, q, v, params):
+        """The contact at one state: a dict of `gap` `(S,)`, `normal_force` `f_n`
+        `(S,)`, `elastic_force` `k δ₊^p` `(S,)`, `force` (on each contact point, world
+        frame, `(S, d)`), `velocity` (of each contact point, `(S, d)`), the
+        generalized force `generalized` `Q = Σ J_iᵀ F_i` `(n_dof,)`, the elastic
+        `energy` `V_c` and the `coefficients`."""
+        dtype = jnp.result_type(q, v, float)
+        co = self.coefficients(params, dtype)
+        normal = jnp.asarray(self.plane.normal, dtype)
+        radii = jnp.asarray([s.radius for s in self.spheres], dtype)
+        velocity, pullback, centres = jax.vjp(
+            lambda b: self.point_velocities(q, b, params), v, has_aux=True
+        )
+        gap = centres @ normal - self.plane.offset - radii
+        rate = velocity @ normal  # n·v: the gap's rate
+        f_n, f_el = laws.normal_force(-gap, -rate, co.stiffness, co.dissipation, self.exponent)
+        v_t = velocity - rate[:, None] * normal[None, :]
+        f_t = laws.friction_force(v_t, f_n, co.friction, co.static_friction, co.stiction_velocity)
+        force = f_n[:, None] * normal[None, :] + f_t
+        (generalized,) = pullback(force.astype(velocity.dtype))
+        energy = jnp.sum(laws.elastic_energy(-gap, co.stiffness, self.exponent))
+        return {
+            "gap": gap,
+            "normal_force": f_n,
+            "elastic_force": f_el,
+            "force": force,
+            "velocity": velocity,
+            "generalized": generalized,
+            "energy": energy,
+            "coefficients": co,
+        }
+
+    def normal_forces(self, q, qd, params):
+        """The normal forces `f_n` on the spheres at one state, shape `(S,)`."""
+        return self.contact_state(jnp.asarray(q), jnp.asarray(qd), params)["normal_force"]
+
+    def contact_energy(self, q, params):
+        """The elastic energy stored in the contacts, `V_c = Σ k δ₊^{p+1}/(p+1)`."""
+        q = jnp.asarray(q)
+        co = self.coefficients(params, jnp.result_type(q, float))
+        return jnp.sum(laws.elastic_energy(-self.gaps(q, params), co.stiffness, self.exponent))
+
+    # ------------------------------------------------------------ the dynamics
+    def accelerations(self, t, q, qd, params, tau):
+        """The wrapped system's accelerations with the contact's generalized force added
+        to `tau`; NaN where a coefficient is invalid (so `simulate` reports it)."""
+        contact = self.contact_state(q, qd, params)
+        force = contact["generalized"]
+        force = force if tau is None else force + tau
+        qdd = self.system.accelerations(t, q, qd, params, force)
+        return jnp.where(contact["coefficients"].ok, qdd, jnp.nan)
+
+    def forward_dynamics(self, q, qd, params, tau=None, t=0.0):
+        """Accelerations with the contact forces, every input checked.
+
+        **Raises:** as the wrapped system's `forward_dynamics`, and the errors of
+        [`check_state`][lagrax.contact.ContactSystem.check_state].
+        """
+        q = coords(q, "q", self.n_configuration, self.name)
+        qd = coords(qd, "qd", self.n_dof, self.name)
+        if tau is not None:
+            tau = coords(tau, "tau", self.n_dof, self.name)
+        if not traced(self, q, qd, tau, params, t):
+            self.check_state(q, qd, params, t=t)
+        qdd = self.accelerations(t, q, qd, params, tau)
+        return eqx.error_if(
+            qdd,
+            ~jnp.all(jnp.isfinite(qdd)),
+            f"forward_dynamics of {self.name} produced non-finite accelerations: a state, "
+            "a parameter or a contact coefficient is not finite or not valid. Outside jit "
+            "the message names which.",
+        )
+
+    def check_state(self, q, qd, params, *, t=0.0) -> None:
+        """Validate a state eagerly: the wrapped system's checks, the spheres' shapes and
+        the contact's coefficients (those read from `params` and the defaults).
+
+        **Raises:** the wrapped system's errors; `ShapeError` for a sphere position of
+        the wrong shape; `ConfigurationError` for a coefficient that is negative or not
+        finite, `static_friction < friction`, or default coefficients in a scene with no
+        weight on the plane (pass `stiffness=` and `dissipation=`).
+        """
+        eager_only(f"check_state of {self.name}", self, q, qd, params, t)
+        self.system.check_state(q, qd, params, t=t)
+        q, qd = jnp.asarray(q, float), jnp.asarray(qd, float)
+        self.gaps(q, params)
+        co = self.coefficients(params, q.dtype)
+        named = (
+            ("stiffness", co.stiffness, "> 0"),
+            ("dissipation", co.dissipation, ">= 0"),
+            ("friction", co.friction, ">= 0"),
+            ("static_friction", co.static_friction, ">= friction"),
+            ("stiction_velocity", co.stiction_velocity, "> 0"),
+        )
+        for label, x, rule in named:
+            x = float(x)
+            bad = not math.isfinite(x) or x < 0 or (rule == "> 0" and x == 0)
+            if bad or (label == "static_friction" and x < float(co.friction)):
+                raise ConfigurationError(
+                    f"the contact of {self.name} has {label}={x!r}; it must be finite and "
+                    f"{rule} (check the value or the params entry it is read from)"
+                )
+        if not bool(co.ok):
+            raise ConfigurationError(
+                f"the contact of {self.name} scales its default stiffness, dissipation and "
+                "stiction velocity by the weight on the plane, and this scene has none at "
+                "its reference configuration (no gravity towards the plane, or constraints "
+                "that carry it there): pass stiffness=, dissipation= and "
+                "stiction_velocity= explicitly, or a reference= where the spheres bear weight"
+            )
+
+    # ------------------------------------------------------------ the energy balance
+    def energy(self, q, qd, params, *, t=0.0):
+        """The wrapped system's energy plus the contacts' elastic energy `V_c`."""
+        return self.system.energy(q, qd, params, t=t) + self.contact_energy(q, params)
+
+    def jacobi_integral(self, t, q, qd, params):
+        """The wrapped system's `h` plus `V_c`."""
+        return self.system.jacobi_integral(t, q, qd, params) + self.contact_energy(q, params)
+
+    def explicit_power(self, t, q, qd, params):
+        """The wrapped system's `−∂L/∂t`."""
+        return self.system.explicit_power(t, q, qd, params)
+
+    def input_power(self, t, q, qd, params, tau):
+        """The wrapped system's input power plus the contacts' dissipation and friction,
+        `Σ (F_i − f_el,i n)·v_i` (the elastic part's power is `−dV_c/dt`, in `h`)."""
+        contact = self.contact_state(q, qd, params)
+        normal = jnp.asarray(self.plane.normal, contact["force"].dtype)
+        nonconservative = contact["force"] - contact["elastic_force"][:, None] * normal[None, :]
+        power = jnp.sum(nonconservative * contact["velocity"])
+        inner = self.system.input_power(t, q, qd, params, tau)
+        return power if inner is None else inner + power
+
+    def energy_and_magnitude(self, t, q, qd, params):
+        """The wrapped system's `(h, |T| + |V|)` with `V_c` added to both."""
+        h, magnitude = self.system.energy_and_magnitude(t, q, qd, params)
+        stored = self.contact_energy(q, params)
+        return h + stored, magnitude + jnp.abs(stored)
+
+    def components(self, t, q, qd, params):
+        """The wrapped system's components, the gaps and the contact forces."""
+        out = dict(self.system.components(t, q, qd, params))
+        contact = self.contact_state(q, qd, params)
+        out["the contact gaps"] = contact["gap"]
+        out["the contact forces"] = contact["force"]
+        return out
+
+    def observables(self, t, q, qd, params, tau):
+        """The wrapped system's observables, and `contact_gap` `(S,)` and
+        `contact_force` `(S, d)` (on each contact point, in the world frame)."""
+        out = dict(self.system.observables(t, q, qd, params, tau))
+        contact = self.contact_state(q, qd, params)
+        out["contact_gap"] = contact["gap"]
+        out["contact_force"] = contact["force"]
+        return out
+
+    # ------------------------------------------------------------ events
+    def events(self, max_events: int = 100) -> tuple[Event, ...]:
+        """One [`Event`][lagrax.Event] per sphere on its gap, for `simulate(...,
+        events=)`: each contact's onset and release is located on the dense output and
+        the step is cut there (an identity reset), so the adaptive steps keep their
+        order across the switch. `Solution.events[i]` records sphere `i`'s crossings.
+
+        **Arguments:** `max_events`: the most crossings recorded per sphere (a solve
+        with more ends with `RESULTS.event_cascade`).
+
+        **Returns:** a tuple of `Event`s, one per sphere.
+        """
+
+        def gap_of(i):
+            return lambda t, q, qd, p: self.gaps(q, p)[i]
+
+        return tuple(
+            Event(gap_of(i), reset=lambda t, q, qd, p: (q, qd), max_events=max_events)
+            for i in range(len(self.spheres))
+        )

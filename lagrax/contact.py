@@ -1,0 +1,28 @@
+"""Contact: spheres on a system's bodies against a ground plane, as energies.
+
+A [`ContactSystem`][lagrax.contact.ContactSystem] wraps any lagrax system with
+[`Sphere`][lagrax.contact.Sphere]s fixed to its bodies and a ground
+[`Plane`][lagrax.contact.Plane]: a compliant Hunt–Crossley normal force (its elastic part a
+potential energy, its damping a dissipation) and regularized Coulomb friction with stiction.
+It is an [`AbstractSystem`][lagrax.AbstractSystem], so `simulate`, `sweep`, events and
+`jax.grad` take it as they take the system:
+
+```python
+from lagrax.contact import ContactSystem, Plane, Sphere
+ball = lx.LagrangianSystem(lambda q, qd, p: 0.5 * p["m"] * qd @ qd,
+                           lambda q, p: p["m"] * 9.81 * q[1], n_dof=2)
+scene = ContactSystem(ball, Sphere(0.1, lambda q, p: q), Plane([0.0, 1.0]), friction=0.3)
+sol = lx.simulate(scene, [0.0, 1.0], [1.0, 0.0], {"m": 1.0}, t1=2.0)
+sol.contact_force[:, 0]   # the force on the ball's contact point along the way
+```
+
+[`body_sphere`][lagrax.contact.body_sphere] fixes a sphere to a tree's body by name (a
+robot's foot), from the tree's own kinematics.
+"""
+
+from ._contact.bodies import body_sphere as body_sphere
+from ._contact.geometry import Plane as Plane
+from ._contact.geometry import Sphere as Sphere
+from ._contact.system import ContactSystem as ContactSystem
+
+__all__ = ["ContactSystem", "Plane", "Sphere", "body_sphere"]
