@@ -131,17 +131,13 @@ def _inverse_body(system: FloatingBaseSystem, t, q, v, vdot, params, wrt_params:
     return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
 
 
-_forward = eqx.filter_jit(_forward_body)
-_inverse_program = eqx.filter_jit(_inverse_body)
-
-
 def forward_dynamics_derivatives(
     system: FloatingBaseSystem, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`FloatingBaseSystem.forward_dynamics_derivatives` (documented there)."""
     q, v, tau = finite_inputs(system, "tau", *system._inputs(q, qd=qd, tau=tau))
     tau = jnp.zeros_like(v) if tau is None else tau
-    program, eager = _program(system, _forward, _forward_body, q, v, tau, params, t)
+    program, eager = _program(system, _forward_body, q, v, tau, params, t)
     out = blocked(program)(
         system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -153,7 +149,7 @@ def inverse_dynamics_derivatives(
 ) -> InverseDynamicsDerivatives:
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
     q, v, vdot = finite_inputs(system, "qdd", *system._inputs(q, qd=qd, qdd=qdd))
-    program, eager = _program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
+    program, eager = _program(system, _inverse_body, q, v, vdot, params, t)
     out = blocked(program)(
         system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params
     )
