@@ -12,6 +12,9 @@ opts out): see `lagrax/_core/xla_flags.py`. And it keeps what XLA compiles on di
 that a new process (a notebook restart) loads instead of recompiling: JAX's persistent
 compilation cache in `~/.cache/lagrax/jax` (`LAGRAX_COMPILATION_CACHE=0` turns it off, a
 path moves it): see `lagrax/_core/compilation_cache.py`.
+
+`import lagrax` loads the systems and `simulate`; the sweeps, periodic orbits and the
+submodules (`lagrax.symbolic`, `lagrax.plot`, `lagrax.chains`, ...) load on first use.
 """
 
 import importlib
