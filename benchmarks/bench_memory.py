@@ -13,7 +13,10 @@ fixed base (24 by default), each run in a fresh process, and reports the residen
 
     python benchmarks/bench_memory.py [--robots 24]
 
-About 3 minutes on 2 cores (two processes, one robot after another: no timing).
+Each process compiles every robot's three programs: 5-15 minutes on 2 cores (30 on a
+loaded machine); it measures memory, not time. Measured (24 robots, peak RSS): 3.4 GB
+before models' programs were freed with them, 0.66 GB then with `--clear`'s
+`jax.clear_caches()`; now 0.63 GB without clearing, 0.66 GB with.
 """
 
 import argparse
