@@ -43,9 +43,8 @@ def _peak_mb() -> float:
 def _urdfs(n: int) -> list[Path]:
     """The first `n` URDFs (sorted by path) of example-robot-data that load fixed."""
     sys.path.insert(0, str(Path(__file__).parent))
-    from _robots import robots_folder
-
     import lagrax as lx
+    from _robots import robots_folder
 
     folder = robots_folder()
     if folder is None:

@@ -80,7 +80,14 @@ def test_eager_derivatives_compile_once():
         lambda s, q, qd, qdd: s.linearize(q, qd, {}),
         lambda s, q, qd, qdd: s.check_state(q, qd, {}),
     ],
-    ids=["mass_matrix", "inverse_dynamics", "forward_dynamics", "derivatives", "linearize", "check"],
+    ids=[
+        "mass_matrix",
+        "inverse_dynamics",
+        "forward_dynamics",
+        "derivatives",
+        "linearize",
+        "check",
+    ],
 )
 def test_a_deleted_model_is_collected_with_its_programs(use):
     system, m, _ = _particle(3.0)
