@@ -12,9 +12,14 @@ opts out): see `lagrax/_core/xla_flags.py`. And it keeps what XLA compiles on di
 that a new process (a notebook restart) loads instead of recompiling: JAX's persistent
 compilation cache in `~/.cache/lagrax/jax` (`LAGRAX_COMPILATION_CACHE=0` turns it off, a
 path moves it): see `lagrax/_core/compilation_cache.py`.
+
+`import lagrax` loads the systems and `simulate`; the sweeps, periodic orbits and the
+submodules (`lagrax.symbolic`, `lagrax.plot`, `lagrax.chains`, ...) load on first use.
 """
 
+import importlib
 import importlib.metadata
+from typing import TYPE_CHECKING, Any
 
 from ._core import xla_flags as _xla_flags
 
@@ -28,16 +33,7 @@ from ._core import compilation_cache as _compilation_cache  # noqa: E402
 
 _compilation_cache.configure()  # compiled programs kept on disk: see its docstring
 
-from . import bench as bench  # noqa: E402
-from . import bodies as bodies  # noqa: E402
-from . import chains as chains  # noqa: E402
-from . import contact as contact  # noqa: E402
 from . import integrators as integrators  # noqa: E402
-from . import models as models  # noqa: E402
-from . import newton_euler as newton_euler  # noqa: E402
-from . import plot as plot  # noqa: E402
-from . import rigid_body as rigid_body  # noqa: E402
-from . import symbolic as symbolic  # noqa: E402
 from ._core.errors import ArgumentTypeError as ArgumentTypeError  # noqa: E402
 from ._core.errors import CheckpointError as CheckpointError  # noqa: E402
 from ._core.errors import CheckpointWarning as CheckpointWarning  # noqa: E402
@@ -54,29 +50,85 @@ from ._core.errors import SimulationError as SimulationError  # noqa: E402
 from ._core.errors import URDFError as URDFError  # noqa: E402
 from ._core.errors import URDFWarning as URDFWarning  # noqa: E402
 from ._core.results import RESULTS as RESULTS  # noqa: E402
-from ._periodic import Bifurcation as Bifurcation  # noqa: E402
-from ._periodic import OrbitBranch as OrbitBranch  # noqa: E402
-from ._periodic import PeriodicOrbit as PeriodicOrbit  # noqa: E402
-from ._periodic import continue_orbits as continue_orbits  # noqa: E402
-from ._periodic import orbit_map as orbit_map  # noqa: E402
-from ._periodic import periodic_orbit as periodic_orbit  # noqa: E402
 from ._solve.events import Event as Event  # noqa: E402
 from ._solve.events import EventRecord as EventRecord  # noqa: E402
 from ._solve.methods import METHODS as METHODS  # noqa: E402
 from ._solve.simulate import simulate as simulate  # noqa: E402
 from ._solve.solution import Solution as Solution  # noqa: E402
-from ._sweep import Grid as Grid  # noqa: E402
-from ._sweep import grid as grid  # noqa: E402
-from ._sweep import load_sweep as load_sweep  # noqa: E402
-from ._sweep import open_sweep as open_sweep  # noqa: E402
-from ._sweep import samples as samples  # noqa: E402
-from ._sweep import save_sweep as save_sweep  # noqa: E402
-from ._sweep import sweep as sweep  # noqa: E402
 from ._systems.abstract import AbstractSystem as AbstractSystem  # noqa: E402
 from ._systems.constrained import ConstrainedSystem as ConstrainedSystem  # noqa: E402
 from ._systems.lagrangian import LagrangianSystem as LagrangianSystem  # noqa: E402
 from ._systems.sensitivity import ForwardDynamicsDerivatives as ForwardDynamicsDerivatives  # noqa: E402
 from ._systems.sensitivity import InverseDynamicsDerivatives as InverseDynamicsDerivatives  # noqa: E402
+
+if TYPE_CHECKING:  # imported on first use at run time: see `__getattr__` below
+    from . import bench as bench
+    from . import bodies as bodies
+    from . import chains as chains
+    from . import contact as contact
+    from . import models as models
+    from . import newton_euler as newton_euler
+    from . import plot as plot
+    from . import rigid_body as rigid_body
+    from . import symbolic as symbolic
+    from ._periodic import Bifurcation as Bifurcation
+    from ._periodic import OrbitBranch as OrbitBranch
+    from ._periodic import PeriodicOrbit as PeriodicOrbit
+    from ._periodic import continue_orbits as continue_orbits
+    from ._periodic import orbit_map as orbit_map
+    from ._periodic import periodic_orbit as periodic_orbit
+    from ._sweep import Grid as Grid
+    from ._sweep import grid as grid
+    from ._sweep import load_sweep as load_sweep
+    from ._sweep import open_sweep as open_sweep
+    from ._sweep import samples as samples
+    from ._sweep import save_sweep as save_sweep
+    from ._sweep import sweep as sweep
+
+# Public names whose modules load on first use, so that `import lagrax` costs little
+# more than `import jax, diffrax, equinox` (tests/test_import_time.py): name -> (module,
+# attribute), attribute None for a public submodule.
+_SUBMODULES = (
+    "bench",
+    "bodies",
+    "chains",
+    "contact",
+    "models",
+    "newton_euler",
+    "plot",
+    "rigid_body",
+    "symbolic",
+)
+_PERIODIC = (
+    "Bifurcation",
+    "OrbitBranch",
+    "PeriodicOrbit",
+    "continue_orbits",
+    "orbit_map",
+    "periodic_orbit",
+)
+_SWEEP = ("Grid", "grid", "load_sweep", "open_sweep", "samples", "save_sweep", "sweep")
+_LAZY: dict[str, tuple[str, str | None]] = {
+    **{name: (f".{name}", None) for name in _SUBMODULES},
+    **{name: ("._periodic", name) for name in _PERIODIC},
+    **{name: ("._sweep", name) for name in _SWEEP},
+}
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name of `_LAZY` on first use and keep it in the package."""
+    if name not in _LAZY:
+        raise AttributeError(f"module 'lagrax' has no attribute {name!r}")
+    module_name, attribute = _LAZY[name]
+    module = importlib.import_module(module_name, __name__)
+    value = module if attribute is None else getattr(module, attribute)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
 
 try:
     __version__ = importlib.metadata.version("lagrax")

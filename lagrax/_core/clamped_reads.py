@@ -9,6 +9,7 @@ reports every such read. Traced once per function and argument shapes (cached), 
 trace time: nothing is added to the compiled program.
 """
 
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -86,7 +87,19 @@ def _clamped(jaxpr: Any, known: dict) -> list[tuple[int, int]]:
     return found
 
 
+# (id(fn), label, signature) -> (a reference to fn, the reads found): weak where fn
+# allows, so that the cache does not keep a dropped model's energies (and what they close
+# over) alive; the entry goes with fn, so its id cannot be reused while the entry lives.
 _READS_CHECKED: dict = {}
+
+
+def _weak(fn: Callable, key: Any) -> Callable[[], Any]:
+    """A weak reference to `fn` that removes the entry `key` when `fn` is collected, or
+    a strong one (a function returning `fn`) where `fn` takes no weak reference."""
+    try:
+        return weakref.ref(fn, lambda _, key=key: _READS_CHECKED.pop(key, None))
+    except TypeError:
+        return lambda: fn
 
 
 def _signature(x: Any) -> Any:
@@ -121,7 +134,7 @@ def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
     except TypeError:  # an unhashable static leaf: check without caching
         key = None
     cached = _READS_CHECKED.get(key) if key is not None else None
-    if cached is not None:
+    if cached is not None and cached[0]() is fn:
         found = cached[1]
     else:
         dyn, static = eqx.partition(params, eqx.is_array)
@@ -135,7 +148,7 @@ def clamped_reads(fn: Callable, label: str, params: Params, *args: Any) -> None:
         if key is not None:
             if len(_READS_CHECKED) > 1024:
                 _READS_CHECKED.clear()
-            _READS_CHECKED[key] = (fn, found)  # holding fn keeps its id from being reused
+            _READS_CHECKED[key] = (_weak(fn, key), found)
     if found:
         length, index = found[0]
         sizes = sorted({jnp.shape(a)[0] for a in args if jnp.ndim(a) == 1})

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import model_programs
 from .._core.blocking import blocked
 from .._core.checks import finite, is_traced
 from .._core.closures import closes_over_tracers
@@ -28,9 +29,7 @@ def forward_dynamics_derivatives(
 ) -> ForwardDynamicsDerivatives:
     """`LagrangianSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
-    program, eager = choose_program(
-        system, _forward_derivatives, _forward_body, q, qd, tau, params, t
-    )
+    program, eager = choose_program(system, _forward_body, q, qd, tau, params, t)
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -42,9 +41,7 @@ def inverse_dynamics_derivatives(
 ) -> InverseDynamicsDerivatives:
     """`LagrangianSystem.inverse_dynamics_derivatives` (documented there)."""
     q, qd, qdd = system._state(q, qd, qdd=qdd)
-    program, eager = choose_program(
-        system, _inverse_derivatives, _inverse_body, q, qd, qdd, params, t
-    )
+    program, eager = choose_program(system, _inverse_body, q, qd, qdd, params, t)
     out = blocked(program, implicit.blocks(system)[1])(
         system, t, q, qd, qdd, float_arrays(params) if eager else params, wrt_params
     )
@@ -60,9 +57,7 @@ def linearize(system: Energies, q_eq, qd_eq, params, tau_eq, t) -> tuple[jax.Arr
         (tau,) = system._state(q, q_name="q_eq", tau_eq=tau_eq)[1:]
     dtype = jnp.result_type(q, qd, tau)
     q, qd, tau = q.astype(dtype), qd.astype(dtype), tau.astype(dtype)
-    program, eager = choose_program(
-        system, _linearization, _linearization_body, q, qd, tau, params, t
-    )
+    program, eager = choose_program(system, _linearization_body, q, qd, tau, params, t)
     if eager:
         finite(q, "q_eq")
         finite(qd, "qd_eq")
@@ -86,9 +81,7 @@ def constrained_forward_dynamics_derivatives(
     """`ConstrainedSystem.forward_dynamics_derivatives` (documented there)."""
     q, qd, tau = system._state(q, qd, tau=tau)
     tau = jnp.zeros_like(q) if tau is None else tau
-    program, eager = choose_program(
-        system, _constrained_derivatives, _constrained_body, q, qd, tau, params, t
-    )
+    program, eager = choose_program(system, _constrained_body, q, qd, tau, params, t)
     out = program(system, t, q, qd, float_arrays(params) if eager else params, tau, wrt_params)
     return finite_derivatives(system, out, q, qd, params, tau, t, "forward_dynamics")
 
@@ -104,14 +97,15 @@ def constrained_linearize(
     return state_space(out)
 
 
-def choose_program(system, compiled, body, *values) -> tuple[Callable, bool]:
-    """`(program, eager)` of a call of `system` on `values`: the `compiled` program, and
-    whether nothing in the call is traced; or `body` itself (traced) where the system's
-    functions close over traced values, since a compiled program holds the functions as
-    constants, which cannot hold a tracer of `jax.grad` or `jax.jvp`."""
+def choose_program(system, body, *values) -> tuple[Callable, bool]:
+    """`(program, eager)` of a call of `system` on `values`: `body` compiled as one
+    program of the system (`model_programs.program`: freed with the system), and whether
+    nothing in the call is traced; or `body` itself (traced) where the system's functions
+    close over traced values, since a compiled program holds the functions as constants,
+    which cannot hold a tracer of `jax.grad` or `jax.jvp`."""
     if closes_over_tracers(system):
         return body, False
-    return compiled, not is_traced(*values)
+    return model_programs.program(system, body), not is_traced(*values)
 
 
 def state_space(out: ForwardDynamicsDerivatives) -> tuple[jax.Array, jax.Array]:
@@ -132,16 +126,15 @@ def _constrained_body(system: Constrained, t, q, qd, params, tau, wrt_params: bo
     return sensitivity.forward_by_jacobian(accelerations, q, qd, tau, params, wrt_params)
 
 
-_constrained_derivatives = eqx.filter_jit(_constrained_body)
-
-
 def _eager_linearization(system: Energies, t, q, qd, params, tau):
     """`(A, B)` outside `jit`. The state is checked only when the linearization fails
     (a trace error, or non-finite Jacobians: NaN parameters, `M(q_eq)` not
     positive-definite), for `check_state`'s precise message: a first call then compiles
     one program, not two."""
     try:
-        a_mat, b_mat = _eager_program(system, t, q, qd, float_arrays(params), tau, True)
+        a_mat, b_mat = model_programs.program(system, _linearization_body, **_EAGER)(
+            system, t, q, qd, float_arrays(params), tau, True
+        )
     except LagraxError:
         raise
     except Exception:
@@ -164,14 +157,6 @@ def _inverse_body(system: Energies, t, q, qd, qdd, params, wrt_params: bool):
     return sensitivity.inverse(system, system.scalar_derivatives, t, q, qd, qdd, params, wrt_params)
 
 
-# As one compiled program each (eager calls would otherwise dispatch their thousands of
-# operations one by one). A system whose functions close over traced values takes the
-# bodies themselves: a compiled program holds the functions as constants, which cannot
-# hold a tracer of `jax.grad` or `jax.jvp`.
-_forward_derivatives = eqx.filter_jit(_forward_body)
-_inverse_derivatives = eqx.filter_jit(_inverse_body)
-
-
 def _linearization_body(system: Energies, t, q, qd, params, tau, one_state=False):
     """`(A, B)` of the state equations at one state, as one compiled program
     (`one_state`: `M⁻¹` by LAPACK, see `sensitivity.forward`)."""
@@ -181,12 +166,8 @@ def _linearization_body(system: Energies, t, q, qd, params, tau, one_state=False
     return state_space(out)
 
 
-_linearization = eqx.filter_jit(_linearization_body)
-
 # An eager `linearize` is a program for one state, usually compiled for one call: XLA's
 # backend optimization level 0 compiles it in 0.84 s instead of 1.08 s (the URDF arm),
 # and it then runs in 138 µs a call instead of 122 µs, nearly all of it dispatch. (Only a
 # top-level jit takes compiler options: under a user's `jit` or `vmap`, the plain one.)
-_eager_program = eqx.filter_jit(
-    _linearization_body, compiler_options={"xla_backend_optimization_level": 0}
-)
+_EAGER = {"compiler_options": {"xla_backend_optimization_level": 0}}

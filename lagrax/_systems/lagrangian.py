@@ -6,6 +6,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core import model_programs
 from .._core.checks import call_user, traced
 from .._core.custom_types import Coordinates, Matrix, Params, Scalar, Time, Vector, Velocities
 from . import derivatives as d
@@ -261,7 +262,7 @@ class LagrangianSystem(AbstractSystem):
         `q̇` the result does not depend on `qd` (default: zero velocities).
         """
         q, qd = self._state(q, jnp.zeros_like(jnp.asarray(q)) if qd is None else qd)
-        return d.mass_matrix(self, q, qd, params, t)
+        return model_programs.call(self, d.mass_matrix, self, q, qd, params, t)
 
     def coriolis(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Vector:
         """Coriolis, centrifugal and gyroscopic forces
@@ -410,7 +411,7 @@ class LagrangianSystem(AbstractSystem):
         also moves `t` at unit rate, adding `∂²T/∂q̇∂t`; all terms are at time `t`.
         """
         q, qd, qdd = self._state(q, qd, qdd=qdd)
-        return implicit.residual(self, t, q, qd, qdd, params)
+        return model_programs.call(self, implicit.residual, self, t, q, qd, qdd, params)
 
     def forward_dynamics_derivatives(
         self,

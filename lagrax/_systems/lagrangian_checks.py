@@ -9,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core import model_programs
 from .._core.checks import (
     binds,
     eager_only,
@@ -89,7 +90,9 @@ def check_state(system: Energies, q, qd, params, t) -> None:
     finite(qd, "qd")
     finite_params(params)
     # one compiled call; Python floats as arrays, so a new value does not recompile
-    e, mass = _energy_and_mass(system, q, qd, float_arrays(params), np.asarray(t, q.dtype))
+    e, mass = model_programs.program(system, _energy_and_mass)(
+        system, q, qd, float_arrays(params), np.asarray(t, q.dtype)
+    )
     if not bool(jnp.isfinite(e)):
         raise NonFiniteError(f"the energy T + V is not finite at q={q}, qd={qd}")
     mass = np.asarray(mass)
@@ -141,7 +144,8 @@ def eager_forward_dynamics(system: Energies, t, q, qd, params, tau):
     finite(qd, "qd")
     if tau is not None:
         finite(tau, "tau")
-    qdd = system.accelerations(t, q, qd, params, tau)
+    # one compiled program of the system (freed with it), not thousands of dispatches
+    qdd = model_programs.call(system, type(system).accelerations, system, t, q, qd, params, tau)
     if not bool(jnp.all(jnp.isfinite(qdd))):
         system.check_state(q, qd, params, t=t)  # raises if M(q) or the energies are bad
         applied = d.applied(system, t, q, qd, params, tau)
@@ -154,7 +158,6 @@ def eager_forward_dynamics(system: Energies, t, q, qd, params, tau):
     return qdd
 
 
-@eqx.filter_jit
 def _energy_and_mass(system: Energies, q, qd, params, t):
     """`(T + V, M)` at one state: one compiled call for `check_state`."""
     return system.energy(q, qd, params, t=t), system.mass_matrix(q, params, qd, t=t)

@@ -131,10 +131,6 @@ def _inverse_body(system: FloatingDerivatives, t, q, v, vdot, params, wrt_params
     return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
 
 
-_forward = eqx.filter_jit(_forward_body)
-_inverse_program = eqx.filter_jit(_inverse_body)
-
-
 def forward_dynamics_derivatives(
     system: FloatingDerivatives, q, qd, params, tau, t, wrt_params: bool, names=("q", "qd", "tau")
 ) -> ForwardDynamicsDerivatives:
@@ -143,7 +139,7 @@ def forward_dynamics_derivatives(
     checked = system._inputs(q, names[0], **{names[1]: qd, names[2]: tau})
     q, v, tau = finite_inputs(system, names, *checked)
     tau = jnp.zeros_like(v) if tau is None else tau
-    program, eager = choose_program(system, _forward, _forward_body, q, v, tau, params, t)
+    program, eager = choose_program(system, _forward_body, q, v, tau, params, t)
     out = blocked(program)(
         system, t, q, v, float_arrays(params) if eager else params, tau, wrt_params
     )
@@ -155,7 +151,7 @@ def inverse_dynamics_derivatives(
 ) -> InverseDynamicsDerivatives:
     """`FloatingBaseSystem.inverse_dynamics_derivatives` (documented there)."""
     q, v, vdot = finite_inputs(system, ("q", "qd", "qdd"), *system._inputs(q, qd=qd, qdd=qdd))
-    program, eager = choose_program(system, _inverse_program, _inverse_body, q, v, vdot, params, t)
+    program, eager = choose_program(system, _inverse_body, q, v, vdot, params, t)
     out = blocked(program)(
         system, t, q, v, vdot, float_arrays(params) if eager else params, wrt_params
     )
