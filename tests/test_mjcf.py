@@ -298,7 +298,7 @@ BAD = {
             ARM,
             '<tendon><fixed name="t1" armature="0.2"><joint joint="j1" coef="1"/></fixed></tendon>',
         ),
-        ["tendon 't1' has armature", "0.2"],
+        ["armature (inertia added to M along the tendon) 0.2 on tendon 't1'"],
     ),
     "dead-band tendon spring": (
         _xml(
@@ -306,7 +306,7 @@ BAD = {
             '<tendon><fixed name="t1" stiffness="1" springlength="0.1 0.3">'
             '<joint joint="j1" coef="1"/></fixed></tendon>',
         ),
-        ["tendon 't1' has a dead-band spring length [0.1, 0.3]"],
+        ["a dead-band spring length [0.1, 0.3] on tendon 't1'"],
     ),
     "friction loss": (
         _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"')),

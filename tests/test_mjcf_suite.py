@@ -10,9 +10,14 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
   MuJoCo the same way.
+- Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
+  Barkour (a free base with armature), MJX's humanoid and a tendon model load and match
+  MuJoCo the same way; a tendon with armature, ball joints, several free bodies and
+  friction loss are refused by name.
 """
 
 import os
+import re
 from pathlib import Path
 
 import jax
@@ -131,3 +136,38 @@ def test_fish_without_fluid_matches_mujoco():
     assert params["tendon"].shape == (1, robot.n)  # the tendon with stiffness; the other none
     err_m, err_a = _against_mujoco(robot, params, model, seed=3)
     assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+# Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
+WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
+WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "humanoid/humanoid.xml", "tendon/tendon.xml"]
+WHEEL_REFUSED = {
+    "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
+    "pendula.xml": "is a ball joint",
+    "convex.xml": "4 free joints",
+    "quadratic_frictionloss.xml": "friction loss",
+}
+
+
+def _wheel(path: str) -> Path:
+    if not (WHEEL / path).exists():
+        pytest.skip("this mujoco wheel ships no MJX test data")
+    return WHEEL / path
+
+
+@pytest.mark.parametrize("path", WHEEL_LOADS)
+def test_wheel_model_matches_mujoco(path):
+    """Barkour (a free base with armature), MJX's humanoid (armature, springs) and its
+    tendon test model (tendons with limits and actuators only)."""
+    robot, params = from_mjcf(_wheel(path))
+    model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
+    err_m, err_a = _against_mujoco(robot, params, model, seed=11)
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+@pytest.mark.parametrize("path", sorted(WHEEL_REFUSED))
+def test_wheel_model_refused_names_the_construct(path):
+    with pytest.raises(lx.MJCFError, match=re.escape(WHEEL_REFUSED[path])):
+        from_mjcf(_wheel(path))

@@ -52,13 +52,13 @@ def tendons_unsupported(mujoco, model, names) -> list[str]:
         who = f"tendon {names('tendon', t)!r}"
         if not is_fixed(model, t) and (stiffness[t] or damping[t]):
             found.append(
-                f"spatial {who} (a path through sites) with stiffness {stiffness[t]:g} and "
+                f"a spatial {who} (a path through sites) with stiffness {stiffness[t]:g} and "
                 f"damping {damping[t]:g}; lagrax models fixed tendons only (a spatial tendon "
                 "without either, a limit only, is loaded)"
             )
         low, high = (float(x) for x in model.tendon_lengthspring[t])
         if stiffness[t] and low != high:
-            found.append(f"{who} has a dead-band spring length [{low:g}, {high:g}]")
+            found.append(f"a dead-band spring length [{low:g}, {high:g}] on {who}")
         checks = [
             ("tendon_armature", "armature (inertia added to M along the tendon)"),
             ("tendon_frictionloss", "friction loss (a constraint)"),
@@ -72,7 +72,7 @@ def tendons_unsupported(mujoco, model, names) -> list[str]:
             value = np.asarray(getattr(model, field)[t], float)
             if np.any(value):
                 shown = f"{float(value.flat[0]):g}" if value.size == 1 else str(value.tolist())
-                found.append(f"{who} has {what} {shown}")
+                found.append(f"{what} {shown} on {who}")
     return found
 
 
