@@ -8,8 +8,9 @@ and floating bases.
   ``qacc`` (constraints off).
 - The same tree's recursions against its energies differentiated (``equations=None``:
   ``T ⊃ ½ Σ a q̇²``, ``V ⊃`` the springs, ``D ⊃`` the tendons' damping): ``q̈``, ``M``,
-  the energy; ``forward_dynamics_derivatives`` against central differences of the
-  autodiff accelerations (1e-7), and a floating base's along ``q ⊕ δ``.
+  the energy; the Newton–Euler oracle (``τ − ∂D/∂q̇``); ``forward_dynamics_derivatives``
+  against central differences of the autodiff accelerations (1e-7), and a floating
+  base's along ``q ⊕ δ``.
 - Armature against Pinocchio's ``model.armature``: ``aba`` and
   ``computeABADerivatives`` of the project's 7-joint URDF arm, fixed and on a free flyer.
 - Bad params are named.
@@ -136,12 +137,14 @@ def test_fixed_base_matches_mujoco_and_its_energies(fixed, fixed_state):
     m_mj = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, m_mj)
     qdd = system.forward_dynamics(q, qd, params, tau)
+    damping = jax.grad(system.dissipation, 1)(q, qd, params)  # joints' and tendons'
     assert rel_error(qdd, data.qacc) < RTOL
     assert rel_error(system.mass_matrix(q, params), m_mj) < RTOL
     assert rel_error(qdd_auto, qdd) < RTOL
     assert rel_error(m_auto, m_mj) < RTOL
     assert rel_error(energy, system.energy(q, qd, params)) < RTOL
     assert rel_error(system.inverse_dynamics(q, qd, qdd, params), tau) < RTOL
+    assert rel_error(lx.newton_euler.rnea(tree, q, qd, qdd, params), tau - damping) < RTOL
 
 
 def test_fixed_base_derivatives_equal_autodiff(fixed, fixed_state):
