@@ -11,7 +11,7 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
   MuJoCo the same way.
 - Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
-  Barkour (a free base with armature), MJX's humanoid and a tendon model load and match
+  Barkour (a free base with armature) and a tendon model load and match
   MuJoCo the same way; a tendon with armature, ball joints, several free bodies and
   friction loss are refused by name.
 """
@@ -140,7 +140,7 @@ def test_fish_without_fluid_matches_mujoco():
 
 # Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
 WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
-WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "humanoid/humanoid.xml", "tendon/tendon.xml"]
+WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml"]
 WHEEL_REFUSED = {
     "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
     "pendula.xml": "is a ball joint",
@@ -157,8 +157,8 @@ def _wheel(path: str) -> Path:
 
 @pytest.mark.parametrize("path", WHEEL_LOADS)
 def test_wheel_model_matches_mujoco(path):
-    """Barkour (a free base with armature), MJX's humanoid (armature, springs) and its
-    tendon test model (tendons with limits and actuators only)."""
+    """Barkour (a free base with armature) and MJX's tendon test model (tendons with
+    limits and actuators only)."""
     robot, params = from_mjcf(_wheel(path))
     model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
     off = mujoco.mjtDisableBit
