@@ -62,8 +62,8 @@ from ._multibody.articulated.trees import Tree as Tree
 from ._multibody.floating.system import FloatingBaseSystem as FloatingBaseSystem
 from ._multibody.floating.system import FloatingTree as FloatingTree
 from ._multibody.formats.mjcf import from_mjcf as from_mjcf
-from ._multibody.formats.mjcf import from_mujoco_state as from_mujoco_state
-from ._multibody.formats.mjcf import to_mujoco_state as to_mujoco_state
+from ._multibody.formats.mujoco_state import from_mujoco_state as from_mujoco_state
+from ._multibody.formats.mujoco_state import to_mujoco_state as to_mujoco_state
 from ._multibody.formats.urdf import from_urdf as from_urdf
 from ._multibody.limits import limit_events as limit_events
 

@@ -23,6 +23,7 @@ from ._core.custom_types import Params
 from ._core.errors import ArgumentTypeError, ShapeError
 from ._multibody.articulated.chains import PlanarChain, SpatialChain
 from ._multibody.articulated.trees import AbstractTree, Tree
+from ._multibody.joint_space import joint_inverse
 from ._multibody.joints import revolute
 
 __all__ = ["planar_2r", "planar_2r_free_body", "FreeBody2R", "rnea"]
@@ -142,6 +143,8 @@ def rnea(
     inward sums run over all of body `i`'s children `c`:
     `f_i = F_i + Σ_c ⁱR_c f_c`, `n_i = N_i + c_i × F_i + Σ_c (ⁱR_c n_c + ⁱp_c × ⁱR_c f_c)`.
     (Joint damping, a Rayleigh dissipation of the system, is not part of `τ` here.)
+    A tree's joint-space terms, where its params have them (armature `a`, joint springs
+    and fixed tendons' springs, `lagrax._multibody.joint_space`), add `a θ̈ + ∂V_s/∂θ`.
     A tree with mimic joints runs the recursion over all its joints at `θ = J q + b`,
     `θ̇ = J q̇`, `θ̈ = J q̈` and returns `Jᵀ τ_θ` (the principle of virtual work).
 
@@ -194,10 +197,10 @@ def _(chain: PlanarChain, q, qd, qdd, params):
 def _(chain: AbstractTree, q, qd, qdd, params):
     q, qd, qdd = _checked(chain, q, qd, qdd)
     if not chain.mimic:
-        return _rnea_spatial(chain, q, qd, qdd, params)
+        return _rnea_spatial(chain, q, qd, qdd, params) + joint_inverse(params, q, qdd)
     # mimic joints: every joint's torque at θ = J q + b, θ̇ = J q̇, θ̈ = J q̈, then Jᵀ τ_θ
     theta = (chain.joint_angles(q), chain.joint_rates(qd), chain.joint_rates(qdd))
-    tau = _rnea_spatial(chain, *theta, params)
+    tau = _rnea_spatial(chain, *theta, params) + joint_inverse(params, theta[0], theta[2])
     return jnp.asarray(chain.coupling_matrix(), tau.dtype).T @ tau
 
 

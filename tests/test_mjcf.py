@@ -5,7 +5,7 @@
   tilted gravity; a cart-pole of slide and hinge joints in degrees with refs; a branched
   tree with a two-joint body, a slide and bodies welded to the world and to a moving
   body), a model that ships with the mujoco wheel (the 24-joint Shadow hand of MJX's
-  test data, armature dropped) and the project's two URDF robots read by MuJoCo: ``M``
+  test data, with its armature) and the project's two URDF robots read by MuJoCo: ``M``
   against ``mj_fullM`` and ``q̈`` against ``mj_forward``'s ``qacc`` (contacts, limits and
   actuators off, ``qfrc_applied = τ``) at random states, in MuJoCo's own coordinates.
 - A URDF read by MuJoCo equals the same URDF read by ``from_urdf``.
@@ -58,15 +58,10 @@ def _model(name):
 )
 def test_mass_matrix_and_accelerations_match_mujoco(name):
     model = _model(name)
-    if name == "shadow_hand":  # armature: refused, or dropped on request
-        with pytest.raises(lx.MJCFError, match="armature"):
-            from_mjcf(model)
-        with pytest.warns(UserWarning, match="armature"):
-            tree, params = from_mjcf(model, ignore_unsupported=True)
-    else:
-        tree, params = from_mjcf(model)
-    armature = np.array(model.dof_armature)
-    model.dof_armature[:] = 0.0
+    tree, params = from_mjcf(model)
+    if name == "shadow_hand":  # armature: M gains diag(armature)
+        np.testing.assert_array_equal(params["armature"], model.dof_armature)
+        assert np.all(model.dof_armature > 0)
     off = mujoco.mjtDisableBit
     model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_LIMIT | off.mjDSBL_ACTUATION
     assert tree.n == model.nv == model.nq
@@ -87,12 +82,6 @@ def test_mass_matrix_and_accelerations_match_mujoco(name):
         mujoco.mj_fullM(model, data, m_mj)
         worst_m = max(worst_m, _rel(m_lx[k], m_mj))
         worst_a = max(worst_a, rel_error(a_lx[k], data.qacc))
-        # with armature, MuJoCo's M is lagrax's plus diag(armature)
-        model.dof_armature[:] = armature
-        mujoco.mj_forward(model, data)
-        mujoco.mj_fullM(model, data, m_mj)
-        assert _rel(m_lx[k] + np.diag(armature), m_mj) < RTOL
-        model.dof_armature[:] = 0.0
     print(f"{name}: M {worst_m:.1e}, qacc {worst_a:.1e} relative to MuJoCo")
     assert worst_m < RTOL and worst_a < RTOL, (worst_m, worst_a)
 
@@ -281,26 +270,47 @@ def _xml(body: str, extra: str = "") -> str:
 
 
 ARM = '<body name="b1"><joint name="j1" axis="0 1 0"/><geom size="0.1" mass="1"/></body>'
+FREE = '<body name="b0"><freejoint/><geom size="0.1" mass="1"/></body>'
 BAD = {
     "ball joint": (
         _xml('<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'),
         ["ball joint", "'hip'"],
     ),
-    "armature": (
-        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" armature="0.25"')),
-        ["armature", "0.25", "'j1'", "ignore_unsupported"],
+    "free joint armature": (
+        _xml(FREE.replace("<freejoint/>", '<joint name="root" type="free" armature="0.25"/>')),
+        ["armature on the free joint 'root'", "ignore_unsupported"],
     ),
-    "stiffness": (
-        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" stiffness="3"')),
-        ["stiffness", "'j1'"],
+    "free joint stiffness": (
+        _xml(FREE.replace("<freejoint/>", '<joint name="root" type="free" stiffness="2"/>')),
+        ["stiffness on the free joint 'root'"],
+    ),
+    "spatial tendon": (
+        _xml(
+            ARM.replace('mass="1"/>', 'mass="1"/><site name="s1" pos="0.3 0 0"/>')
+            + '<site name="s0" pos="0 0 0.5"/>',
+            '<tendon><spatial name="t1" stiffness="10"><site site="s0"/><site site="s1"/>'
+            "</spatial></tendon>",
+        ),
+        ["spatial tendon 't1'", "stiffness 10", "fixed tendons only"],
+    ),
+    "tendon armature": (
+        _xml(
+            ARM,
+            '<tendon><fixed name="t1" armature="0.2"><joint joint="j1" coef="1"/></fixed></tendon>',
+        ),
+        ["armature (inertia added to M along the tendon) 0.2 on tendon 't1'"],
+    ),
+    "dead-band tendon spring": (
+        _xml(
+            ARM,
+            '<tendon><fixed name="t1" stiffness="1" springlength="0.1 0.3">'
+            '<joint joint="j1" coef="1"/></fixed></tendon>',
+        ),
+        ["a dead-band spring length [0.1, 0.3] on tendon 't1'"],
     ),
     "friction loss": (
         _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"')),
         ["friction loss", "'j1'"],
-    ),
-    "tendon": (
-        _xml(ARM, '<tendon><fixed name="t1"><joint joint="j1" coef="1"/></fixed></tendon>'),
-        ["tendon", "'t1'"],
     ),
     "equality": (
         _xml(
@@ -332,8 +342,8 @@ def test_refused_constructs_are_named(case):
 
 
 def test_ignore_unsupported_drops_with_a_warning():
-    text = _xml(ARM, '<tendon><fixed name="t1"><joint joint="j1" coef="1"/></fixed></tendon>')
-    with pytest.warns(UserWarning, match="tendon"):
+    text = _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"'))
+    with pytest.warns(UserWarning, match="friction loss"):
         tree, _ = from_mjcf(text, ignore_unsupported=True)
     assert tree.joint_names == ("j1",)
     with pytest.raises(lx.MJCFError, match="ball joint"):  # still: not one coordinate

@@ -43,6 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._core.checks import param_shapes
+from .. import joint_space as js
 from ..joints import revolute_flags
 from . import recursions as a
 from .links import UNROLL_MAX_SPATIAL, joint_trig, spatial_link
@@ -108,6 +109,8 @@ class FloatingChain:
             rot,
         )
         self.p = jnp.zeros_like(position)
+        self.theta: Any = None  # every body's joint angle (`None`: no joints)
+        self.params: Any = {}  # the params it was built from (their joint-space terms)
 
     def base_velocity(self, v_base: Any) -> Any:
         """`v_B = S_B (v_b, ω_b)` as a tuple."""
@@ -139,9 +142,11 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
     p = jnp.zeros_like(position)  # the recursions' origin: the base origin
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, bool(scan) and n > 0, dtype, tree.parents)
+    joints = None
     if n == 0:  # a single rigid body: the base alone, its passes over no bodies
         s, inertia = [], []
     else:
+        js.check(params, n)
         joints = tree.joint_angles(q[7:])
         big_a, big_b, big_c, slide = tree.joint_constants()
         axes = np.asarray(tree.axes, float)
@@ -152,14 +157,19 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
         s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], dtype)
     a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in tree.up)
-    chain = a.Chain(passes, a.SPATIAL, s, inertia, a0)
+    rotor = js.armature(params, dtype) if n else None
+    chain = a.Chain(
+        passes, a.SPATIAL, s, inertia, a0, None if rotor is None else passes.links(rotor)
+    )
     m_base = jnp.asarray(params["base_m"], dtype)
     inertia_w = rot @ jnp.asarray(params["base_inertia"], dtype) @ rot.T
     centre = p + rot @ jnp.asarray(params["base_com"], dtype)
     inertia_base = a.spatial_inertia(m_base, _tuples(inertia_w), _tuples(centre))
     zero = jnp.zeros((3, 3), dtype)
     s_base = jnp.block([[zero, rot], [rot, skew(p) @ rot]])
-    return FloatingChain(chain, inertia_base, s_base, position, rot)
+    out = FloatingChain(chain, inertia_base, s_base, position, rot)
+    out.theta, out.params = joints, params
+    return out
 
 
 def _velocities(chain: a.Chain, qd: Any, v0: Any) -> Any:
@@ -191,18 +201,18 @@ def aba(fc: FloatingChain, v: Any, force: Any | None) -> jnp.ndarray:
 
     def inward(carry, x):
         art_child, p_child = carry
-        s, inertia, (c, p), tau = x
+        s, inertia, (c, p), tau, *rotor = x
         art = a.madd(inertia, art_child)
         p_art = a.vadd(p, p_child)
         u = a.matvec(art, s)
-        d = a.dot(s, u)
+        d = a.add(a.dot(s, u), rotor[0]) if rotor else a.dot(s, u)  # D_i += armature
         d_inv = 1.0 / jnp.where(d > 0, d, jnp.nan)
         u_sc = a.sub(tau, a.dot(s, p_art))
         child = a.sym_rank1_sub(art, u, d_inv)
         pa = a.vadd(p_art, a.vadd(a.matvec(child, c), a.vscale(u, a.mul(u_sc, d_inv))))
         return (child, pa), (u, d_inv, u_sc)
 
-    xs = passes.zip(chain.s, chain.inertia, vel, taus)
+    xs = chain.zip_armature(chain.s, chain.inertia, vel, taus)
     (art_sub, p_sub), factors = passes.run(
         inward, (chain._zero_matrix(), chain._zero()), xs, reverse=True
     )

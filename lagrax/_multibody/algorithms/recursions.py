@@ -420,10 +420,21 @@ class Passes:
 
 class Chain:
     """A chain at one configuration: its `Passes`, algebra, per-link motion
-    subspaces `S_i` and inertias `I_i` at the origin, and base acceleration `a_0 = −g`."""
+    subspaces `S_i` and inertias `I_i` at the origin, and base acceleration `a_0 = −g`;
+    `armature`, per-link rotor inertias added to the joints' diagonal of `M` (as
+    `Passes.links` lays them out), or `None`."""
 
-    def __init__(self, passes: Passes, algebra: Algebra, s: Any, inertia: Any, a0: Vec):
+    def __init__(
+        self, passes: Passes, algebra: Algebra, s: Any, inertia: Any, a0: Vec, armature=None
+    ):
         self.passes, self.algebra, self.s, self.inertia, self.a0 = passes, algebra, s, inertia, a0
+        self.armature = armature
+
+    def zip_armature(self, *seqs: Any) -> Any:
+        """`passes.zip(*seqs)`, with the armature last where the chain has one."""
+        if self.armature is None:
+            return self.passes.zip(*seqs)
+        return self.passes.zip(*seqs, self.armature)
 
     def _zero(self) -> Vec:
         return tuple(0.0 for _ in self.a0)
@@ -459,11 +470,11 @@ def aba(chain: Chain, qd: Any, force: Any) -> Any:
 
     def inward(carry, x):
         art_child, p_child = carry
-        s, inertia, (c, p), tau = x
+        s, inertia, (c, p), tau, *rotor = x
         art = madd(inertia, art_child)
         p_art = vadd(p, p_child)
         u = matvec(art, s)
-        d = dot(s, u)
+        d = add(dot(s, u), rotor[0]) if rotor else dot(s, u)  # D_i = S_iᵀ I^A_i S_i + a_i
         d_inv = 1.0 / jnp.where(d > 0, d, jnp.nan)
         u_sc = sub(tau, dot(s, p_art))
         child = sym_rank1_sub(art, u, d_inv)
@@ -471,7 +482,7 @@ def aba(chain: Chain, qd: Any, force: Any) -> Any:
         return (child, pa), (u, d_inv, u_sc)
 
     taus = force if force is not None else passes.links(jnp.zeros(passes.n, passes.dtype))
-    xs = passes.zip(chain.s, chain.inertia, vel, taus)
+    xs = chain.zip_armature(chain.s, chain.inertia, vel, taus)
     _, factors = passes.run(inward, (chain._zero_matrix(), chain._zero()), xs, reverse=True)
 
     def outward(a, x):

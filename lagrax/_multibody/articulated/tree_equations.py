@@ -17,6 +17,7 @@ from ..._core.custom_types import Params
 from ..._core.errors import ShapeError
 from ..._core.linalg import cholesky_solve
 from ..._systems.derivatives import AbstractEquations
+from .. import joint_space as js
 from ..algorithms import recursions as a
 from ..algorithms.derivative_recursions import rnea_derivatives
 from ..algorithms.links import UNROLL_MAX_SPATIAL, joint_trig, spatial_link
@@ -193,7 +194,9 @@ def spatial_chain(chain: TreeStructure, q, params: Params, scan: bool | None = N
     s, inertia = passes.split(ys)
     g = jnp.asarray(params["g"], q.dtype)
     a0 = (0.0, 0.0, 0.0) + tuple(a.mul(g, u) for u in chain.up)
-    return a.Chain(passes, a.SPATIAL, s, inertia, a0)
+    rotor = js.armature(params, q.dtype)
+    rotor = None if rotor is None else passes.links(rotor)
+    return a.Chain(passes, a.SPATIAL, s, inertia, a0, rotor)
 
 
 class ChainEquations(AbstractEquations):
@@ -208,7 +211,8 @@ class ChainEquations(AbstractEquations):
     scan: bool | None = eqx.field(default=None, static=True)
 
     def at(self, q, params: Params) -> a.Chain:
-        """The chain's motion subspaces and inertias at `q`."""
+        """The chain's motion subspaces and inertias at `q` (and its armature)."""
+        js.check(params, getattr(self.chain, "n_bodies", self.chain.n))
         return self.chain.articulated(q, params, self.scan)
 
     def blocks(self) -> tuple[int | None, int | None]:
@@ -222,41 +226,51 @@ class ChainEquations(AbstractEquations):
     def accelerations(self, q, qd, params: Params, force) -> jnp.ndarray:
         """`q̈` solving `M q̈ + C q̇ + G = force` (`force` `None` means zero); NaN
         where the chain's articulated inertias are not positive."""
-        return _accelerations_of(self.at(q, params), q, qd, force)
+        return _accelerations_of(self.at(q, params), q, qd, _less_springs(force, q, params))
 
     def energies(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray] | None:
         """`(T, V)` of a spatial chain or tree by one outward pass in link frames
         (`spatial_energies`: about half the cost of the pose maps' JVP per saved state
         in `simulate`), or `None` for a planar chain, whose vectorized pose maps are
         already the cheaper route (0.2 against 0.8 µs a state at n = 7 for a recursion)."""
-        return self.chain.link_energies(q, qd, params)
+        out = self.chain.link_energies(q, qd, params)
+        if out is None:
+            return None
+        kinetic, potential = out
+        rotor = js.armature(params, q.dtype)
+        if rotor is not None:
+            kinetic = kinetic + 0.5 * jnp.sum(rotor * qd.astype(q.dtype) ** 2)
+        return kinetic, potential + js.spring_energy(params, q)
 
     def mass_matrix(self, q, params: Params) -> jnp.ndarray:
-        return a.crba(self.at(q, params))
+        return js.with_armature(a.crba(self.at(q, params)), params)
 
     def mass_and_bias(self, q, qd, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         """`M` and the bias `C q̇ + G` from one evaluation of the kinematics."""
         chain = self.at(q, params)
         bias = a.rnea(chain, chain.passes.links(qd.astype(q.dtype)), None)
-        return a.crba(chain), chain.passes.vector(bias, q)
+        bias = chain.passes.vector(bias, q) + js.joint_inverse(params, q, None)
+        return js.with_armature(a.crba(chain), params), bias
 
     def inverse_dynamics(self, q, qd, qdd, params: Params) -> jnp.ndarray:
-        """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`)."""
+        """`M q̈ + C q̇ + G` (`qdd=None`: the bias `C q̇ + G`), armature and springs
+        included."""
         chain = self.at(q, params)
         links = chain.passes.links
-        qdd = None if qdd is None else links(qdd.astype(q.dtype))
-        return chain.passes.vector(a.rnea(chain, links(qd.astype(q.dtype)), qdd), q)
+        qdd = None if qdd is None else qdd.astype(q.dtype)
+        tau = a.rnea(chain, links(qd.astype(q.dtype)), None if qdd is None else links(qdd))
+        return chain.passes.vector(tau, q) + js.joint_inverse(params, q, qdd)
 
     def derivatives(self, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
         """`(∂τ/∂q, ∂τ/∂q̇, M)` of `τ = M q̈ + C q̇ + G` at `(q, q̇, q̈)`, analytically in
         `O(n²)` (see `lagrax._multibody.algorithms.derivative_recursions`)."""
-        return _derivatives_of(self.at(q, params), q, qd, qdd)
+        return _derivatives_of(self.at(q, params), q, qd, qdd, params)
 
     def accelerations_and_derivatives(self, q, qd, params: Params, force):
         """`(q̈, ∂τ/∂q, ∂τ/∂q̇, M)` from one evaluation of the kinematics."""
         chain = self.at(q, params)
-        qdd = _accelerations_of(chain, q, qd, force)
-        return (qdd, *_derivatives_of(chain, q, qd, qdd))
+        qdd = _accelerations_of(chain, q, qd, _less_springs(force, q, params))
+        return (qdd, *_derivatives_of(chain, q, qd, qdd, params))
 
 
 def _accelerations_of(chain: a.Chain, q, qd, force) -> jnp.ndarray:
@@ -266,13 +280,24 @@ def _accelerations_of(chain: a.Chain, q, qd, force) -> jnp.ndarray:
     return chain.passes.vector(a.aba(chain, links(qd.astype(q.dtype)), f), q)
 
 
-def _derivatives_of(chain: a.Chain, q, qd, qdd) -> tuple[jnp.ndarray, ...]:
-    """`ChainEquations.derivatives` of the chain at `q`: the RNEA derivatives."""
+def _less_springs(force, q, params: Params):
+    """The generalized force less the joint springs' `∂V_s/∂θ` (`force` `None`: zero)."""
+    springs = js.spring_force(params, q)
+    if springs is None:
+        return force
+    return -springs if force is None else jnp.asarray(force, q.dtype) - springs
+
+
+def _derivatives_of(chain: a.Chain, q, qd, qdd, params: Params) -> tuple[jnp.ndarray, ...]:
+    """`ChainEquations.derivatives` of the chain at `q`: the RNEA derivatives, with the
+    armature on `M`'s diagonal and the springs' stiffness `K_s` in `∂τ/∂q`."""
     links = chain.passes.links
     _, dq, dqd, mass = rnea_derivatives(
         chain, links(qd.astype(q.dtype)), links(qdd.astype(q.dtype))
     )
-    return dq, dqd, mass
+    stiffness = js.stiffness_matrix(params, q.shape[0], q.dtype)
+    dq = dq if stiffness is None else dq + stiffness
+    return dq, dqd, js.with_armature(mass, params)
 
 
 class CoupledEquations(AbstractEquations):

@@ -31,6 +31,7 @@ from ..._core.checks import param_shapes, physical
 from ..._core.custom_types import Params, Vector
 from ..._core.errors import ConfigurationError, ShapeError
 from ..._systems.lagrangian import LagrangianSystem
+from .. import joint_space
 from ..algorithms.recursions import Chain
 from ..common import broadcast, float_dtype, rotation_tuple, unit_vector
 from ..energies.bodies import Param, SpatialBody
@@ -56,7 +57,8 @@ def _joint_damping(q, qd, params):
         f"the joint damping of {jnp.shape(qd)[0]} joints (mimic ones included)",
         ("damping",),
     )
-    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2)
+    tendons = joint_space.tendon_dissipation(params, qd)  # fixed tendons' damping, if any
+    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2) + tendons
 
 
 class _CoupledDamping(eqx.Module):
@@ -323,12 +325,15 @@ class AbstractTree(AbstractArticulated):
         [`FloatingTree`][lagrax.chains.FloatingTree])."""
         self._check_moves()
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
+        terms = getattr(self, "joint_terms", False)  # armature and springs (`joint_space`)
         return Scene(
             [body],
             gravity=self._gravity,
             dissipation=self.dissipation(),
             n_dof=self.n,
             name=self.label(),
+            kinetic=joint_space.JointKinetic(self) if terms else None,
+            potential=joint_space.JointPotential(self) if terms else None,
         )
 
     def system(self) -> LagrangianSystem:
@@ -422,6 +427,11 @@ class Tree(AbstractTree):
     - `mimic`: `(body, master, multiplier, offset)` tuples (or a mapping
       `{body: (master, multiplier, offset)}`): body `body`'s joint angle is
       `multiplier · θ_master + offset` (default: none, every joint a coordinate).
+    - `joint_terms`: whether the params may carry armature, joint springs or fixed
+      tendons ([`params`][lagrax.chains.Tree.params]' `armature`, `stiffness`,
+      `springref`; `tendon*` entries, see [`lagrax.chains.from_mjcf`][]): then the
+      scene's energies (the definition, `dataclasses.replace(system,
+      equations=None)`) include them. The recursions read them in any case.
 
     **Raises:** `ConfigurationError` (a `ValueError`) for an unknown joint type, a
     parent index that is not an earlier body, lists of the wrong length, or a mimic entry
@@ -447,6 +457,7 @@ class Tree(AbstractTree):
     velocity_limits: tuple[float, ...] = eqx.field(static=True)
     effort_limits: tuple[float, ...] = eqx.field(static=True)
     mimic: tuple[tuple[int, int, float, float], ...] = eqx.field(static=True)
+    joint_terms: bool = eqx.field(static=True)
 
     def __init__(
         self,
@@ -462,6 +473,7 @@ class Tree(AbstractTree):
         velocity_limits: Any = None,
         effort_limits: Any = None,
         mimic: Any = None,
+        joint_terms: bool = False,
     ):
         types = parse_joint_types(joint_types, aliases={"C": "R"}, empty=True)
         n = len(types)
@@ -483,6 +495,7 @@ class Tree(AbstractTree):
         self.velocity_limits = positive_bounds(velocity_limits, n, "velocity_limits")
         self.effort_limits = positive_bounds(effort_limits, n, "effort_limits")
         self.mimic = mimic_entries(mimic, n)
+        self.joint_terms = bool(joint_terms)
 
     def params(
         self,
@@ -494,6 +507,9 @@ class Tree(AbstractTree):
         damping: Any = 0.0,
         g: Any = 9.81,
         dtype: Any = None,
+        armature: Any = None,
+        stiffness: Any = None,
+        springref: Any = 0.0,
     ) -> dict[str, jnp.ndarray]:
         """Parameters as arrays, broadcast to all `n_bodies` bodies.
 
@@ -503,10 +519,16 @@ class Tree(AbstractTree):
 
         **Arguments:** `m`, `damping` (scalar or `(n,)`), `offset` and `com`
         (`(3,)` or `(n, 3)`), `inertia` (`(3, 3)` or `(n, 3, 3)`), `g`,
-        `dtype` (default float64 with x64)).
+        `dtype` (default float64 with x64)); optional joint-space terms (see
+        `lagrax._multibody.joint_space`), left out of the dict unless given:
+        `armature` (scalar or `(n,)`: rotor inertia, `M += diag(armature)`),
+        `stiffness` and `springref` (scalar or `(n,)`: joint springs
+        `V += ½ Σ k (q − q_ref)²`). Give the tree `joint_terms=True` for its scene's
+        energies to include them.
 
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
-        "damping": (n,), "g": ()}``.
+        "damping": (n,), "g": ()}`` (and `"armature"`, `"stiffness"`, `"springref"`
+        where given).
 
         **Raises:** `ShapeError` if a value does not broadcast; `ParameterError` for a
         negative mass or damping, or an inertia that is not symmetric positive-semidefinite
@@ -518,6 +540,14 @@ class Tree(AbstractTree):
         b = broadcast("damping", damping, (self.n_bodies,), dtype)
         out["damping"] = physical(b, "Tree.params damping", item="joint")
         out["g"] = jnp.asarray(g, dtype=dtype)
+        shape = (self.n_bodies,)
+        if armature is not None:
+            a = broadcast("armature", armature, shape, dtype)
+            out["armature"] = physical(a, "Tree.params armature", what="armature", item="joint")
+        if stiffness is not None:
+            k = broadcast("stiffness", stiffness, shape, dtype)
+            out["stiffness"] = physical(k, "Tree.params stiffness", what="stiffness", item="joint")
+            out["springref"] = broadcast("springref", springref, shape, dtype)
         return out
 
     def dissipation(self) -> Callable:

@@ -63,6 +63,7 @@ from ..._systems.sensitivity import (
     by_solves,
     jacobian_wrt_params,
 )
+from .. import joint_space as js
 from ..algorithms import derivative_recursions as dr
 from ..algorithms import floating_recursions as fr
 
@@ -107,6 +108,13 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
         v_all[:6],
         vdot_all[:6],
     )
+    # armature and joint springs, on every body's joint: τ ⊃ a θ̈ + ∂V_s/∂θ, M ⊃ diag(a),
+    # ∂τ/∂q ⊃ K_s (`joint_space`)
+    tau = tau.at[6:].add(js.joint_inverse(params, fc.theta, vdot_all[6:]))
+    mass = js.with_armature(mass, params, offset=6)
+    stiffness = js.stiffness_matrix(params, tree.n_bodies, q.dtype)
+    if stiffness is not None:
+        jq = jq.at[6:, 6:].add(stiffness)
     if tree.mimic:  # θ = J q + b: every matrix is J_Bᵀ (·) J_B, τ is J_Bᵀ τ_θ
         j_b = system._coupling(q.dtype)
         tau, jq, jv, mass = j_b.T @ tau, j_b.T @ jq @ j_b, j_b.T @ jv @ j_b, j_b.T @ mass @ j_b

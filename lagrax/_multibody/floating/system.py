@@ -36,6 +36,7 @@ from ..._core.checks import (
 from ..._core.custom_types import Params
 from ..._core.errors import MassMatrixError, NonFiniteError, ShapeError
 from ..._core.linalg import cholesky_solve
+from .. import joint_space as js
 from ..algorithms import floating_recursions as fr
 from ..articulated.trees import Tree
 from ..common import broadcast, float_dtype
@@ -133,7 +134,10 @@ class FloatingTree(eqx.Module):
 
 def _aba(system: Any, q: Any, v: Any, params: Params, force: Any) -> jnp.ndarray:
     """`v̇` by the articulated-body algorithm with a free root (`force`: the generalized
-    force, damping included)."""
+    force, damping included; the joint springs' force is taken off here)."""
+    springs = js.spring_force(params, q[7:])
+    if springs is not None:
+        force = force.at[6:].add(-springs)
     return fr.aba(system._at(q, params), v, force)
 
 
@@ -147,7 +151,11 @@ def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
         ("damping",),
     )
     b = jnp.asarray(params["damping"], v.dtype)
-    rates = b * tree.joint_rates(v[6:])
+    theta_d = tree.joint_rates(v[6:])
+    rates = b * theta_d
+    if params.get("tendon") is not None:  # fixed tendons: ½ Σ b_t (C θ̇)²
+        c = jnp.asarray(params["tendon"], v.dtype)
+        rates = rates + c.T @ (jnp.asarray(params["tendon_damping"], v.dtype) * (c @ theta_d))
     if tree.mimic:
         rates = jnp.asarray(tree.coupling_matrix(), v.dtype).T @ rates
     return jnp.concatenate([jnp.zeros(6, v.dtype), rates])
@@ -261,6 +269,7 @@ class FloatingBaseSystem(FloatingDerivatives):
     def _mass(self, fc: fr.FloatingChain) -> tuple[jnp.ndarray, jnp.ndarray]:
         """`(M, I^c_B)` with `M = J_Bᵀ M_θ J_B` (`M_θ` itself without mimic joints)."""
         mass, total = fr.crba(fc)
+        mass = js.with_armature(mass, fc.params, offset=6)
         if not self.robot.tree.mimic:
             return mass, total
         j_b = self._coupling(mass.dtype)
@@ -279,8 +288,14 @@ class FloatingBaseSystem(FloatingDerivatives):
         )
 
     def _rnea(self, fc: fr.FloatingChain, v: Any, vdot: Any) -> jnp.ndarray:
-        """`M v̇ + b` (`vdot` `None`: `b`) in the coordinates."""
-        return self._reduce(fr.rnea(fc, self._full(v), self._full(vdot)))
+        """`M v̇ + b` (`vdot` `None`: `b`) in the coordinates, armature and joint
+        springs included."""
+        vdot = self._full(vdot)
+        tau = fr.rnea(fc, self._full(v), vdot)
+        if fc.theta is not None:
+            joints = js.joint_inverse(fc.params, fc.theta, None if vdot is None else vdot[6:])
+            tau = tau.at[6:].add(joints)
+        return self._reduce(tau)
 
     # ------------------------------------------------------------------ configuration
     def configuration_rate(self, q: Any, v: Any) -> jnp.ndarray:
@@ -410,11 +425,13 @@ class FloatingBaseSystem(FloatingDerivatives):
     def potential_energy(self, q: Any, params: Params) -> jnp.ndarray:
         """`V = m g up·c`: gravity on the whole robot's mass `m` at its centre of mass."""
         (q,) = self._inputs(q)
-        return _potential(self.robot, fr.crba(self._at(q, params))[1], params, q[:3])
+        springs = js.spring_energy(params, self.robot.tree.joint_angles(q[7:]))
+        return _potential(self.robot, fr.crba(self._at(q, params))[1], params, q[:3]) + springs
 
     def _energies(self, q: Any, v: Any, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         mass, total = self._mass(self._at(q, params))
-        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params, q[:3])
+        springs = js.spring_energy(params, self.robot.tree.joint_angles(q[7:]))
+        return 0.5 * v @ (mass @ v), _potential(self.robot, total, params, q[:3]) + springs
 
     def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
         """The mechanical energy `T + V`."""

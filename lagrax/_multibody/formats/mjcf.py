@@ -31,10 +31,11 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.errors import ArgumentTypeError, MJCFError, ShapeError
+from ..._core.errors import MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
+from .mjcf_tendons import fixed_tendons, tendons_unsupported
 
 # mujoco.mjtJoint: free, ball, slide, hinge
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
@@ -84,6 +85,10 @@ class _Body:
     damping: float
     limits: tuple[float, float]
     effort: float
+    armature: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    joint_id: int = -1
     mass: float = 0.0
     moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
@@ -148,16 +153,22 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         who = who or f"{obj} {names(obj, i)!r}"
         found.append(f"{what} {shown} on {who}")
 
-    first_nonzero(model.dof_armature, "armature (rotor inertia added to M's diagonal)", "dof")
     free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
-    if free:  # a floating base has no damping of its own
-        dofs = [int(model.jnt_dofadr[free[0]]) + k for k in range(6)]
-        if np.any(np.asarray(model.dof_damping)[dofs]) and not disabled & int(off.mjDSBL_DAMPER):
-            found.append(
-                f"damping on the free joint {names('joint', free[0])!r} (a floating base has "
-                "none in lagrax)"
-            )
-    first_nonzero(model.jnt_stiffness, "joint stiffness (a spring)", "joint", off.mjDSBL_SPRING)
+    for j in free[:1]:  # a floating base has no damping, armature or spring of its own
+        dofs = [int(model.jnt_dofadr[j]) + k for k in range(6)]
+        for what, values, flag in (
+            ("damping", model.dof_damping, off.mjDSBL_DAMPER),
+            ("armature", model.dof_armature, None),
+        ):
+            if np.any(np.asarray(values)[dofs]) and not (flag and disabled & int(flag)):
+                found.append(
+                    f"{what} on the free joint {names('joint', j)!r} (a floating base has "
+                    "none in lagrax)"
+                )
+        if model.jnt_stiffness[j] and not disabled & int(off.mjDSBL_SPRING):
+            found.append(f"stiffness on the free joint {names('joint', j)!r}")
+    if hasattr(model, "jnt_springyield"):
+        first_nonzero(model.jnt_springyield, "joint spring yield (plasticity)", "joint")
     if hasattr(model, "jnt_stiffnesspoly"):
         first_nonzero(
             model.jnt_stiffnesspoly, "nonlinear joint stiffness", "joint", off.mjDSBL_SPRING
@@ -168,8 +179,7 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         model.dof_frictionloss, "friction loss (a constraint)", "dof", off.mjDSBL_FRICTIONLOSS
     )
     first_nonzero(model.body_gravcomp, "gravity compensation", "body")
-    if model.ntendon:
-        found.append(f"{model.ntendon} tendon(s), the first {names('tendon', 0)!r}")
+    found += tendons_unsupported(mujoco, model, names)
     if model.neq and not disabled & int(off.mjDSBL_EQUALITY):
         found.append(
             f"{model.neq} equality constraint(s), the first {names('equality', 0)!r} (a closed "
@@ -224,17 +234,27 @@ def from_mjcf(
     is disabled). Names are MuJoCo's (`joint3`, `body2` where unnamed); a body with
     several joints gives tree bodies `body/joint` before its last.
 
+    Also read, as joint-space terms (`params` entries present only where the model has
+    them; see [`Tree.params`][lagrax.chains.Tree.params]):
+
+    - `dof_armature` (`params["armature"]`): a rotor's reflected inertia,
+      `M += diag(armature)` (`T ⊃ ½ Σ a q̇²`), in the recursions and their derivatives;
+    - `jnt_stiffness` about `qpos_spring` (the joint's `springref`;
+      `params["stiffness"]`, `params["springref"]`): joint springs, the potential
+      `½ Σ k (q − q_spring)²` (none where springs are disabled);
+    - fixed tendons (`L = Σ c_i q_i`) with stiffness or damping: `params["tendon"]`
+      (each tendon's coefficients on the joints, `(n_t, n)`), `"tendon_stiffness"`
+      about `"tendon_length"` (`tendon_lengthspring`), the potential `½ k (L − L_0)²`,
+      and `"tendon_damping"`, the dissipation `½ b L̇²`. A fixed or spatial tendon with
+      neither carries only a length limit (a MuJoCo constraint, not enforced, as joint
+      limits) and actuators' paths, and adds nothing.
+
     Not read: geometry and contacts (lagrax has none), actuators (`tau` is the
     generalized force: MuJoCo's `qfrc_applied`), sensors, `timestep` and the
     integrator. Joint limits are MuJoCo constraints, inactive inside the range; with
     `limits="impact"` lagrax stops a joint at them instead (below). The equations agree with
-    MuJoCo's `mj_fullM` and `mj_forward`'s `qacc` with contacts (and limits, outside
-    their range) disabled.
-
-    **Armature is refused** where nonzero: MuJoCo adds `dof_armature` (a rotor's
-    reflected inertia) to `M`'s diagonal, a term the tree's recursions do not have
-    yet. With `ignore_unsupported=True` it is dropped with a warning, and then
-    `M = mj_fullM − diag(dof_armature)`.
+    MuJoCo's `mj_fullM` and `mj_forward`'s `qacc` with contacts and constraints (limits,
+    friction loss, equality) disabled.
 
     **Arguments:**
 
@@ -247,26 +267,27 @@ def from_mjcf(
       [`lagrax.simulate`][]).
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
-    - `ignore_unsupported`: drop what lagrax does not model (armature, joint springs,
-      friction loss, gravity compensation, tendons, equality constraints, fluid forces,
-      damping on a free joint)
-      with one `UserWarning` naming each, instead of refusing the model.
+    - `ignore_unsupported`: drop what lagrax does not model (friction loss, gravity
+      compensation, spatial tendons with stiffness or damping, tendon armature or
+      friction loss, dead-band or nonlinear springs, equality constraints, fluid forces,
+      damping, armature or stiffness on a free joint) with one `UserWarning` naming
+      each, instead of refusing the model.
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
-    `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`); with a
-    free joint, the [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus
-    `{"base_m", "base_com", "base_inertia"}`.
+    `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
+    joint-space terms above where the model has them); with a free joint, the
+    [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus `{"base_m",
+    "base_com", "base_inertia"}`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
     message); for a ball joint, naming the joint and its body; for more than one free
     joint, a free body with other joints, a joint not below the free body, or a
     massless floating base; for a model with no hinge, slide or free joint;
-    and, unless `ignore_unsupported`, for nonzero armature, joint stiffness, friction
-    loss or gravity compensation, tendons, equality constraints or fluid forces, naming
-    the first one and its value. `MJCFError` also when the `mujoco` package is not
-    installed. `FileNotFoundError` for a missing file; `ConfigurationError` for a bad
-    `limits` or `restitution`.
+    and, unless `ignore_unsupported`, for what it does not model (the list under
+    `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
+    the `mujoco` package is not installed. `FileNotFoundError` for a missing file;
+    `ConfigurationError` for a bad `limits` or `restitution`.
 
     **Example:**
 
@@ -417,6 +438,10 @@ def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body],
                     float(model.dof_damping[model.jnt_dofadr[j]]),
                     (low, high) if limited and low < high else (-math.inf, math.inf),
                     effort,
+                    float(model.dof_armature[model.jnt_dofadr[j]]),
+                    float(model.jnt_stiffness[j]),
+                    float(model.qpos_spring[model.jnt_qposadr[j]]),
+                    j,
                 )
             )
             tb, rot, pos = len(bodies) - 1, np.eye(3), -anchor
@@ -443,9 +468,31 @@ def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray)
     target.inertia_o = target.inertia_o + inertia + steiner(mass, c)
 
 
+def _joint_terms(model, bodies: list[_Body], dtype: Any) -> dict:
+    """The tree's joint-space params (`lagrax._multibody.joint_space`): `armature`,
+    `stiffness` and `springref` (MuJoCo's `qpos_spring`) where any is nonzero, and the
+    fixed tendons' (`mjcf_tendons`)."""
+    mujoco = _mujoco()
+    disabled = int(model.opt.disableflags)
+    out: dict = {}
+    rotor = np.array([b.armature for b in bodies])
+    if np.any(rotor):
+        out["armature"] = rotor
+    stiffness = np.array([b.stiffness for b in bodies])
+    if disabled & int(mujoco.mjtDisableBit.mjDSBL_SPRING):
+        stiffness = np.zeros_like(stiffness)
+    if np.any(stiffness):
+        out["stiffness"] = stiffness
+        out["springref"] = np.array([b.springref for b in bodies])
+    out.update(fixed_tendons(mujoco, model, [b.joint_id for b in bodies]))
+    dtype = float_dtype(dtype)
+    return {k: jnp.asarray(v, dtype) for k, v in out.items()}
+
+
 def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] and its params from the merged bodies."""
     masses, coms, inertias = about_centres(bodies)
+    terms = _joint_terms(model, bodies, dtype)
     gravity = np.asarray(model.opt.gravity, float)
     g = float(np.linalg.norm(gravity))
     mujoco = _mujoco()
@@ -465,6 +512,7 @@ def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict
         body_names=[b.name for b in bodies],
         limits=[b.limits for b in bodies],
         effort_limits=[b.effort for b in bodies],
+        joint_terms=bool(terms),
     )
     params = tree.params(
         m=masses,
@@ -475,85 +523,4 @@ def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict
         g=g,
         dtype=float_dtype(dtype),
     )
-    return tree, params
-
-
-def _rotation(quat_xyzw: Any) -> jnp.ndarray:
-    from ..algorithms.floating_recursions import quaternion_rotation
-
-    return quaternion_rotation(quat_xyzw)
-
-
-def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
-    r"""A floating robot's MuJoCo state (free joint first) as lagrax's `(q, v)`.
-
-    MuJoCo's free joint has `qpos = (x, y, z, q_w, q_x, q_y, q_z)` and `qvel = (v_O,
-    ω_b)`, the body origin's velocity in the **world** frame and the angular velocity in
-    the body frame; lagrax's floating base (Pinocchio's free-flyer convention, see
-    [`FloatingTree`][lagrax.chains.FloatingTree]) has `q = (x, y, z, q_x, q_y, q_z,
-    q_w)` and `v = (R^T v_O, ω_b)`, both velocities in the base frame. The joints
-    follow unchanged. A generalized force converts like the velocity (`R^T f` for the
-    linear part), and MuJoCo's `qacc` is `(R (v̇_b + ω_b × v_b), ω̇_b, q̈)`.
-
-    **Arguments:** `qpos` `(..., 7 + n)`, `qvel` `(..., 6 + n)` (leading batch axes
-    allowed).
-
-    **Returns:** `(q, v)`, of the same shapes.
-
-    **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
-    whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
-    """
-    qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7, 6))
-    quat = jnp.concatenate([qpos[..., 4:7], qpos[..., 3:4]], axis=-1)
-    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
-    linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., :3])
-    q = jnp.concatenate([qpos[..., :3], quat, qpos[..., 7:]], axis=-1)
-    return q, jnp.concatenate([linear, qvel[..., 3:]], axis=-1)
-
-
-def to_mujoco_state(q: Any, v: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
-    r"""lagrax's floating-base `(q, v)` as MuJoCo's `(qpos, qvel)` of a free joint: the
-    inverse of [`from_mujoco_state`][lagrax.chains.from_mujoco_state].
-
-    **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`.
-
-    **Returns:** `(qpos, qvel)`, of the same shapes.
-
-    **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
-    and `v`.
-    """
-    q, v = _free_joint_state(q, v, ("q", "v"), (7, 6))
-    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., 3:7])
-    linear = jnp.einsum("...ij,...j->...i", rot, v[..., :3])
-    qpos = jnp.concatenate([q[..., :3], q[..., 6:7], q[..., 3:6], q[..., 7:]], axis=-1)
-    return qpos, jnp.concatenate([linear, v[..., 3:]], axis=-1)
-
-
-def _free_joint_state(pos: Any, vel: Any, names: tuple[str, str], sizes: tuple[int, int]):
-    """`(pos, vel)` of a floating base (a free joint first, then the joints; leading
-    batch axes allowed) as arrays, or an error naming the caller's arguments: each must
-    have at least `sizes` entries on its last axis (the base's), as many joints each,
-    and the same batch axes."""
-    out = []
-    for name, x, size in zip(names, (pos, vel), sizes, strict=True):
-        try:
-            x = jnp.asarray(x)
-        except (TypeError, ValueError) as err:
-            raise ArgumentTypeError(
-                f"{name} must be an array of real numbers, got {type(x).__name__}: {err}"
-            ) from None
-        if x.ndim == 0 or x.shape[-1] < size:
-            raise ShapeError(
-                f"{name} must have {size} + n entries on its last axis (the free joint's "
-                f"{size}, then the n joints'), got shape {x.shape}"
-            )
-        out.append(x)
-    (p, v), (np_, nv) = out, sizes
-    if p.shape[-1] - np_ != v.shape[-1] - nv or p.shape[:-1] != v.shape[:-1]:
-        raise ShapeError(
-            f"{names[1]} has shape {v.shape} ({v.shape[-1] - nv} joints) but {names[0]} has "
-            f"shape {p.shape} ({p.shape[-1] - np_} joints): {names[1]}'s last axis must have "
-            f"{p.shape[-1] - np_ + nv} entries ({nv} + n) and the leading (batch) axes must "
-            "match"
-        )
-    return p, v
+    return tree, {**params, **terms}

@@ -1,0 +1,173 @@
+"""The DeepMind Control Suite's MJCF files (``dm_control/suite/*.xml``, as ``pip install
+dm-control`` ships them), read with ``from_mjcf``'s default options and held to MuJoCo.
+
+- The files that load (``LOADS``): ``M`` against ``mj_fullM`` (armature included) and
+  ``q̈`` against ``mj_forward``'s ``qacc`` at a random state with a random generalized
+  force (``qfrc_applied``), MuJoCo's contacts, constraints (limits, friction loss,
+  equality) and actuators disabled, to 1e-10 relative; a floating model through
+  ``from_mujoco_state`` (``M`` congruent by the base's rotation).
+- The files that do not (``REFUSED``): an ``MJCFError`` naming the construct.
+- The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
+  compiled model: a free body with joint springs and a fixed tendon's spring, held to
+  MuJoCo the same way.
+- Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
+  Barkour (a free base with armature) and a tendon model load and match
+  MuJoCo the same way; a tendon with armature, ball joints, several free bodies and
+  friction loss are refused by name.
+"""
+
+import os
+import re
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from _helpers import rel_error
+from lagrax.chains import from_mjcf, from_mujoco_state
+
+mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
+dm_control = pytest.importorskip("dm_control", reason="dm_control ships the suite's MJCF files")
+
+SUITE = Path(os.path.dirname(dm_control.__file__)) / "suite"
+RTOL = 1e-10
+
+LOADS = [
+    "acrobot",
+    "ball_in_cup",
+    "cartpole",
+    "cheetah",
+    "hopper",
+    "humanoid",
+    "humanoid_CMU",
+    "pendulum",
+    "point_mass",
+    "reacher",
+    "walker",
+]
+REFUSED = {
+    "dog": ["2 free joints"],
+    "quadruped": ["equality constraint", "coupling_front_left"],
+    "manipulator": ["equality constraint", "'coupling'"],
+    "stacker": ["equality constraint", "'coupling'"],
+    "finger": ["friction loss", "'hinge'"],
+    "fish": ["fluid forces", "density=5000"],
+    "swimmer": ["fluid forces", "density=3000"],
+    "lqr": ["no hinge or slide joint"],
+}
+
+
+def test_the_lists_cover_the_suite():
+    assert sorted(LOADS + list(REFUSED)) == sorted(p.stem for p in SUITE.glob("*.xml"))
+
+
+def _compiled(name: str):
+    """MuJoCo's model of a suite file with contacts, constraints and actuators off."""
+    model = mujoco.MjModel.from_xml_path(str(SUITE / f"{name}.xml"))
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
+    return model
+
+
+def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
+    """`(M error, q̈ error)`, relative, at one random state and force (see the module
+    docstring)."""
+    rng = np.random.default_rng(seed)
+    floating = isinstance(robot, lx.chains.FloatingTree)
+    qpos = np.array(model.qpos0)
+    if floating:
+        quat = rng.normal(size=4)
+        qpos[:3] += rng.normal(size=3)
+        qpos[3:7] = quat / np.linalg.norm(quat)
+        qpos[7:] += rng.uniform(-0.5, 0.5, model.nq - 7)
+    else:
+        qpos += rng.uniform(-0.5, 0.5, model.nq)
+    qvel, force = (rng.uniform(-1.0, 1.0, model.nv) for _ in range(2))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
+    mujoco.mj_forward(model, data)
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    system = robot.system()
+    forward = jax.jit(lambda q, v, f: system.forward_dynamics(q, v, params, f))
+    mass = jax.jit(lambda q: system.mass_matrix(q, params))
+    if not floating:
+        qacc = forward(jnp.asarray(qpos), jnp.asarray(qvel), jnp.asarray(force))
+        m_lx = mass(jnp.asarray(qpos))
+        return rel_error(m_lx, m_mj), rel_error(qacc, data.qacc)
+    q, v = from_mujoco_state(qpos, qvel)
+    rot = data.xmat[model.jnt_bodyid[0]].reshape(3, 3)
+    tau = np.concatenate([rot.T @ force[:3], force[3:]])  # a force converts like v
+    a, v = np.asarray(forward(q, v, jnp.asarray(tau))), np.asarray(v)
+    qacc = np.concatenate([rot @ (a[:3] + np.cross(v[3:6], v[:3])), a[3:]])
+    t = np.eye(model.nv)
+    t[:3, :3] = rot
+    return rel_error(mass(q), t.T @ m_mj @ t), rel_error(qacc, data.qacc)
+
+
+@pytest.mark.parametrize("name", LOADS)
+def test_suite_file_matches_mujoco(name):
+    robot, params = from_mjcf(SUITE / f"{name}.xml")
+    model = _compiled(name)
+    assert (7 + robot.n if isinstance(robot, lx.chains.FloatingTree) else robot.n) == model.nq
+    err_m, err_a = _against_mujoco(robot, params, model, seed=len(name))
+    print(f"{name}: M {err_m:.1e}, qacc {err_a:.1e} relative to MuJoCo")
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+@pytest.mark.parametrize("name", sorted(REFUSED))
+def test_suite_file_refused_names_the_construct(name):
+    with pytest.raises(lx.MJCFError) as info:
+        from_mjcf(SUITE / f"{name}.xml")
+    for word in REFUSED[name]:
+        assert word in str(info.value), str(info.value)
+
+
+def test_fish_without_fluid_matches_mujoco():
+    """The fish with `opt.density = 0`: a free body, joint springs and the fixed tendons'
+    springs (one of stiffness 1e-4), gravity disabled by the file."""
+    model = _compiled("fish")
+    model.opt.density = 0.0
+    robot, params = from_mjcf(model)
+    assert isinstance(robot, lx.chains.FloatingTree)
+    assert params["tendon"].shape == (1, robot.n)  # the tendon with stiffness; the other none
+    err_m, err_a = _against_mujoco(robot, params, model, seed=3)
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+# Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
+WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
+WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml"]
+WHEEL_REFUSED = {
+    "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
+    "pendula.xml": "is a ball joint",
+    "convex.xml": "4 free joints",
+    "quadratic_frictionloss.xml": "friction loss",
+}
+
+
+def _wheel(path: str) -> Path:
+    if not (WHEEL / path).exists():
+        pytest.skip("this mujoco wheel ships no MJX test data")
+    return WHEEL / path
+
+
+@pytest.mark.parametrize("path", WHEEL_LOADS)
+def test_wheel_model_matches_mujoco(path):
+    """Barkour (a free base with armature) and MJX's tendon test model (tendons with
+    limits and actuators only)."""
+    robot, params = from_mjcf(_wheel(path))
+    model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
+    err_m, err_a = _against_mujoco(robot, params, model, seed=11)
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+@pytest.mark.parametrize("path", sorted(WHEEL_REFUSED))
+def test_wheel_model_refused_names_the_construct(path):
+    with pytest.raises(lx.MJCFError, match=re.escape(WHEEL_REFUSED[path])):
+        from_mjcf(_wheel(path))
