@@ -22,7 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from lagrax._multibody.floating_derivatives import retract
+from lagrax._multibody.floating.derivatives import retract
 
 import lagrax as lx
 from _helpers import pin_state, rel_error

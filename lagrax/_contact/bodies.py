@@ -7,7 +7,7 @@ import numpy as np
 
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._multibody.algorithms.floating_recursions import quaternion_rotation
-from .._multibody.articulated.trees import AbstractTree
+from .._multibody.articulated.trees import AbstractTree, Tree
 from .._multibody.floating.system import FloatingTree
 from .geometry import Sphere
 
@@ -64,7 +64,10 @@ def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0
         raise ArgumentTypeError(
             f"body_sphere takes a FloatingTree, Tree or SpatialChain, got {type(robot).__name__}"
         )
-    names = getattr(tree, "body_names", None) or tuple(f"body{k}" for k in range(tree.n_bodies))
+    if isinstance(tree, Tree):
+        names = tree.body_names
+    else:  # a spatial chain's bodies are unnamed
+        names = tuple(f"body{k}" for k in range(tree.n_bodies))
     i = _index(tuple(names), body, robot.base_name if floating else None)
     arm = np.asarray(offset, dtype=float)
     if arm.shape != (3,) or not np.all(np.isfinite(arm)):

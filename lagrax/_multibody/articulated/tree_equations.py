@@ -57,6 +57,13 @@ class AbstractArticulated(eqx.Module):
     `params`."""
 
     n: eqx.AbstractVar[int]  # the number of joints (and bodies)
+
+    @property
+    def n_bodies(self) -> int:
+        """The number of bodies: one per joint (a tree with mimic joints has more
+        bodies than coordinates, and says so)."""
+        return self.n
+
     parents: eqx.AbstractVar[tuple[int, ...]]  # each body's parent (−1: the base)
 
     @abc.abstractmethod
@@ -212,7 +219,7 @@ class ChainEquations(AbstractEquations):
 
     def at(self, q, params: Params) -> a.Chain:
         """The chain's motion subspaces and inertias at `q` (and its armature)."""
-        js.check(params, getattr(self.chain, "n_bodies", self.chain.n))
+        js.check(params, self.chain.n_bodies)
         return self.chain.articulated(q, params, self.scan)
 
     def blocks(self) -> tuple[int | None, int | None]:

@@ -325,7 +325,7 @@ class AbstractTree(AbstractArticulated):
         [`FloatingTree`][lagrax.chains.FloatingTree])."""
         self._check_moves()
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
-        terms = getattr(self, "joint_terms", False)  # armature and springs (`joint_space`)
+        terms = self._joint_terms()  # armature and springs (`joint_space`)
         return Scene(
             [body],
             gravity=self._gravity,
@@ -335,6 +335,11 @@ class AbstractTree(AbstractArticulated):
             kinetic=joint_space.JointKinetic(self) if terms else None,
             potential=joint_space.JointPotential(self) if terms else None,
         )
+
+    def _joint_terms(self) -> bool:
+        """Whether the energies carry the joint-space terms (`joint_space`: armature,
+        springs): a spatial chain's never do; a [`Tree`][lagrax.chains.Tree] says."""
+        return False
 
     def system(self) -> LagrangianSystem:
         """The tree's [`lagrax.LagrangianSystem`][], its equations evaluated by
@@ -458,6 +463,9 @@ class Tree(AbstractTree):
     effort_limits: tuple[float, ...] = eqx.field(static=True)
     mimic: tuple[tuple[int, int, float, float], ...] = eqx.field(static=True)
     joint_terms: bool = eqx.field(static=True)
+
+    def _joint_terms(self) -> bool:
+        return self.joint_terms
 
     def __init__(
         self,

@@ -104,14 +104,14 @@ def _gravity_energy(mass, x, gravity, who: str) -> Scalar:
 
 
 # ---------------------------------------------------------------------------------- bodies
-def _check_body(body: Any, kind: str) -> None:
+def _check_body(body: Any, kind: str, inertia: Any = None) -> None:
     """Constant masses and inertias of a body, checked when it is built: masses `> 0`,
     inertias physical ([`lagrax.bodies.check_inertia`][]; semidefinite, so slender rods
     and point-like bodies pass). Parameter-valued ones (callables such as
-    [`Param`][lagrax.bodies.Param]) are read from `params` later and are not checked here."""
+    [`Param`][lagrax.bodies.Param]) are read from `params` later and are not checked here.
+    `inertia`: the body's, for the kinds that have one (a point mass has none)."""
     if not callable(body.mass) and not is_traced(body.mass):
         physical(body.mass, f"{kind} mass", positive=True, item="body")
-    inertia = getattr(body, "inertia", None)
     if inertia is not None and not callable(inertia) and not is_traced(inertia):
         arr = np.asarray(inertia, dtype=float)
         if kind == "PlanarBody" and arr.ndim > 1:
@@ -249,7 +249,7 @@ class PlanarBody(AbstractBody):
     angle: Callable[[Vector, Params], Any] | None
 
     def __check_init__(self):
-        _check_body(self, "PlanarBody")
+        _check_body(self, "PlanarBody", self.inertia)
 
     def pose(self, q: Vector, params: Params) -> tuple[Any, Any]:
         """`(x_c, θ)`."""
@@ -351,7 +351,7 @@ class SpatialBody(AbstractBody):
     rotation: Callable[[Vector, Params], Rotation] | None
 
     def __check_init__(self):
-        _check_body(self, "SpatialBody")
+        _check_body(self, "SpatialBody", self.inertia)
 
     def pose(self, q: Vector, params: Params) -> tuple[Any, Any]:
         """`(x_c, R)`."""
