@@ -22,10 +22,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from lagrax._multibody.floating.derivatives import retract
 
 import lagrax as lx
 from _helpers import pin_state, rel_error
+from lagrax._multibody.floating.derivatives import retract
 from lagrax.chains import from_mjcf, from_mujoco_state
 from lagrax.models import urdf_path
 
