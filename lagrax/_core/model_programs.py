@@ -22,7 +22,7 @@ from typing import Any
 
 import equinox as eqx
 import jax
-import numpy as np
+import jax.numpy as jnp
 
 from .checks import traced
 
@@ -127,10 +127,11 @@ def call(model: Any, body: Callable, *args: Any) -> Any:
     traced, else `body` itself (inside a transformation, or a model whose functions close
     over traced values, which a compiled program cannot hold as constants).
 
-    Python floats among `args` (a time `t`, a parameter) are passed as NumPy scalars, so
-    that a new value does not compile a new program (`filter_jit` keeps them static).
+    Python floats among `args` (a time `t`, a parameter) are passed as weakly typed
+    scalars, so that a new value does not compile a new program (`filter_jit` keeps them
+    static) and a float32 state stays float32.
     """
     if traced(model, *args):
         return body(*args)
-    args = jax.tree_util.tree_map(lambda x: np.asarray(x) if isinstance(x, float) else x, args)
+    args = jax.tree_util.tree_map(lambda x: jnp.asarray(x) if isinstance(x, float) else x, args)
     return program(model, body)(*args)
