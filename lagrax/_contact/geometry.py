@@ -12,6 +12,15 @@ from .._core.errors import ArgumentTypeError, ConfigurationError
 PositionFn = Callable[[Any, Any], Any]
 
 
+def real_number(value: Any, requirement: str) -> float:
+    """`value` as a Python float, or an `ArgumentTypeError` that states the
+    `requirement` and the value (a contact coefficient or a shape's size)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError) as err:
+        raise ArgumentTypeError(f"{requirement}, got {value!r}") from err
+
+
 class Plane(eqx.Module):
     r"""The ground: the half-space `n·x ≥ offset` is free, its boundary `n·x = offset` is
     the surface, with the unit normal `n` pointing out of the ground.
@@ -59,12 +68,7 @@ class Plane(eqx.Module):
                 f"Plane's normal must be finite and non-zero (it gives the direction out of "
                 f"the ground), got normal={arr.tolist()}"
             )
-        try:
-            offset = float(offset)
-        except (TypeError, ValueError) as err:
-            raise ArgumentTypeError(
-                f"Plane's offset must be a real number, got {offset!r}"
-            ) from err
+        offset = real_number(offset, "Plane's offset must be a real number")
         if not math.isfinite(offset):
             raise ConfigurationError(f"Plane's offset must be finite, got offset={offset!r}")
         self.normal = tuple(float(x) for x in arr / norm)
@@ -124,12 +128,7 @@ class Sphere(eqx.Module):
         angle: PositionFn | None = None,
         rotation: PositionFn | None = None,
     ):
-        try:
-            r = float(radius)
-        except (TypeError, ValueError) as err:
-            raise ArgumentTypeError(
-                f"Sphere's radius must be a real number >= 0, got {radius!r}"
-            ) from err
+        r = real_number(radius, "Sphere's radius must be a real number >= 0")
         if not (math.isfinite(r) and r >= 0):
             raise ConfigurationError(
                 f"Sphere's radius must be finite and >= 0 (0 is a point), got radius={radius!r}"

@@ -14,7 +14,7 @@ from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
 from . import laws, scale
-from .geometry import Plane, Sphere
+from .geometry import Plane, Sphere, real_number
 
 Coefficient = float | Callable[[Any], Any] | None
 
@@ -43,12 +43,7 @@ def _coefficient(name: str, value: Coefficient, *, allow_none: bool) -> Coeffici
         return value
     if isinstance(value, (bool, np.bool_)):
         raise ArgumentTypeError(f"ContactSystem's {name} must be a real number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as err:
-        raise ArgumentTypeError(
-            f"ContactSystem's {name} must be a real number or a function of params, got {value!r}"
-        ) from err
+    x = real_number(value, f"ContactSystem's {name} must be a real number or a function of params")
     if not (math.isfinite(x) and x >= 0):
         raise ConfigurationError(
             f"ContactSystem's {name} must be finite and >= 0, got {name}={value!r}"
