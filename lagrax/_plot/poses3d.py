@@ -151,12 +151,24 @@ def check_width(model: Any, q: np.ndarray, expected: int, what: str) -> None:
         )
 
 
-def _tree_frames(tree: AbstractTree, q: np.ndarray, params: Any):
-    """Origins `(F, n, 3)` and rotations `(F, n, 3, 3)` of a fixed-base tree's bodies."""
+def _frames_program(tree: AbstractTree, q: Any, params: Any):
     import jax
+
+    return jax.vmap(lambda a: tree.frames(a, params))(q)
+
+
+_FRAMES: list = []  # the compiled program, made on first use (jax imported lazily)
+
+
+def _tree_frames(tree: AbstractTree, q: np.ndarray, params: Any):
+    """Origins `(F, n, 3)` and rotations `(F, n, 3, 3)` of a fixed-base tree's bodies
+    (one compiled program per tree and number of frames, reused by later views)."""
+    import equinox as eqx
     import jax.numpy as jnp
 
-    origins, rots = jax.vmap(lambda a: tree.frames(a, params))(jnp.asarray(q))
+    if not _FRAMES:
+        _FRAMES.append(eqx.filter_jit(_frames_program))
+    origins, rots = _FRAMES[0](tree, jnp.asarray(q), params)
     return np.asarray(origins), np.asarray(rots)
 
 

@@ -13,8 +13,9 @@ import numpy as np
 from .poses3d import Shape
 
 # triangles of one mesh file past which it is simplified (vertex clustering): the pages
-# carry every vertex, and a robot's CAD meshes reach 10⁵ triangles a link
-MAX_FACES = 20_000
+# carry every vertex, and a robot's CAD meshes reach 10⁵ triangles a link (the Panda's
+# 13,000 a link made a 7.5 MB page before, 10,000 and 16-bit indices about half of it)
+MAX_FACES = 10_000
 DEFAULT_COLOUR = 0xB4B4B4
 
 

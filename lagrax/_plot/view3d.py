@@ -220,7 +220,7 @@ def show3d(
       paths looked up in `package_dirs` and the folders above the file) and primitives,
       in their `<material>` colours, moving with the tree's bodies. A mesh that is
       missing or unreadable is named in a [`lagrax.URDFWarning`][] and drawn as its
-      link's bounding box. Meshes past 20,000 triangles are simplified.
+      link's bounding box. Meshes past 10,000 triangles are simplified.
     - a **MuJoCo model** (an `.xml` path, MJCF text or a `mujoco.MjModel`, as for
       [`from_mjcf`][lagrax.chains.from_mjcf]): its geoms (planes, spheres, capsules,
       ellipsoids, cylinders, boxes and meshes of groups 0–2), posed by MuJoCo's own
