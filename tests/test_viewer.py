@@ -265,6 +265,22 @@ def test_contact_scene_draws_spheres_ground_and_forces():
         lx.plot.show3d(SimpleNamespace(ts=np.zeros(1), q=np.zeros((1, 2))), scene, params={})
 
 
+def test_contact_spheres_beside_a_robot(arm7):
+    from lagrax.contact import ContactSystem, Plane, body_sphere
+
+    tree, params, sol = arm7
+    hand = body_sphere(tree, "link7", 0.05, (0.0, 0.0, 0.1))
+    scene = ContactSystem(tree.system(), hand, Plane([0.0, 0.0, 1.0], -1.0))
+    p = lx.plot.show3d(sol, tree, params=params, contact=scene, fps=5.0).poses
+    assert p.skeleton and p.arrows is None  # the robot's spheres and rods, no forces kept
+    assert p.origins.shape[1] == 8 + 1 and [s.kind for s in p.shapes] == ["sphere", "box"]
+    link7 = tree.body_names.index("link7") + 1
+    tip = p.origins[:, link7] + p.rotations[:, link7] @ np.array([0.0, 0.0, 0.1])
+    np.testing.assert_allclose(p.origins[:, 8], tip, atol=1e-12)
+    ground = p.shapes[1].transform[:3, 3]
+    assert ground[2] == pytest.approx(-1.0 - 0.5 * p.shapes[1].size[2])  # its top at z = −1
+
+
 def test_sweep_members_overlaid_or_side_by_side(arm7):
     import xarray as xr
 
