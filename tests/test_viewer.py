@@ -203,6 +203,25 @@ def test_a_missing_or_unreadable_mesh_is_named_and_drawn_as_a_box(arm7, tmp_path
     assert sides[2] >= 0.2 - 1e-12  # the arm's box spans its origin and its centre of mass
 
 
+def test_a_dense_mesh_is_simplified_within_its_outline(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.1)  # 81,920 triangles
+    sphere.export(tmp_path / "ball.stl")
+    urdf = """<robot name="r"><link name="base"/>
+      <link name="ball"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+        <visual><geometry><mesh filename="ball.stl" scale="2 2 2"/></geometry></visual></link>
+      <joint name="j" type="continuous"><parent link="base"/><child link="ball"/>
+        <axis xyz="0 0 1"/></joint></robot>"""
+    (tmp_path / "r.urdf").write_text(urdf)
+    robot, params = lx.chains.from_urdf(tmp_path / "r.urdf")
+    one = SimpleNamespace(ts=np.array([0.0]), q=np.array([[0.0]]))
+    (mesh,) = lx.plot.show3d(one, robot, params=params, geometry=tmp_path / "r.urdf").poses.shapes
+    assert 2000 < len(mesh.faces) <= 10_000 and mesh.faces.max() < len(mesh.vertices)
+    radii = np.linalg.norm(mesh.vertices, axis=1)  # scaled by 2: a sphere of 0.2 m
+    assert np.all(radii < 0.2 * (1 + 1e-6)) and np.all(radii > 0.2 * 0.97)  # STL: float32
+
+
 MJCF = """<mujoco><asset><mesh name="tet" vertex="0 0 0 .2 0 0 0 .2 0 0 0 .2"/></asset>
 <worldbody><geom type="plane" size="0 0 1" rgba=".8 .8 .7 1"/>
 <body name="a" pos="0 0 1"><joint name="j1" type="hinge" axis="0 1 0"/>
