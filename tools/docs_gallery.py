@@ -6,8 +6,8 @@ Each robot of example-robot-data in `GALLERY` is drawn with its meshes by
 saved as `site/recordings/<name>.html`, which the page embeds in an `iframe`. The pages
 are written at build time, not committed: about 2 MB each, most of it the meshes and
 meshcat's viewer. Without example-robot-data the gallery is left out (the frames stay
-empty) and the build says so. `tests/test_viewer.py` builds the same pages and opens them
-in Chromium.
+empty) and the build says so (as info: `mkdocs build --strict` fails on a warning).
+`tests/test_viewer.py` builds the same pages and opens them in Chromium.
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def write_gallery(folder: Path) -> list[Path]:
     """Every gallery robot's page in `folder` (none without example-robot-data)."""
     robots = robots_folder()
     if robots is None:
-        log.warning("example-robot-data is not installed: the 3D gallery is left out")
+        log.info("example-robot-data is not installed: the 3D gallery is left out")
         return []
     folder.mkdir(parents=True, exist_ok=True)
     return [recording(name, robots).save(folder / f"{name}.html") for name in GALLERY]
