@@ -80,11 +80,11 @@ def test_bad_input_is_refused(arm7, planar):
         lx.plot.show3d(sol, "arm7")
 
 
-def test_a_sweeps_batch_and_a_missing_extra_are_named(arm7, monkeypatch):
+def test_a_batch_draws_its_members_and_a_missing_extra_is_named(arm7, monkeypatch):
     tree, params, sol = arm7
     batch = SimpleNamespace(ts=np.stack([sol.ts, sol.ts]), q=np.stack([sol.q, sol.q]))
-    with pytest.raises(ShapeError, match="pick one member first"):
-        lx.plot.show3d(batch, tree, params=params)
+    view = lx.plot.show3d(batch, tree, params=params)
+    assert len(view.members) == 2 and view.ghost and not np.any(view.offsets)
     monkeypatch.setitem(sys.modules, "meshcat", None)  # as if the viz extra were missing
     with pytest.raises(ImportError, match=r"pip install 'lagrax\[viz\]'"):
         lx.plot.show3d(sol, tree, params=params)
@@ -99,6 +99,233 @@ def test_page_is_standalone(arm7, tmp_path):
     assert "http://" not in text.split("<script>")[0] and 'src="http' not in text
     assert view._repr_html_().startswith("<div") and "srcdoc=" in view._repr_html_()
     assert "8 bodies, 7 rods" in repr(view)
+
+
+# -- the robot's own shapes ----------------------------------------------------------------
+
+SOLO12 = "solo_description/robots/solo12.urdf"
+
+
+def _robots():
+    from _helpers import example_robot_data
+
+    share = example_robot_data()
+    if share is None:
+        pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
+    return share / "robots"
+
+
+@pytest.fixture(scope="module")
+def solo12():
+    path = _robots() / SOLO12
+    robot, params = lx.chains.from_urdf(path, floating_base=True)
+    ts = np.linspace(0.0, 2.0, 121)
+    q = np.zeros((ts.size, 7 + robot.n))
+    q[:, 2], q[:, 6] = 0.35, 1.0
+    q[:, 7:] = 0.5 * np.sin(2 * np.pi * ts)[:, None]
+    return path, robot, params, SimpleNamespace(ts=ts, q=q)
+
+
+def test_urdf_meshes_ride_on_their_bodies(solo12):
+    pin = pytest.importorskip("pinocchio")
+    path, robot, params, sol = solo12
+    p = lx.plot.show3d(sol, robot, params=params, geometry=path, fps=10.0).poses
+    meshes = [s for s in p.shapes if s.kind == "mesh"]
+    assert len(meshes) == 17 and all(len(s.faces) > 100 for s in meshes)  # base + 4 × 4 links
+    names = tuple(robot.tree.body_names)
+    assert "FL_FOOT" not in names  # fixed to FL_LOWER_LEG: its mesh rides on that body
+    lower = names.index("FL_LOWER_LEG") + 1
+    leg, foot = [s for s in meshes if s.body == lower]
+    np.testing.assert_allclose(foot.transform[:3, 3], [0.0, 0.008, -0.16])  # FL_ANKLE's origin
+    # the foot's mesh frame in the world, against Pinocchio's frame of the link
+    model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
+    data = model.createData()
+    f = 7
+    pin.framesForwardKinematics(model, data, _state_at(sol, p.times[f]))
+    world = np.eye(4)
+    world[:3, :3], world[:3, 3] = p.rotations[f, lower], p.origins[f, lower]
+    expected = data.oMf[model.getFrameId("FL_FOOT")]
+    np.testing.assert_allclose((world @ foot.transform)[:3, 3], expected.translation, atol=1e-9)
+    np.testing.assert_allclose((world @ foot.transform)[:3, :3], expected.rotation, atol=1e-9)
+    np.testing.assert_allclose(p.origins[0, 0], [0.0, 0.0, 0.35])
+
+
+def _state_at(sol, t):
+    """`sol.q` linearly interpolated at `t`."""
+    return np.array([np.interp(t, sol.ts, sol.q[:, i]) for i in range(sol.q.shape[1])])
+
+
+def test_solo12_recording_is_one_small_page(solo12, tmp_path):
+    path, robot, params, sol = solo12
+    view = lx.plot.show3d(sol, robot, params=params, geometry=path, fps=60.0)
+    assert view.poses.times.size == 121
+    page = view.save(tmp_path / "solo12.html")
+    assert page.stat().st_size < 10e6, page.stat().st_size  # 1.9 MB when measured
+
+
+def test_a_missing_or_unreadable_mesh_is_named_and_drawn_as_a_box(arm7, tmp_path):
+    tree, params, sol = arm7
+    # arm7.urdf names meshes that lagrax does not ship: every link a box
+    with pytest.warns(lx.URDFWarning) as record:
+        view = lx.plot.show3d(sol, tree, params=params, geometry=lx.models.urdf_path("arm7"))
+    assert len(record) == 8  # one per link, once for the recording
+    assert "meshes/link3.stl' of link 'link3' cannot be drawn (no such file)" in str(
+        record[3].message
+    )
+    assert [s.kind for s in view.poses.shapes] == ["box"] * 8
+    (tmp_path / "bad.stl").write_text("not a mesh")
+    urdf = """<robot name="r">
+      <material name="blue"><color rgba="0 0 1 1"/></material>
+      <link name="base"><visual><geometry><mesh filename="bad.stl"/></geometry></visual></link>
+      <link name="arm"><inertial><mass value="1"/><origin xyz="0 0 0.2"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+        <visual><origin xyz="0 0 0.2"/><geometry><cylinder radius="0.02" length="0.4"/></geometry>
+          <material name="blue"/></visual>
+        <visual><geometry><sphere radius="0.05"/></geometry></visual>
+        <visual><geometry><mesh filename="package://nowhere/gone.obj"/></geometry></visual>
+      </link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+        <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+    </robot>"""
+    (tmp_path / "r.urdf").write_text(urdf)
+    robot, p1 = lx.chains.from_urdf(tmp_path / "r.urdf")
+    one = SimpleNamespace(ts=np.array([0.0, 1.0]), q=np.array([[0.0], [1.0]]))
+    with pytest.warns(lx.URDFWarning) as record:
+        view = lx.plot.show3d(one, robot, params=p1, geometry=tmp_path / "r.urdf", fps=2.0)
+    messages = " ".join(str(w.message) for w in record)
+    assert "'bad.stl' of link 'base'" in messages and "gone.obj' of link 'arm'" in messages
+    kinds = [(s.kind, s.body) for s in view.poses.shapes]
+    assert kinds == [("box", 0), ("cylinder", 1), ("sphere", 1), ("box", 1)]
+    cylinder = view.poses.shapes[1]
+    assert cylinder.size == (0.02, 0.4) and cylinder.colour == 0x0000FF
+    np.testing.assert_allclose(cylinder.transform[:3, 3], [0.0, 0.0, 0.2])
+    sides = np.array(view.poses.shapes[3].size)
+    assert sides[2] >= 0.2 - 1e-12  # the arm's box spans its origin and its centre of mass
+
+
+def test_a_dense_mesh_is_simplified_within_its_outline(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.1)  # 81,920 triangles
+    sphere.export(tmp_path / "ball.stl")
+    urdf = """<robot name="r"><link name="base"/>
+      <link name="ball"><inertial><mass value="1"/>
+        <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
+        <visual><geometry><mesh filename="ball.stl" scale="2 2 2"/></geometry></visual></link>
+      <joint name="j" type="continuous"><parent link="base"/><child link="ball"/>
+        <axis xyz="0 0 1"/></joint></robot>"""
+    (tmp_path / "r.urdf").write_text(urdf)
+    robot, params = lx.chains.from_urdf(tmp_path / "r.urdf")
+    one = SimpleNamespace(ts=np.array([0.0]), q=np.array([[0.0]]))
+    (mesh,) = lx.plot.show3d(one, robot, params=params, geometry=tmp_path / "r.urdf").poses.shapes
+    assert 2000 < len(mesh.faces) <= 10_000 and mesh.faces.max() < len(mesh.vertices)
+    radii = np.linalg.norm(mesh.vertices, axis=1)  # scaled by 2: a sphere of 0.2 m
+    assert np.all(radii < 0.2 * (1 + 1e-6)) and np.all(radii > 0.2 * 0.97)  # STL: float32
+
+
+MJCF = """<mujoco><asset><mesh name="tet" vertex="0 0 0 .2 0 0 0 .2 0 0 0 .2"/></asset>
+<worldbody><geom type="plane" size="0 0 1" rgba=".8 .8 .7 1"/>
+<body name="a" pos="0 0 1"><joint name="j1" type="hinge" axis="0 1 0"/>
+ <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.05" rgba="0.8 0.3 0.1 1"/>
+ <body name="b" pos="0 0 -0.5" euler="0 0 30"><joint name="j2" type="hinge" axis="0 1 0"/>
+  <geom type="box" size=".05 .05 .2" pos="0 0 -.2" euler="10 0 0" rgba="0.1 0.3 0.8 1"/>
+  <geom type="sphere" size=".08" pos="0 0 -.45"/>
+  <geom type="cylinder" size=".03 .1" pos=".1 0 -.3"/>
+  <geom type="ellipsoid" size=".05 .08 .03" pos="-.1 0 -.3"/>
+  <geom type="mesh" mesh="tet" pos="0 .1 -.3"/>
+  <geom type="sphere" size=".5" group="3"/>
+ </body></body></worldbody></mujoco>"""
+
+
+def test_mjcf_geoms_are_posed_as_mujoco_poses_them():
+    mujoco = pytest.importorskip("mujoco")
+    tree, params = lx.chains.from_mjcf(MJCF)
+    q = np.array([[0.0, 0.0], [0.7, -1.2]])
+    sol = SimpleNamespace(ts=np.array([0.0, 1.0]), q=q)
+    p = lx.plot.show3d(sol, tree, params=params, geometry=MJCF, fps=1.0).poses
+    kinds = [s.kind for s in p.shapes]
+    assert kinds == ["box", "mesh", "box", "sphere", "cylinder", "ellipsoid", "mesh"]  # no group 3
+    model = mujoco.MjModel.from_xml_string(MJCF)
+    data = mujoco.MjData(model)
+    data.qpos[:] = q[1]
+    mujoco.mj_forward(model, data)
+    for g, shape in zip(range(model.ngeom), p.shapes, strict=False):
+        world = np.eye(4)
+        world[:3, :3], world[:3, 3] = p.rotations[1, shape.body], p.origins[1, shape.body]
+        placed = world @ shape.transform
+        if shape.kind != "box" or g > 0:  # the plane's slab sits just below it
+            np.testing.assert_allclose(placed[:3, 3], data.geom_xpos[g], atol=1e-12)
+            np.testing.assert_allclose(placed[:3, :3], data.geom_xmat[g].reshape(3, 3), atol=1e-12)
+    box = p.shapes[2]
+    assert box.size == pytest.approx((0.1, 0.1, 0.4)) and box.colour == 0x1A4DCC
+    assert p.shapes[4].size == pytest.approx((0.03, 0.2))
+    with pytest.raises(ShapeError, match="3 coordinates per state but the Tree has 2"):
+        lx.plot.show3d(SimpleNamespace(ts=np.zeros(1), q=np.zeros((1, 3))), tree, geometry=MJCF)
+
+
+def test_contact_scene_draws_spheres_ground_and_forces():
+    from lagrax.contact import ContactSystem, Plane, Sphere
+
+    ball = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * qd @ qd, lambda q, p: p["m"] * 9.81 * q[2], n_dof=3
+    )
+    scene = ContactSystem(ball, Sphere(0.1, lambda q, p: q), Plane([0.0, 0.0, 1.0]), friction=0.3)
+    q0, qd0 = jnp.array([0.0, 0.0, 0.3]), jnp.array([1.0, 0.0, 0.0])
+    sol = lx.simulate(scene, q0, qd0, {"m": 1.0}, t1=0.6)
+    p = lx.plot.show3d(sol, scene, params={"m": 1.0}, fps=50.0).poses
+    assert [s.kind for s in p.shapes] == ["sphere", "box"] and p.shapes[1].body == -1
+    arrows = p.arrows
+    assert arrows is not None and arrows.shape == (p.times.size, 1, 2, 3)
+    feet, vectors = arrows[:, 0, 0], arrows[:, 0, 1]
+    np.testing.assert_allclose(feet[:, 2], p.origins[:, 0, 2] - 0.1, atol=1e-12)
+    touching = np.linalg.norm(vectors, axis=-1) > 0
+    assert touching.any() and not touching[0]  # dropped from 0.2 m above the ground
+    assert np.all(vectors[touching, 2] > 0)  # the ground pushes up
+    with pytest.raises(ShapeError, match="2 coordinates per state but the ContactSystem has 3"):
+        lx.plot.show3d(SimpleNamespace(ts=np.zeros(1), q=np.zeros((1, 2))), scene, params={})
+
+
+def test_contact_spheres_beside_a_robot(arm7):
+    from lagrax.contact import ContactSystem, Plane, body_sphere
+
+    tree, params, sol = arm7
+    hand = body_sphere(tree, "link7", 0.05, (0.0, 0.0, 0.1))
+    scene = ContactSystem(tree.system(), hand, Plane([0.0, 0.0, 1.0], -1.0))
+    p = lx.plot.show3d(sol, tree, params=params, contact=scene, fps=5.0).poses
+    assert p.skeleton and p.arrows is None  # the robot's spheres and rods, no forces kept
+    assert p.origins.shape[1] == 8 + 1 and [s.kind for s in p.shapes] == ["sphere", "box"]
+    link7 = tree.body_names.index("link7") + 1
+    tip = p.origins[:, link7] + p.rotations[:, link7] @ np.array([0.0, 0.0, 0.1])
+    np.testing.assert_allclose(p.origins[:, 8], tip, atol=1e-12)
+    ground = p.shapes[1].transform[:3, 3]
+    assert ground[2] == pytest.approx(-1.0 - 0.5 * p.shapes[1].size[2])  # its top at z = −1
+
+
+def test_sweep_members_overlaid_or_side_by_side(arm7):
+    import xarray as xr
+
+    tree, params, sol = arm7
+    # a sweep's dataset as lagrax.sweep(..., keep="trajectory") lays it out: the grid's
+    # dimension, then time and dof (made from one solution, shifted, to stay cheap)
+    shift = np.array([0.0, 0.5, -0.5])
+    q = np.asarray(sol.q)[None] + shift[:, None, None]
+    ds = xr.Dataset(
+        {"q": (("q0_1", "time", "dof"), q)},
+        coords={"q0_1": shift, "time": np.asarray(sol.ts), "dof": np.arange(7)},
+    )
+    over = lx.plot.show3d(ds, tree, params=params, fps=10.0)
+    assert len(over.members) == 3 and over.ghost and not np.any(over.offsets)
+    assert over.labels == ["q0_1 = 0", "q0_1 = 0.5", "q0_1 = -0.5"]
+    frames = tree.frames(jnp.asarray(q[1, -1]), params)[0]
+    np.testing.assert_allclose(over.members[1].origins[-1, 1:], frames, atol=1e-12)
+    side = lx.plot.show3d(ds, tree, params=params, fps=10.0, layout="side", members=[0, 2])
+    assert not side.ghost and side.labels == ["q0_1 = 0", "q0_1 = -0.5"]
+    assert side.offsets[0, 1] == 0.0 and side.offsets[1, 1] > 0.5
+    with pytest.raises(ShapeError, match="one per drawn member"):
+        lx.plot.show3d(ds, tree, params=[params], fps=10.0)
+    with pytest.raises(ConfigurationError, match="layout"):
+        lx.plot.show3d(ds, tree, params=params, layout="grid")
+    with pytest.raises(ShapeError, match='keep="trajectory"'):
+        lx.plot.show3d(ds.isel(time=-1), tree, params=params)
 
 
 # -- in a real browser ---------------------------------------------------------------------
@@ -198,3 +425,51 @@ def test_floating_base_page_turns_in_chromium(browser, tmp_path):
     assert (np.abs(end - start).sum(axis=-1) > 30).sum() > 200
     errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     assert errors == [], errors
+
+
+def _robot_in_view(driver, root: str = "lagrax") -> np.ndarray:
+    """Pixels that change when the scene's `root` is hidden (at the recording's start)."""
+    hidden = f"viewer.animator.seek(0); viewer.scene_tree.find(['{root}']).object.visible = false"
+    shown = f"viewer.scene_tree.find(['{root}']).object.visible = true; viewer.animator.seek(0)"
+    background, start = _image(driver, hidden), _image(driver, shown)
+    return np.abs(start - background).sum(axis=-1) > 30
+
+
+def test_solo12_with_its_meshes_plays_in_chromium(solo12, browser, tmp_path):
+    path, robot, params, sol = solo12
+    view = lx.plot.show3d(sol, robot, params=params, geometry=path, fps=60.0, play=False)
+    page = view.save(tmp_path / "solo12.html")
+    browser.get(page.as_uri())
+    assert browser.execute_script("return window.lagraxReady === true")
+    assert browser.execute_script("return window.lagraxDuration") == pytest.approx(2.0)
+    assert _robot_in_view(browser).sum() > 2000, "solo12's meshes cover almost no pixels"
+    start = _image(browser, "viewer.animator.seek(0)")
+    later = _image(browser, "viewer.animator.seek(0.25)")  # the legs swung by 0.5 rad
+    assert (np.abs(later - start).sum(axis=-1) > 30).sum() > 200
+    errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    assert errors == [], errors
+
+
+def test_the_sites_gallery_pages_play_in_chromium(browser, tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    _robots()
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    spec = importlib.util.spec_from_file_location(
+        "gallery", docs.parent / "tools" / "docs_gallery.py"
+    )
+    assert spec is not None and spec.loader is not None
+    gallery = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gallery)
+    pages = gallery.write_gallery(tmp_path)
+    embedded = (docs / "viewer.md").read_text()
+    assert len(pages) == len(gallery.GALLERY) >= 2
+    for page in pages:
+        assert f'src="../recordings/{page.name}"' in embedded  # the page embeds each one
+        assert page.stat().st_size < 4e6, (page.name, page.stat().st_size)
+        browser.get(page.as_uri())
+        assert browser.execute_script("return window.lagraxReady === true")
+        assert _robot_in_view(browser).sum() > 1000, f"{page.name}: no robot in view"
+        errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+        assert errors == [], (page.name, errors)
