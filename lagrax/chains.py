@@ -7,7 +7,9 @@ parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] an
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
 bodies) with its joint names, limits and damping; [`from_mjcf`][lagrax.chains.from_mjcf], a
 MuJoCo model through MuJoCo's own compiler (a free joint: a floating base, whose state
-[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts);
+[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts; several free bodies: a
+[`Forest`][lagrax.chains.Forest]; equality constraints: a
+[`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]);
 [`limit_events`][lagrax.chains.limit_events], the events that stop a robot's joints at their
 limits:
 

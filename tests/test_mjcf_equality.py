@@ -287,6 +287,8 @@ def test_a_ball_on_a_string_keeps_its_length(string):
     for a in (3, 11):  # the box's and the ball's quaternions
         quats = np.asarray(sol.q)[:, a : a + 4]
         assert np.max(np.abs(np.linalg.norm(quats, axis=1) - 1)) < 1e-12
+    with pytest.raises(lx.ConfigurationError, match="not available for constraints on a"):
+        system.forward_dynamics_derivatives(q, v, params)
 
 
 def test_an_equality_on_a_spatial_tendon_is_refused():

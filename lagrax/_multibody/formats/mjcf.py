@@ -219,6 +219,21 @@ def from_mjcf(
     model whose only joint is the free joint (a single rigid body) is the base alone: a
     `FloatingTree` with no joints, `q` of size 7 and `v` of size 6.
 
+    **Several free bodies** (a dog and its ball, boxes to stack) make a
+    [`Forest`][lagrax.chains.Forest]: each free body with the bodies below it a
+    `FloatingTree`, the robots fixed to the world between them a `Tree`, in MuJoCo's
+    body order (the state is the parts' states one after the other, MuJoCo's joint
+    order; `from_mujoco_state(qpos, qvel, forest)` converts every free joint), and the
+    params a tuple of the parts'.
+
+    **Equality constraints** (`connect`, `weld`, `joint`, `tendon` on fixed tendons,
+    active at `qpos0`) make a [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]
+    around the robot: its `system()` is a [`ConstrainedSystem`][lagrax.ConstrainedSystem]
+    whose `φ(q)` is MuJoCo's residual (`efc_pos`; see
+    `lagrax._multibody.formats.mjcf_equality`). lagrax solves the constraints exactly;
+    MuJoCo solves them softly (`solref`, `solimp`), so its constrained `qacc` differs by
+    that softness. `robot.robot` is the unconstrained robot.
+
     A body with several joints becomes a chain of massless tree bodies (its inertia on
     the last); a body with no joint is merged into the body it is welded to (mass,
     centre of mass and inertia by the parallel-axis theorem), and bodies welded to the
@@ -267,21 +282,23 @@ def from_mjcf(
       (default `0`: the joint stops dead at its limit).
     - `ignore_unsupported`: drop what lagrax does not model (friction loss, gravity
       compensation, spatial tendons with stiffness or damping, tendon armature or
-      friction loss, dead-band or nonlinear springs, equality constraints, fluid forces,
-      damping, armature or stiffness on a free joint) with one `UserWarning` naming
-      each, instead of refusing the model.
+      friction loss, dead-band or nonlinear springs, fluid forces, damping, armature or
+      stiffness on a free joint; an equality on a spatial tendon or a flex drops every
+      equality) with one `UserWarning` naming each, instead of refusing the model.
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
     joint-space terms above where the model has them); with a free joint, the
     [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus `{"base_m",
-    "base_com", "base_inertia"}`.
+    "base_com", "base_inertia"}`; with several free bodies, a
+    [`Forest`][lagrax.chains.Forest] and a tuple of its parts' params; with equality
+    constraints, a [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot] around either.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
-    message); for a ball joint, naming the joint and its body; for more than one free
-    joint, a free body with other joints, a joint not below the free body, or a
-    massless floating base; for a model with no hinge, slide or free joint;
+    message); for a ball joint, naming the joint and its body; for a free body with
+    other joints, or a massless floating base; for an equality lagrax does not model
+    (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
     the `mujoco` package is not installed. `FileNotFoundError` for a missing file;
