@@ -7,7 +7,9 @@ parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] an
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
 bodies) with its joint names, limits and damping; [`from_mjcf`][lagrax.chains.from_mjcf], a
 MuJoCo model through MuJoCo's own compiler (a free joint: a floating base, whose state
-[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts);
+[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts; several free bodies: a
+[`Forest`][lagrax.chains.Forest]; equality constraints: a
+[`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]);
 [`limit_events`][lagrax.chains.limit_events], the events that stop a robot's joints at their
 limits:
 
@@ -59,9 +61,12 @@ from ._multibody.articulated.chains import planar_chain as planar_chain
 from ._multibody.articulated.chains import spatial_chain as spatial_chain
 from ._multibody.articulated.trees import AbstractTree as AbstractTree
 from ._multibody.articulated.trees import Tree as Tree
+from ._multibody.floating.forest import Forest as Forest
+from ._multibody.floating.forest import ForestSystem as ForestSystem
 from ._multibody.floating.system import FloatingBaseSystem as FloatingBaseSystem
 from ._multibody.floating.system import FloatingTree as FloatingTree
 from ._multibody.formats.mjcf import from_mjcf as from_mjcf
+from ._multibody.formats.mjcf_equality import ConstrainedRobot as ConstrainedRobot
 from ._multibody.formats.mujoco_state import from_mujoco_state as from_mujoco_state
 from ._multibody.formats.mujoco_state import to_mujoco_state as to_mujoco_state
 from ._multibody.formats.urdf import from_urdf as from_urdf
@@ -76,6 +81,9 @@ __all__ = [
     "Tree",
     "FloatingTree",
     "FloatingBaseSystem",
+    "Forest",
+    "ForestSystem",
+    "ConstrainedRobot",
     "from_urdf",
     "from_mjcf",
     "from_mujoco_state",

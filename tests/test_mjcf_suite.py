@@ -5,14 +5,18 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
   ``q̈`` against ``mj_forward``'s ``qacc`` at a random state with a random generalized
   force (``qfrc_applied``), MuJoCo's contacts, constraints (limits, friction loss,
   equality) and actuators disabled, to 1e-10 relative; a floating model through
-  ``from_mujoco_state`` (``M`` congruent by the base's rotation).
+  ``from_mujoco_state`` (``M`` congruent by the base's rotation), a model with several
+  free bodies (the dog and its ball, the quadruped and its ball: a ``Forest``) through
+  ``from_mujoco_state(..., robot)``; a model with equality constraints (manipulator,
+  stacker, quadruped: a ``ConstrainedRobot``) by its unconstrained robot, and its
+  constraints ``φ(q)`` against MuJoCo's equality residuals ``efc_pos``.
 - The files that do not (``REFUSED``): an ``MJCFError`` naming the construct.
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
   MuJoCo the same way.
 - Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
-  Barkour (a free base with armature) and a tendon model load and match
-  MuJoCo the same way; a tendon with armature, ball joints, several free bodies and
+  Barkour (a free base with armature), a tendon model and ``convex.xml`` (four free
+  bodies) load and match MuJoCo the same way; a tendon with armature, ball joints and
   friction loss are refused by name.
 """
 
@@ -40,19 +44,19 @@ LOADS = [
     "ball_in_cup",
     "cartpole",
     "cheetah",
+    "dog",
     "hopper",
     "humanoid",
     "humanoid_CMU",
+    "manipulator",
     "pendulum",
     "point_mass",
+    "quadruped",
     "reacher",
+    "stacker",
     "walker",
 ]
 REFUSED = {
-    "dog": ["2 free joints"],
-    "quadruped": ["equality constraint", "coupling_front_left"],
-    "manipulator": ["equality constraint", "'coupling'"],
-    "stacker": ["equality constraint", "'coupling'"],
     "finger": ["friction loss", "'hinge'"],
     "fish": ["fluid forces", "density=5000"],
     "swimmer": ["fluid forces", "density=3000"],
@@ -72,19 +76,26 @@ def _compiled(name: str):
     return model
 
 
+def _random_qpos(model, rng) -> np.ndarray:
+    """`qpos0` moved at random: each free joint to a random pose, the others by up to
+    ±0.5."""
+    qpos = np.array(model.qpos0) + rng.uniform(-0.5, 0.5, model.nq)
+    for j in np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE):
+        a = int(model.jnt_qposadr[j])
+        quat = rng.normal(size=4)
+        qpos[a : a + 3] = model.qpos0[a : a + 3] + rng.normal(size=3)
+        qpos[a + 3 : a + 7] = quat / np.linalg.norm(quat)
+    return qpos
+
+
 def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
     """`(M error, q̈ error)`, relative, at one random state and force (see the module
     docstring)."""
     rng = np.random.default_rng(seed)
+    if isinstance(robot, lx.chains.Forest):
+        return _forest_against_mujoco(robot, params, model, rng)
     floating = isinstance(robot, lx.chains.FloatingTree)
-    qpos = np.array(model.qpos0)
-    if floating:
-        quat = rng.normal(size=4)
-        qpos[:3] += rng.normal(size=3)
-        qpos[3:7] = quat / np.linalg.norm(quat)
-        qpos[7:] += rng.uniform(-0.5, 0.5, model.nq - 7)
-    else:
-        qpos += rng.uniform(-0.5, 0.5, model.nq)
+    qpos = _random_qpos(model, rng)
     qvel, force = (rng.uniform(-1.0, 1.0, model.nv) for _ in range(2))
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
@@ -108,14 +119,71 @@ def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
     return rel_error(mass(q), t.T @ m_mj @ t), rel_error(qacc, data.qacc)
 
 
-@pytest.mark.parametrize("name", LOADS)
+def _forest_against_mujoco(forest, params, model, rng) -> tuple[float, float]:
+    """`_against_mujoco` of a `Forest`: every free joint converted where it is; `M`
+    congruent by the bases' rotations."""
+    qpos = _random_qpos(model, rng)
+    qvel, force = (rng.uniform(-1.0, 1.0, model.nv) for _ in range(2))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
+    mujoco.mj_forward(model, data)
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    system = forest.system()
+    q, v = from_mujoco_state(qpos, qvel, forest)
+    _, tau = from_mujoco_state(qpos, force, forest)
+    a = np.asarray(jax.jit(lambda q, v, f: system.forward_dynamics(q, v, params, f))(q, v, tau))
+    v, qacc, t = np.asarray(v), a.copy(), np.eye(model.nv)
+    for j in np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE):
+        va = int(model.jnt_dofadr[j])
+        rot = data.xmat[model.jnt_bodyid[j]].reshape(3, 3)
+        qacc[va : va + 3] = rot @ (a[va : va + 3] + np.cross(v[va + 3 : va + 6], v[va : va + 3]))
+        t[va : va + 3, va : va + 3] = rot
+    mass = jax.jit(lambda q: system.mass_matrix(q, params))(q)
+    return rel_error(mass, t.T @ m_mj @ t), rel_error(qacc, data.qacc)
+
+
+def _size(robot) -> int:
+    """The size of `q` of a loaded robot."""
+    if isinstance(robot, lx.chains.Forest):
+        return robot.system().n_configuration
+    return 7 + robot.n if isinstance(robot, lx.chains.FloatingTree) else robot.n
+
+
+# the dog (85 velocities, two free bodies) and the stacker (an equality on a fixed robot)
+# compile for long: the quadruped (two free bodies, equalities) and the manipulator (an
+# equality on a fixed robot) hold the same constructs to MuJoCo in the quick run
+SLOW = {"dog", "stacker"}
+
+
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in LOADS]
+)
 def test_suite_file_matches_mujoco(name):
     robot, params = from_mjcf(SUITE / f"{name}.xml")
     model = _compiled(name)
-    assert (7 + robot.n if isinstance(robot, lx.chains.FloatingTree) else robot.n) == model.nq
+    if isinstance(robot, lx.chains.ConstrainedRobot):
+        _constraints_against_mujoco(robot, params, name)
+        robot = robot.robot  # the unconstrained robot against MuJoCo without equality
+    assert _size(robot) == model.nq
     err_m, err_a = _against_mujoco(robot, params, model, seed=len(name))
     print(f"{name}: M {err_m:.1e}, qacc {err_a:.1e} relative to MuJoCo")
     assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+def _constraints_against_mujoco(robot, params, name: str) -> None:
+    """`φ(q)` at a random configuration equals MuJoCo's equality residuals (`efc_pos`
+    with limits and contacts off: the equality rows alone)."""
+    model = mujoco.MjModel.from_xml_path(str(SUITE / f"{name}.xml"))
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_LIMIT | off.mjDSBL_FRICTIONLOSS
+    qpos = _random_qpos(model, np.random.default_rng(7))
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_forward(model, data)
+    q, _ = from_mujoco_state(qpos, np.zeros(model.nv), robot)
+    phi = np.asarray(robot.constraints(q, params))
+    assert phi.shape == (data.nefc,) and rel_error(phi, data.efc_pos[: data.nefc]) < RTOL
 
 
 @pytest.mark.parametrize("name", sorted(REFUSED))
@@ -140,11 +208,10 @@ def test_fish_without_fluid_matches_mujoco():
 
 # Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
 WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
-WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml"]
+WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml", "convex.xml"]
 WHEEL_REFUSED = {
     "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
     "pendula.xml": "is a ball joint",
-    "convex.xml": "4 free joints",
     "quadratic_frictionloss.xml": "friction loss",
 }
 
@@ -157,8 +224,8 @@ def _wheel(path: str) -> Path:
 
 @pytest.mark.parametrize("path", WHEEL_LOADS)
 def test_wheel_model_matches_mujoco(path):
-    """Barkour (a free base with armature) and MJX's tendon test model (tendons with
-    limits and actuators only)."""
+    """Barkour (a free base with armature), MJX's tendon test model (tendons with
+    limits and actuators only) and its four free bodies (``convex.xml``)."""
     robot, params = from_mjcf(_wheel(path))
     model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
     off = mujoco.mjtDisableBit

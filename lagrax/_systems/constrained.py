@@ -2,13 +2,13 @@
 `A(q) q̇ = 0` by Lagrange multipliers: `ConstrainedSystem`."""
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._core.checks import call_user
 from .._core.custom_types import (
     ConstraintJacobian,
     ConstraintValues,
@@ -20,11 +20,11 @@ from .._core.custom_types import (
     Vector,
     Velocities,
 )
-from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._core.errors import ArgumentTypeError, ConfigurationError
 from . import constraint_checks as checks
+from . import constraint_rows, implicit, kkt, projection
 from . import derivatives as d
 from . import dynamics_derivatives as api
-from . import implicit, kkt, projection
 from .abstract import AbstractSystem
 from .kkt import solve_kkt
 from .lagrangian import LagrangianSystem
@@ -137,7 +137,7 @@ class ConstrainedSystem(AbstractSystem):
     (`ShapeError`, `NonFiniteError`, `ParameterError`, `MassMatrixError`).
     """
 
-    system: LagrangianSystem
+    system: LagrangianSystem | Any
     constraints: ConstraintFn | None
     velocity_constraints: VelocityConstraintFn | None
     alpha: float = eqx.field(static=True)
@@ -147,7 +147,7 @@ class ConstrainedSystem(AbstractSystem):
 
     def __init__(
         self,
-        system: LagrangianSystem,
+        system: LagrangianSystem | Any,
         constraints: ConstraintFn | None = None,
         *,
         velocity_constraints: VelocityConstraintFn | None = None,
@@ -156,9 +156,10 @@ class ConstrainedSystem(AbstractSystem):
         project_initial: bool = True,
         name: str | None = None,
     ):
-        if not isinstance(system, LagrangianSystem):
+        if not isinstance(system, AbstractSystem) or isinstance(system, ConstrainedSystem):
             raise ArgumentTypeError(
-                f"ConstrainedSystem wraps a LagrangianSystem, got {type(system).__name__}"
+                "ConstrainedSystem wraps a LagrangianSystem (or a floating-base or forest "
+                f"system), got {type(system).__name__}"
             )
         if constraints is None and velocity_constraints is None:
             raise ConfigurationError(
@@ -201,6 +202,35 @@ class ConstrainedSystem(AbstractSystem):
     def coordinate_names(self) -> tuple[str, ...] | None:
         """The system's coordinate names (a label for each redundant coordinate)."""
         return self.system.coordinate_names
+
+    @property
+    def _manifold(self) -> bool:
+        """Whether the system is not a `LagrangianSystem` (a floating base, a forest):
+        its configuration's rate is `N(q) v` (see `constraint_rows`)."""
+        return not isinstance(self.system, LagrangianSystem)
+
+    @property
+    def n_configuration(self) -> int | None:
+        """The size of `q`: the system's (a floating base: `7 + n`)."""
+        return self.system.n_configuration
+
+    @property
+    def configuration_names(self) -> tuple[str, ...] | None:
+        """The system's configuration names."""
+        return self.system.configuration_names
+
+    def configuration_rate(self, q, v):
+        """The system's `q̇ = N(q) v`."""
+        return self.system.configuration_rate(q, v)
+
+    def project_configuration(self, q):
+        """The system's `q` put back on its manifold (quaternions normalized)."""
+        return self.system.project_configuration(q)
+
+    def _state(self, q, qd=None, *, q_name="q", qd_name="qd", **others):
+        if not self._manifold:
+            return super()._state(q, qd, q_name=q_name, qd_name=qd_name, **others)
+        return constraint_rows.manifold_state(self, q, qd, q_name, qd_name, others)
 
     def energy(self, q: Coordinates, qd: Velocities, params: Params, *, t: Time = 0.0) -> Scalar:
         """Total mechanical energy `E = T + V` (constraint forces do no work)."""
@@ -247,39 +277,22 @@ class ConstrainedSystem(AbstractSystem):
 
     # ------------------------------------------------------------ constraint functions
     def _phi(self, q, params):
-        if self.constraints is None:
-            return jnp.zeros((0,), q.dtype)
-        out = jnp.asarray(call_user(self.constraints, "constraint", params, q))
-        if out.ndim == 0:
-            out = out[None]
-        if out.ndim != 1:
-            raise ShapeError(
-                f"the constraint function of {self.name} returned shape {out.shape}; "
-                "it must return a 1-D array phi(q) of shape (m,)"
-            )
-        return out
+        """`φ(q)`, shape `(m₁,)` (`(0,)` without holonomic constraints)."""
+        return constraint_rows.phi(self, q, params)
 
     def _amat(self, q, params):
         """`A(q)`, shape `(m₂, n)` (`(0, n)` without velocity constraints)."""
-        n = q.shape[0]
-        if self.velocity_constraints is None:
-            return jnp.zeros((0, n), q.dtype)
-        out = jnp.asarray(call_user(self.velocity_constraints, "velocity constraint", params, q))
-        if out.ndim == 1 and out.shape[0] == n:
-            out = out[None]
-        if out.ndim != 2 or out.shape[1] != n:
-            raise ShapeError(
-                f"the velocity constraint function of {self.name} returned shape "
-                f"{out.shape} for q of shape ({n},); it must return the matrix A(q) of "
-                f"shape (m, {n}) (one row per constraint A(q) qd = 0)"
-            )
-        if not jnp.issubdtype(out.dtype, jnp.floating):
-            out = out.astype(q.dtype)
-        return out
+        return constraint_rows.amat(self, q, params)
 
     def _jacobian(self, q, params):
+        """`J = ∂φ/∂q`; on a manifold `J_v = ∂φ/∂q · N(q)` (see `constraint_rows`)."""
+        n = q.shape[0] if self.n_dof is None else self.n_dof
         if self.constraints is None:
-            return jnp.zeros((0, q.shape[0]), q.dtype)
+            return jnp.zeros((0, n), q.dtype)
+        if self._manifold:
+            return constraint_rows.tangent_jacobian(
+                self.system, lambda a: self._phi(a, params), q, n
+            )
         return jax.jacfwd(lambda a: self._phi(a, params))(q)
 
     def _kmat(self, q, params):
@@ -318,34 +331,16 @@ class ConstrainedSystem(AbstractSystem):
     # ------------------------------------------------------------ dynamics
     def _rows(self, q, qd, params):
         """The stacked constraint matrix `K = [J; A]` and the right-hand side `γ` of
-        `K q̈ = γ` (with Baumgarte stabilization)."""
-        rows, gammas = [], []
-        if self.constraints is not None:
-
-            def phi_and_rate(a):
-                return jax.jvp(lambda b: self._phi(b, params), (a,), (qd,))
-
-            (phi, jqd), (_, jdot_qd) = jax.jvp(phi_and_rate, (q,), (qd,))
-            rows.append(self._jacobian(q, params))
-            gammas.append(-jdot_qd - 2.0 * self.alpha * jqd - self.beta**2 * phi)
-        if self.velocity_constraints is not None:
-
-            def a_and_rate(a):
-                amat = self._amat(a, params)
-                return amat, amat @ qd
-
-            # Ȧ q̇ = (∂(A q̇)/∂q) q̇: one JVP (the unused tangent of A itself is dropped)
-            (amat, aqd), (_, adot_qd) = jax.jvp(a_and_rate, (q,), (qd,))
-            rows.append(amat)
-            gammas.append(-adot_qd - self.beta * aqd)
-        dtype = jnp.result_type(*rows)
-        kmat = jnp.concatenate([r.astype(dtype) for r in rows], axis=0)
-        gamma = jnp.concatenate([g.astype(dtype) for g in gammas])
-        return kmat, gamma
+        `K q̈ = γ` (with Baumgarte stabilization; on a manifold, `J = J_v`: see
+        `constraint_rows`)."""
+        return constraint_rows.rows(self, q, qd, params, self._manifold)
 
     def _kkt_raw(self, t, q, qd, params, tau):
         sys = self.system
-        mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+        if isinstance(sys, LagrangianSystem):
+            mass, force = d.mass_and_force(sys, sys.scalar_derivatives, t, q, qd, params, tau)
+        else:
+            mass, force = constraint_rows.mass_and_force(sys, q, qd, params, tau)
         kmat, gamma = self._rows(q, qd, params)
         dtype = jnp.result_type(mass, kmat)
         return solve_kkt(mass, kmat.astype(dtype), force, gamma.astype(dtype))
@@ -353,7 +348,7 @@ class ConstrainedSystem(AbstractSystem):
     def _kkt(self, t, q, qd, params, tau):
         """`(q̈, (λ, μ))` without raising: NaN where `M` is not PD or `K` loses
         rank. Differentiated through the KKT system (`_kkt_with_rule`)."""
-        if not implicit.rule_on(self):
+        if self._manifold or not implicit.rule_on(self):
             return self._kkt_raw(t, q, qd, params, tau)
         return kkt.kkt_with_rule(self, t, q, qd, params, tau)
 

@@ -17,7 +17,7 @@ from .._core import model_programs
 from .._core.blocking import blocked
 from .._core.checks import finite, is_traced
 from .._core.closures import closes_over_tracers
-from .._core.errors import LagraxError
+from .._core.errors import ConfigurationError, LagraxError
 from . import implicit, sensitivity
 from .interfaces import Constrained, Energies
 from .lagrangian_checks import finite_derivatives, float_arrays
@@ -79,6 +79,12 @@ def constrained_forward_dynamics_derivatives(
     system: Constrained, q, qd, params, tau, t, wrt_params: bool
 ) -> ForwardDynamicsDerivatives:
     """`ConstrainedSystem.forward_dynamics_derivatives` (documented there)."""
+    if system._manifold:
+        raise ConfigurationError(
+            f"forward_dynamics_derivatives and linearize of {system.name} are not available "
+            "for constraints on a floating base or a forest (its q is not the integral of "
+            "its velocity); differentiate forward_dynamics with jax.jacfwd instead"
+        )
     q, qd, tau = system._state(q, qd, tau=tau)
     tau = jnp.zeros_like(q) if tau is None else tau
     program, eager = choose_program(system, _constrained_body, q, qd, tau, params, t)

@@ -30,11 +30,11 @@ def project_state(system: Constrained, q, qd, params):
     q0, qd0 = q, qd
     dtype = q.dtype
     eps = float(jnp.finfo(dtype).eps)
-    zero = jnp.zeros_like(q)
+    zero = jnp.zeros_like(qd)
     # M(q0): a fixed SPD metric (the projection has no time: a time-dependent system's
     # M(t, q) is taken at t = 0, which changes the metric, not the manifold)
     t0 = jnp.zeros((), dtype)
-    metric = d.mass_matrix(system.system, q0, zero, params, t0)
+    metric = _mass(system, q0, zero, params, t0)
 
     def newton_step(a):
         phi = system._phi(a, params)
@@ -43,16 +43,19 @@ def project_state(system: Constrained, q, qd, params):
         return solve_kkt(metric, jac, zero, -phi)[0]
 
     def body(_, carry):
+        # a step Δv on the velocities moves q along N(q) Δv, then back on its manifold
+        # (a floating base's quaternion; q + Δv for an ordinary system)
         a, _ = carry
         step = newton_step(a)
-        return a + step, step
+        moved = system.project_configuration(a + system.configuration_rate(a, step))
+        return moved, step
 
     if system.constraints is None:  # velocity constraints only: q is admissible as is
         q1, q_ok = q0, jnp.asarray(True)
     else:
         # a fixed number of iterations (a scan, so reverse-mode differentiable); after
         # convergence the steps are round-off sized and change nothing
-        init = (q0, jnp.zeros_like(q0))
+        init = (q0, zero)
         q1, step = jax.lax.fori_loop(0, PROJECTION_ITERS, body, init)
         scale = 1.0 + jnp.max(jnp.abs(q1))
         q_ok = jnp.all(jnp.isfinite(q1)) & (jnp.max(jnp.abs(step)) <= eps**0.5 * scale)
@@ -60,11 +63,18 @@ def project_state(system: Constrained, q, qd, params):
     # impulsive constraint would do: the admissible velocity of least kinetic-energy
     # change)
     q1_safe = jnp.where(q_ok, q1, q0)
-    mass = d.mass_matrix(system.system, q1_safe, zero, params, t0)
+    mass = _mass(system, q1_safe, zero, params, t0)
     kmat = system._kmat(q1_safe, params)
     qd1 = qd0 + solve_kkt(mass, kmat, zero, -(kmat @ qd0))[0]
     ok = q_ok & jnp.all(jnp.isfinite(qd1))
     return jnp.where(ok, q1, q0), jnp.where(ok, qd1, qd0), ok
+
+
+def _mass(system: Constrained, q, zero, params, t0):
+    """`M(q)` of the constrained system's system (at `t = 0`)."""
+    if system._manifold:  # a floating base, a forest: its own mass matrix
+        return system.system.mass_matrix(q, params)
+    return d.mass_matrix(system.system, q, zero, params, t0)
 
 
 def project(system: Constrained, q, qd, params):

@@ -34,7 +34,10 @@ import numpy as np
 from ..._core.errors import MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
+from ..floating.forest import Forest
 from ..limits import with_limits
+from .mjcf_equality import constrained, equality_rows
+from .mjcf_parts import split_parts
 from .mjcf_tendons import fixed_tendons, tendons_unsupported
 
 # mujoco.mjtJoint: free, ball, slide, hinge
@@ -154,7 +157,7 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         found.append(f"{what} {shown} on {who}")
 
     free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
-    for j in free[:1]:  # a floating base has no damping, armature or spring of its own
+    for j in free:  # a floating base has no damping, armature or spring of its own
         dofs = [int(model.jnt_dofadr[j]) + k for k in range(6)]
         for what, values, flag in (
             ("damping", model.dof_damping, off.mjDSBL_DAMPER),
@@ -180,11 +183,6 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
     )
     first_nonzero(model.body_gravcomp, "gravity compensation", "body")
     found += tendons_unsupported(mujoco, model, names)
-    if model.neq and not disabled & int(off.mjDSBL_EQUALITY):
-        found.append(
-            f"{model.neq} equality constraint(s), the first {names('equality', 0)!r} (a closed "
-            "loop or a coupling; lagrax.ConstrainedSystem can express one by hand)"
-        )
     if model.opt.density > 0 or model.opt.viscosity > 0:
         found.append(
             f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g})"
@@ -220,6 +218,21 @@ def from_mjcf(
     to the free body are merged into the base; bodies welded to the world are dropped. A
     model whose only joint is the free joint (a single rigid body) is the base alone: a
     `FloatingTree` with no joints, `q` of size 7 and `v` of size 6.
+
+    **Several free bodies** (a dog and its ball, boxes to stack) make a
+    [`Forest`][lagrax.chains.Forest]: each free body with the bodies below it a
+    `FloatingTree`, the robots fixed to the world between them a `Tree`, in MuJoCo's
+    body order (the state is the parts' states one after the other, MuJoCo's joint
+    order; `from_mujoco_state(qpos, qvel, forest)` converts every free joint), and the
+    params a tuple of the parts'.
+
+    **Equality constraints** (`connect`, `weld`, `joint`, `tendon` on fixed tendons,
+    active at `qpos0`) make a [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]
+    around the robot: its `system()` is a [`ConstrainedSystem`][lagrax.ConstrainedSystem]
+    whose `φ(q)` is MuJoCo's residual (`efc_pos`; see
+    `lagrax._multibody.formats.mjcf_equality`). lagrax solves the constraints exactly;
+    MuJoCo solves them softly (`solref`, `solimp`), so its constrained `qacc` differs by
+    that softness. `robot.robot` is the unconstrained robot.
 
     A body with several joints becomes a chain of massless tree bodies (its inertia on
     the last); a body with no joint is merged into the body it is welded to (mass,
@@ -269,21 +282,23 @@ def from_mjcf(
       (default `0`: the joint stops dead at its limit).
     - `ignore_unsupported`: drop what lagrax does not model (friction loss, gravity
       compensation, spatial tendons with stiffness or damping, tendon armature or
-      friction loss, dead-band or nonlinear springs, equality constraints, fluid forces,
-      damping, armature or stiffness on a free joint) with one `UserWarning` naming
-      each, instead of refusing the model.
+      friction loss, dead-band or nonlinear springs, fluid forces, damping, armature or
+      stiffness on a free joint; an equality on a spatial tendon or a flex drops every
+      equality) with one `UserWarning` naming each, instead of refusing the model.
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
     joint-space terms above where the model has them); with a free joint, the
     [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus `{"base_m",
-    "base_com", "base_inertia"}`.
+    "base_com", "base_inertia"}`; with several free bodies, a
+    [`Forest`][lagrax.chains.Forest] and a tuple of its parts' params; with equality
+    constraints, a [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot] around either.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
-    message); for a ball joint, naming the joint and its body; for more than one free
-    joint, a free body with other joints, a joint not below the free body, or a
-    massless floating base; for a model with no hinge, slide or free joint;
+    message); for a ball joint, naming the joint and its body; for a free body with
+    other joints, or a massless floating base; for an equality lagrax does not model
+    (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
     the `mujoco` package is not installed. `FileNotFoundError` for a missing file;
@@ -313,54 +328,52 @@ def from_mjcf(
             UserWarning,
             stacklevel=2,
         )
-    free = _free_body(model, names)
-    bodies, base = _bodies(model, names, free)
-    if not bodies and base is None:
+    parts = split_parts(model, names)
+    if not parts:
         raise MJCFError(
             "the model has no hinge or slide joint and no free joint: there is nothing to move"
         )
-    tree, params = _tree_and_params(model, bodies, dtype)
-    if base is None:
-        return with_limits(tree, params, limits, restitution)
-    robot, params = _floating(tree, params, base)
-    return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
+    robots, all_params, places = [], [], {}
+    for k, part in enumerate(parts):
+        bodies, base, place = _bodies(model, names, part.free, set(part.bodies))
+        tree, params = _tree_and_params(model, bodies, dtype)
+        places.update({b: (k, *place[b]) for b in part.bodies})
+        if base is None:
+            tree, params = with_limits(tree, params, limits, restitution)
+            robots.append(tree)
+        else:
+            robot, params = _floating(tree, params, base)
+            robots.append(robot)
+            params = with_limits(tree, params, limits, restitution)[1]
+        all_params.append(params)
+    if len(parts) == 1:
+        robot, params = robots[0], all_params[0]
+    else:
+        part_names = [names("body", p.free) if p.free is not None else "world" for p in parts]
+        robot, params = Forest(robots, part_names), tuple(all_params)
+    return _equalities(mujoco, model, names, robot, places, ignore_unsupported), params
 
 
-def _free_body(model, names: _Names) -> int | None:
-    """The body with the model's free joint (a floating base), or `None`: at most one,
-    on a body hanging from the world, as its body's only joint, and every other joint
-    below it (a floating robot, not a robot beside a fixed one).
+def _equalities(mujoco, model, names, robot, places: dict, ignore: bool):
+    """`robot` under the model's active equality constraints (a
+    [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]), or `robot` itself without
+    any (or with equality disabled)."""
+    if not model.neq or int(model.opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_EQUALITY):
+        return robot
+    try:
+        rows, kept = equality_rows(mujoco, model, names)
+    except MJCFError as err:
+        if not ignore:
+            raise
+        warnings.warn(f"from_mjcf ignores the equality constraints: {err}", UserWarning, 3)
+        return robot
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
 
-    **Raises:** `MJCFError` naming the joint otherwise."""
-    free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
-    if not free:
-        return None
-    first = free[0]
-    b = int(model.jnt_bodyid[first])
-    where = f"free joint {names('joint', first)!r} (body {names('body', b)!r})"
-    if len(free) > 1:
-        other = names("joint", free[1])
-        raise MJCFError(
-            f"the model has {len(free)} free joints ({names('joint', first)!r}, {other!r}, "
-            "...): lagrax loads one floating base, the first free body with the joints "
-            "below it"
-        )
-    if int(model.body_jntnum[b]) != 1 or int(model.body_parentid[b]) != 0:
-        raise MJCFError(
-            f"{where}: a floating base is a body hanging from the world whose only joint "
-            "is the free joint"
-        )
-    for j in range(model.njnt):
-        a = int(model.jnt_bodyid[j])
-        while a not in (0, b):
-            a = int(model.body_parentid[a])
-        if a == 0:
-            raise MJCFError(
-                f"joint {names('joint', j)!r} (body {names('body', int(model.jnt_bodyid[j]))!r}) "
-                f"is not below the floating base of the {where}: lagrax loads a floating "
-                "robot or a robot fixed to the world, not both in one model"
-            )
-    return b
+    def world(b: int):
+        return np.array(data.xmat[b]).reshape(3, 3), np.array(data.xpos[b])
+
+    return constrained(model, robot, rows, kept, places, world)
 
 
 def _floating(tree: Tree, params: dict, base: "_Body"):
@@ -380,17 +393,23 @@ def _floating(tree: Tree, params: dict, base: "_Body"):
 _WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
 
 
-def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body], _Body | None]:
-    """The tree's bodies, in MuJoCo's joint order, with every MuJoCo body's inertia
-    merged into the tree body that carries it; and with a free body `free`, the floating
-    base (tree body −1: its frame is the free body's, and it carries the bodies welded
-    to it), else `None`."""
+def _bodies(
+    model, names: _Names, free: int | None, keep: set[int]
+) -> tuple[list[_Body], _Body | None, dict]:
+    """The tree's bodies (of the MuJoCo bodies `keep`), in MuJoCo's joint order, with
+    every MuJoCo body's inertia merged into the tree body that carries it; with a free
+    body `free`, the floating base (tree body −1: its frame is the free body's, and it
+    carries the bodies welded to it), else `None`; and where each MuJoCo body's frame
+    is, `(tree body, R, p)` (tree body −1: the base, or the world for a fixed tree;
+    `_WORLD`: the world beside a floating base)."""
     bodies: list[_Body] = []
     base = None
     # each MuJoCo body's frame in its tree body's frame (tree body −1: the world, or the
     # floating base; `_WORLD`: the world beside a floating base)
     place = {0: (-1 if free is None else _WORLD, np.eye(3), np.zeros(3))}
     for b in range(1, model.nbody):
+        if b not in keep:
+            continue
         if b == free:
             place[b] = (-1, np.eye(3), np.zeros(3))
             base = _Body(
@@ -451,7 +470,7 @@ def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body],
         elif tb == -1 and base is not None:
             _add_inertia(model, b, base, rot, pos)  # welded to the floating base
         # else: welded to the world
-    return bodies, base
+    return bodies, base, place
 
 
 def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray) -> None:
@@ -460,8 +479,12 @@ def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray)
     mass = float(model.body_mass[b])
     if mass <= 0:
         return  # massless
-    c = pos + rot @ model.body_ipos[b]
-    r = rot @ _quat_matrix(model.body_iquat[b])
+    # MuJoCo's compiler marks an inertial frame within round-off of the body frame
+    # (`body_sameframe`: 1 the same frame, 3 the same orientation) and its kinematics
+    # then use the body frame itself: so does lagrax (convex meshes: ipos ~1e-9)
+    same = int(model.body_sameframe[b]) if hasattr(model, "body_sameframe") else 0
+    c = pos + (0.0 if same == 1 else rot @ model.body_ipos[b])
+    r = rot if same in (1, 3) else rot @ _quat_matrix(model.body_iquat[b])
     inertia = r @ np.diag(model.body_inertia[b]) @ r.T
     target.mass += mass
     target.moment = target.moment + mass * c

@@ -8,6 +8,8 @@ from typing import Any
 import jax.numpy as jnp
 
 from ..._core.errors import ArgumentTypeError, ShapeError
+from ..floating.forest import Forest
+from ..floating.system import FloatingTree
 
 
 def _rotation(quat_xyzw: Any) -> jnp.ndarray:
@@ -16,8 +18,28 @@ def _rotation(quat_xyzw: Any) -> jnp.ndarray:
     return quaternion_rotation(quat_xyzw)
 
 
-def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
-    r"""A floating robot's MuJoCo state (free joint first) as lagrax's `(q, v)`.
+def free_joints(robot: Any) -> list[tuple[int, int]]:
+    """The `(qpos, qvel)` addresses of every free joint of `robot` (a
+    [`FloatingTree`][lagrax.chains.FloatingTree], a [`Forest`][lagrax.chains.Forest] or a
+    [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot] around either; `None`: one free
+    joint, first): each floating part's base, in the order of the state."""
+    robot = getattr(robot, "robot", robot)  # a ConstrainedRobot: its robot
+    if robot is None:
+        return [(0, 0)]
+    parts = robot.parts if isinstance(robot, Forest) else (robot,)
+    out, qa, va = [], 0, 0
+    for part in parts:
+        if isinstance(part, FloatingTree):
+            out.append((qa, va))
+            qa, va = qa + 7 + part.n, va + 6 + part.n
+        else:
+            qa, va = qa + part.n, va + part.n
+    return out
+
+
+def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp.ndarray]:
+    r"""A floating robot's MuJoCo state (free joint first) as lagrax's `(q, v)`; with
+    `robot`, a model with several free bodies (every free joint where it is).
 
     MuJoCo's free joint has `qpos = (x, y, z, q_w, q_x, q_y, q_z)` and `qvel = (v_O,
     ω_b)`, the body origin's velocity in the **world** frame and the angular velocity in
@@ -27,38 +49,66 @@ def from_mujoco_state(qpos: Any, qvel: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
     follow unchanged. A generalized force converts like the velocity (`R^T f` for the
     linear part), and MuJoCo's `qacc` is `(R (v̇_b + ω_b × v_b), ω̇_b, q̈)`.
 
+    With `robot` ([`from_mjcf`][lagrax.chains.from_mjcf]'s result: a
+    [`Forest`][lagrax.chains.Forest] of several free bodies, a
+    [`FloatingTree`][lagrax.chains.FloatingTree], or a
+    [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot] around either), each floating
+    part's free joint converts so at its place in the state (MuJoCo's body order, the
+    parts' order), and the joints between them are unchanged.
+
     **Arguments:** `qpos` `(..., 7 + n)`, `qvel` `(..., 6 + n)` (leading batch axes
-    allowed).
+    allowed); `robot` (default `None`: one free joint, first).
 
     **Returns:** `(q, v)`, of the same shapes.
 
     **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
     whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
     """
-    qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7, 6))
-    quat = jnp.concatenate([qpos[..., 4:7], qpos[..., 3:4]], axis=-1)
-    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
-    linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., :3])
-    q = jnp.concatenate([qpos[..., :3], quat, qpos[..., 7:]], axis=-1)
-    return q, jnp.concatenate([linear, qvel[..., 3:]], axis=-1)
+    frees = free_joints(robot)
+    qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7 * len(frees), 6 * len(frees)))
+    for qa, va in frees:
+        _sizes_at(qpos, qvel, qa, va, ("qpos", "qvel"))
+        quat = jnp.concatenate([qpos[..., qa + 4 : qa + 7], qpos[..., qa + 3 : qa + 4]], axis=-1)
+        rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
+        linear = jnp.einsum("...ji,...j->...i", rot, qvel[..., va : va + 3])
+        qpos = qpos.at[..., qa + 3 : qa + 7].set(quat)
+        qvel = qvel.at[..., va : va + 3].set(linear)
+    return qpos, qvel
 
 
-def to_mujoco_state(q: Any, v: Any) -> tuple[jnp.ndarray, jnp.ndarray]:
+def _sizes_at(pos: Any, vel: Any, qa: int, va: int, names: tuple[str, str]) -> None:
+    """`ShapeError` where a free joint at `(qa, va)` does not fit `pos`, `vel`."""
+    if pos.shape[-1] < qa + 7 or vel.shape[-1] < va + 6:
+        raise ShapeError(
+            f"{names[0]} {pos.shape} and {names[1]} {vel.shape} have no room for the free "
+            f"joint at {names[0]}[{qa}:{qa + 7}], {names[1]}[{va}:{va + 6}]: pass the "
+            "state of the robot given"
+        )
+
+
+def to_mujoco_state(q: Any, v: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp.ndarray]:
     r"""lagrax's floating-base `(q, v)` as MuJoCo's `(qpos, qvel)` of a free joint: the
-    inverse of [`from_mujoco_state`][lagrax.chains.from_mujoco_state].
+    inverse of [`from_mujoco_state`][lagrax.chains.from_mujoco_state] (with `robot`,
+    every free joint of a model with several free bodies).
 
-    **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`.
+    **Arguments:** `q` `(..., 7 + n)`, `v` `(..., 6 + n)`; `robot` (default `None`: one
+    free joint, first).
 
     **Returns:** `(qpos, qvel)`, of the same shapes.
 
     **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
     and `v`.
     """
-    q, v = _free_joint_state(q, v, ("q", "v"), (7, 6))
-    rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., 3:7])
-    linear = jnp.einsum("...ij,...j->...i", rot, v[..., :3])
-    qpos = jnp.concatenate([q[..., :3], q[..., 6:7], q[..., 3:6], q[..., 7:]], axis=-1)
-    return qpos, jnp.concatenate([linear, v[..., 3:]], axis=-1)
+    frees = free_joints(robot)
+    q, v = _free_joint_state(q, v, ("q", "v"), (7 * len(frees), 6 * len(frees)))
+    for qa, va in frees:
+        _sizes_at(q, v, qa, va, ("q", "v"))
+        rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(q[..., qa + 3 : qa + 7])
+        linear = jnp.einsum("...ij,...j->...i", rot, v[..., va : va + 3])
+        quat = jnp.concatenate([q[..., qa + 6 : qa + 7], q[..., qa + 3 : qa + 6]], axis=-1)
+        q = q.at[..., qa + 3 : qa + 7].set(quat)
+        v = v.at[..., va : va + 3].set(linear)
+    return q, v
 
 
 def _free_joint_state(pos: Any, vel: Any, names: tuple[str, str], sizes: tuple[int, int]):
