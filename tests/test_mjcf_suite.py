@@ -18,6 +18,7 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 
 import os
 import re
+import warnings
 from pathlib import Path
 
 import jax
@@ -56,7 +57,7 @@ REFUSED = {
     "finger": ["friction loss", "'hinge'"],
     "fish": ["fluid forces", "density=5000"],
     "swimmer": ["fluid forces", "density=3000"],
-    "lqr": ["no hinge or slide joint"],
+    "lqr": ["no hinge or slide joint", "lqr.xml"],
 }
 
 
@@ -124,6 +125,29 @@ def test_suite_file_refused_names_the_construct(name):
         from_mjcf(SUITE / f"{name}.xml")
     for word in REFUSED[name]:
         assert word in str(info.value), str(info.value)
+
+
+def lqr_model(n_bodies: int, n_actuators: int):
+    """The model dm_control's ``lqr`` domain builds from ``lqr.xml`` (a scene without
+    bodies, refused alone): a chain of ``n_bodies`` slide joints with random springs, the
+    first ``n_actuators`` driven by motors, and spatial tendons between them (limits only)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dm_control's renderer looks for a display
+        lqr = pytest.importorskip("dm_control.suite.lqr")
+    xml, assets = lqr.get_model_and_assets(n_bodies, n_actuators, np.random.RandomState(0))
+    return mujoco.MjModel.from_xml_string(xml, assets)
+
+
+def test_lqr_as_the_task_builds_it_matches_mujoco():
+    """``lqr.xml`` is a template: the task's ``lqr_6_2`` model (six slides with springs)
+    loads and matches MuJoCo."""
+    model = lqr_model(6, 2)
+    robot, params = from_mjcf(model)
+    assert robot.n == model.nq == 6 and params["stiffness"].shape == (6,)
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
+    err_m, err_a = _against_mujoco(robot, params, model, seed=5)
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
 
 
 def test_fish_without_fluid_matches_mujoco():

@@ -317,7 +317,9 @@ def from_mjcf(
     bodies, base = _bodies(model, names, free)
     if not bodies and base is None:
         raise MJCFError(
-            "the model has no hinge or slide joint and no free joint: there is nothing to move"
+            "the model has no hinge or slide joint and no free joint: there is nothing to "
+            "move (a scene that code fills with bodies, such as dm_control's lqr.xml, loads "
+            "once filled: pass the generated model or XML)"
         )
     tree, params = _tree_and_params(model, bodies, dtype)
     if base is None:
