@@ -4,8 +4,10 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 - The files that load (``LOADS``): ``M`` against ``mj_fullM`` (armature included) and
   ``q̈`` against ``mj_forward``'s ``qacc`` at a random state with a random generalized
   force (``qfrc_applied``), MuJoCo's contacts, constraints (limits, friction loss,
-  equality) and actuators disabled, to 1e-10 relative; a floating model through
-  ``from_mujoco_state`` (``M`` congruent by the base's rotation).
+  equality) and actuators disabled, to 1e-10 relative (lagrax's friction loss taken out
+  too); a floating model through ``from_mujoco_state`` (``M`` congruent by the base's
+  rotation). The finger's friction loss: ``−f sign(q̇)`` away from rest.
+- ``lqr.xml``, a template without bodies, is refused; the model its task builds loads.
 - The files that do not (``REFUSED``): an ``MJCFError`` naming the construct.
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
@@ -41,6 +43,7 @@ LOADS = [
     "ball_in_cup",
     "cartpole",
     "cheetah",
+    "finger",
     "hopper",
     "humanoid",
     "humanoid_CMU",
@@ -54,7 +57,6 @@ REFUSED = {
     "quadruped": ["equality constraint", "coupling_front_left"],
     "manipulator": ["equality constraint", "'coupling'"],
     "stacker": ["equality constraint", "'coupling'"],
-    "finger": ["friction loss", "'hinge'"],
     "fish": ["fluid forces", "density=5000"],
     "swimmer": ["fluid forces", "density=3000"],
     "lqr": ["no hinge or slide joint", "lqr.xml"],
@@ -109,9 +111,14 @@ def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
     return rel_error(mass(q), t.T @ m_mj @ t), rel_error(qacc, data.qacc)
 
 
+FRICTION = ("frictionloss", "friction_velocity")
+
+
 @pytest.mark.parametrize("name", LOADS)
 def test_suite_file_matches_mujoco(name):
     robot, params = from_mjcf(SUITE / f"{name}.xml")
+    # MuJoCo's friction loss is a constraint, off here: lagrax's is taken out too
+    params = {k: v for k, v in params.items() if k not in FRICTION}
     model = _compiled(name)
     assert (7 + robot.n if isinstance(robot, lx.chains.FloatingTree) else robot.n) == model.nq
     err_m, err_a = _against_mujoco(robot, params, model, seed=len(name))
@@ -148,6 +155,29 @@ def test_lqr_as_the_task_builds_it_matches_mujoco():
     model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
     err_m, err_a = _against_mujoco(robot, params, model, seed=5)
     assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+def test_finger_friction_loss_is_coulomb_away_from_rest():
+    """The finger's friction loss (0.1 on its ``hinge``): with it, ``M (q̈ − qacc) =
+    −f sign(q̇)`` against MuJoCo's constraint-free ``qacc`` and ``mj_fullM`` at a state
+    sliding faster than the stiction velocity."""
+    robot, params = from_mjcf(SUITE / "finger.xml")
+    model = _compiled("finger")
+    f = np.asarray(model.dof_frictionloss)
+    assert np.array_equal(np.asarray(params["frictionloss"]), f) and f[2] == 0.1
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(2)
+    data.qpos[:] = model.qpos0 + rng.uniform(-0.5, 0.5, model.nq)
+    data.qvel[:] = [0.3, -0.8, -0.5]
+    data.qfrc_applied[:] = rng.uniform(-1.0, 1.0, model.nv)
+    mujoco.mj_forward(model, data)
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    qdd = robot.system().forward_dynamics(
+        jnp.asarray(data.qpos), jnp.asarray(data.qvel), params, jnp.asarray(data.qfrc_applied)
+    )
+    force = m_mj @ (np.asarray(qdd) - data.qacc)
+    assert np.max(np.abs(force + f * np.sign(data.qvel))) < 1e-12, force
 
 
 def test_fish_without_fluid_matches_mujoco():
