@@ -20,7 +20,6 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 
 import os
 import re
-import warnings
 from pathlib import Path
 
 import jax
@@ -29,7 +28,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import rel_error
+from _helpers import lqr_model, rel_error
 from lagrax.chains import from_mjcf, from_mujoco_state
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
@@ -132,17 +131,6 @@ def test_suite_file_refused_names_the_construct(name):
         from_mjcf(SUITE / f"{name}.xml")
     for word in REFUSED[name]:
         assert word in str(info.value), str(info.value)
-
-
-def lqr_model(n_bodies: int, n_actuators: int):
-    """The model dm_control's ``lqr`` domain builds from ``lqr.xml`` (a scene without
-    bodies, refused alone): a chain of ``n_bodies`` slide joints with random springs, the
-    first ``n_actuators`` driven by motors, and spatial tendons between them (limits only)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # dm_control's renderer looks for a display
-        lqr = pytest.importorskip("dm_control.suite.lqr")
-    xml, assets = lqr.get_model_and_assets(n_bodies, n_actuators, np.random.RandomState(0))
-    return mujoco.MjModel.from_xml_string(xml, assets)
 
 
 def test_lqr_as_the_task_builds_it_matches_mujoco():

@@ -113,6 +113,13 @@ def _load(mujoco, source: Any):
         raise MJCFError(f"MuJoCo cannot compile {what}: {err}".strip()) from None
 
 
+def load_model(source: Any):
+    """`(mujoco, model)`: the `mujoco` module and `source` compiled (a model, XML text or
+    a path; `MJCFError` as `from_mjcf` raises it)."""
+    mujoco = _mujoco()
+    return mujoco, _load(mujoco, source)
+
+
 class _Names:
     """Names of a model's objects (`kind` plus the index where unnamed)."""
 
