@@ -64,6 +64,8 @@ from ._multibody.floating.system import FloatingTree as FloatingTree
 from ._multibody.formats.mjcf import from_mjcf as from_mjcf
 from ._multibody.formats.mjcf_actuators import MJCFActuation as MJCFActuation
 from ._multibody.formats.mjcf_actuators import mjcf_actuation as mjcf_actuation
+from ._multibody.formats.mjcf_fluid import MJCFFluid as MJCFFluid
+from ._multibody.formats.mjcf_fluid import mjcf_fluid as mjcf_fluid
 from ._multibody.formats.mujoco_state import from_mujoco_state as from_mujoco_state
 from ._multibody.formats.mujoco_state import to_mujoco_state as to_mujoco_state
 from ._multibody.formats.urdf import from_urdf as from_urdf
@@ -82,6 +84,8 @@ __all__ = [
     "from_mjcf",
     "mjcf_actuation",
     "MJCFActuation",
+    "mjcf_fluid",
+    "MJCFFluid",
     "from_mujoco_state",
     "to_mujoco_state",
     "limit_events",

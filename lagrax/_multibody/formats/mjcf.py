@@ -53,7 +53,7 @@ def _mujoco():
         ) from None
 
 
-def _quat_matrix(quat: Any) -> np.ndarray:
+def quat_matrix(quat: Any) -> np.ndarray:
     """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
     w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
     return np.array(
@@ -194,7 +194,8 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         )
     if model.opt.density > 0 or model.opt.viscosity > 0:
         found.append(
-            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g})"
+            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g}"
+            "; lagrax.chains.mjcf_fluid loads the model with them as an applied force)"
         )
     return found
 
@@ -334,7 +335,7 @@ def from_mjcf(
             stacklevel=2,
         )
     free = _free_body(model, names)
-    bodies, base = _bodies(model, names, free)
+    bodies, base, _ = _bodies(model, names, free)
     if not bodies and base is None:
         raise MJCFError(
             "the model has no hinge or slide joint and no free joint: there is nothing to "
@@ -402,11 +403,19 @@ def _floating(tree: Tree, params: dict, base: "_Body"):
 _WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
 
 
-def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body], _Body | None]:
+def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
+    """Each MuJoCo body `b`'s place in `from_mjcf`'s tree: `(tree body, rotation,
+    position)` of its frame in the tree body's (tree body −1: the floating base, or the
+    world without one; −2: the world beside a floating base)."""
+    names = _Names(_mujoco(), model)
+    return _bodies(model, names, _free_body(model, names))[2]
+
+
+def _bodies(model, names: _Names, free: int | None = None):
     """The tree's bodies, in MuJoCo's joint order, with every MuJoCo body's inertia
-    merged into the tree body that carries it; and with a free body `free`, the floating
+    merged into the tree body that carries it; with a free body `free`, the floating
     base (tree body −1: its frame is the free body's, and it carries the bodies welded
-    to it), else `None`."""
+    to it), else `None`; and each MuJoCo body's place (`placements`)."""
     bodies: list[_Body] = []
     base = None
     # each MuJoCo body's frame in its tree body's frame (tree body −1: the world, or the
@@ -431,7 +440,7 @@ def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body],
             continue
         tb, rot, pos = place[int(model.body_parentid[b])]
         pos = pos + rot @ model.body_pos[b]
-        rot = rot @ _quat_matrix(model.body_quat[b])
+        rot = rot @ quat_matrix(model.body_quat[b])
         first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
         for j in range(first, first + count):
             anchor = np.asarray(model.jnt_pos[j], float)
@@ -474,7 +483,7 @@ def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body],
         elif tb == -1 and base is not None:
             _add_inertia(model, b, base, rot, pos)  # welded to the floating base
         # else: welded to the world
-    return bodies, base
+    return bodies, base, place
 
 
 def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray) -> None:
@@ -484,7 +493,7 @@ def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray)
     if mass <= 0:
         return  # massless
     c = pos + rot @ model.body_ipos[b]
-    r = rot @ _quat_matrix(model.body_iquat[b])
+    r = rot @ quat_matrix(model.body_iquat[b])
     inertia = r @ np.diag(model.body_inertia[b]) @ r.T
     target.mass += mass
     target.moment = target.moment + mass * c
