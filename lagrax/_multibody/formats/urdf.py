@@ -22,7 +22,16 @@ from ..._core.errors import URDFError, URDFWarning
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
-from .urdf_elements import MOVING, Body, JointElement, keep_links, parse, read_inertial, structure
+from .urdf_elements import (
+    MOVING,
+    Body,
+    JointElement,
+    floating_joint,
+    keep_links,
+    parse,
+    read_inertial,
+    structure,
+)
 
 
 def from_urdf(
@@ -136,7 +145,10 @@ def from_urdf(
       acts on its joint alone, not on the base). A robot with no moving joint (a single
       rigid body: a quadrotor, every link fixed to the root) is the base alone, a
       `FloatingTree` of a [`Tree`][lagrax.chains.Tree] with no joints: `q = (x, y, z,
-      qx, qy, qz, qw)`, `v = (v_b, ω_b)`.
+      qx, qy, qz, qw)`, `v = (v_b, ω_b)`. A URDF `floating` joint from the root link
+      (a world link, carrying nothing else) with no `<origin>` offset is the same: its
+      child becomes the floating base (as Pinocchio reads it, a free flyer), with or
+      without `floating_base=True`.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
@@ -147,7 +159,8 @@ def from_urdf(
     `<inertial>`, a negative mass, an inertia that is not positive-semidefinite (or,
     with `strict_inertia`, violates the triangle inequality), a joint that moves no
     mass (a singular mass matrix), a link with two parents, a loop, several roots
-    without `root=`, an unknown joint type, a floating or planar joint (not supported), a
+    without `root=`, an unknown joint type, a planar joint (not supported), several
+    floating joints or one that is not the root's only joint with an identity origin, a
     mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
     loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
     that is not finite, a robot with no moving joint below `root` on a fixed base (a
@@ -166,6 +179,8 @@ def from_urdf(
     ```
     """
     links, joints = parse(_read(source))
+    joints, root, floating = floating_joint(joints, root)
+    floating_base = floating_base or floating
     _lock(joints, locked)
     root, parent_of, children = structure(links, joints, root)
     keep = keep_links(root, tip, links, parent_of, children)
