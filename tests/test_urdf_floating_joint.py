@@ -5,7 +5,9 @@ Pinocchio reads it (a free flyer, ``pin.buildModelFromXML``).
   and params as ``floating_base=True``, and ``M`` and ``q̈`` against Pinocchio's CRBA and
   ABA at a random state.
 - Floating joints lagrax cannot read are refused by name: two of them, one with an
-  ``<origin>`` offset, one below a moving joint; planar joints still are.
+  ``<origin>`` offset, one below a moving joint.
+- A ``planar`` joint, as three coordinates ``(x, y, θ)``: ``M`` and ``G`` against
+  Pinocchio's planar joint through the map between the two velocities.
 """
 
 import re
@@ -82,9 +84,48 @@ def test_floating_joint_is_pinocchios_free_flyer():
             'type="floating"'.join(ARM.rsplit('type="revolute"', 1)),  # the last joint
             "is not the root link",
         ),
-        (ARM.replace('type="revolute"', 'type="planar"', 1), "planar joints are not supported"),
     ],
 )
 def test_floating_joints_lagrax_cannot_read_are_named(text, words):
     with pytest.raises(lx.URDFError, match=re.escape(words)):
         from_urdf(text)
+
+
+def _link(name: str, mass: float, xyz: str) -> str:
+    return (
+        f'<link name="{name}"><inertial><origin xyz="{xyz}" rpy="0.1 0.2 0.3"/>'
+        f'<mass value="{mass}"/><inertia ixx="0.02" iyy="0.03" izz="0.04" ixy="0.001" '
+        'ixz="0.002" iyz="-0.001"/></inertial></link>'
+    )
+
+
+PLANAR = f"""<robot name="puck"><link name="table"/>
+  {_link("puck", 1.5, "0.05 -0.02 0.01")}{_link("arm", 0.4, "0.2 0 0")}
+  <joint name="slide" type="planar"><parent link="table"/><child link="puck"/>
+    <origin xyz="0.1 0.2 0.3" rpy="0.3 -0.2 0.5"/><axis xyz="0 0 1"/></joint>
+  <joint name="elbow" type="revolute"><parent link="puck"/><child link="arm"/>
+    <origin xyz="0.1 0 0"/><axis xyz="0 1 1"/><limit lower="-2" upper="2" effort="1"
+    velocity="1"/></joint>
+</robot>"""
+
+
+def test_planar_joint_is_pinocchios_planar_joint():
+    """A puck sliding and turning on a tilted table, with an arm: ``M`` and ``G`` against
+    Pinocchio's (``JointModelPlanar``) by the congruence of the velocities, Pinocchio's
+    ``v = (R(θ)ᵀ (ẋ, ẏ), θ̇)``; the same Lagrangian, so the same equations."""
+    tree, params = from_urdf(PLANAR)
+    assert tree.joint_names == ("slide/x", "slide/y", "slide", "elbow")
+    model = pin.buildModelFromXML(PLANAR)
+    data = model.createData()
+    assert model.joints[1].shortname() == "JointModelPlanar"
+    q = np.array([0.3, -0.4, 0.8, 0.6])
+    c, s = np.cos(q[2]), np.sin(q[2])
+    qp = np.array([q[0], q[1], c, s, q[3]])
+    jac = np.eye(4)  # v_pin = J q̇
+    jac[:2, :2] = [[c, s], [-s, c]]
+    system = tree.system()
+    mass = pin.crba(model, data, qp)
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    assert rel_error(system.mass_matrix(jnp.asarray(q), params), jac.T @ mass @ jac) < 1e-12
+    gravity = pin.computeGeneralizedGravity(model, data, qp)
+    assert rel_error(system.gravity(jnp.asarray(q), params), jac.T @ gravity) < 1e-12

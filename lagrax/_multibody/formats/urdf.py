@@ -29,6 +29,7 @@ from .urdf_elements import (
     floating_joint,
     keep_links,
     parse,
+    planar_parts,
     read_inertial,
     structure,
 )
@@ -51,7 +52,11 @@ def from_urdf(
 ) -> tuple[Tree, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
-    Each revolute, continuous or prismatic joint becomes a body of the tree (bodies are
+    Each revolute, continuous or prismatic joint becomes a body of the tree, a planar
+    joint three (a slide along `name/x` and `name/y` in its plane, then a continuous
+    rotation `name` about its axis: `q = (x, y, θ)`, the translation in the joint's
+    frame; Pinocchio's planar joint has `(x, y, cos θ, sin θ)` with the velocity in the
+    moving frame) (bodies are
     numbered depth-first from the root, children in file order), with its
     `<origin xyz rpy>` as the placement (`offset` in `params`, the rotation
     `Rz(yaw) Ry(pitch) Rx(roll)` in the structure), its `<axis>`, `<limit>` (kept in
@@ -159,7 +164,7 @@ def from_urdf(
     `<inertial>`, a negative mass, an inertia that is not positive-semidefinite (or,
     with `strict_inertia`, violates the triangle inequality), a joint that moves no
     mass (a singular mass matrix), a link with two parents, a loop, several roots
-    without `root=`, an unknown joint type, a planar joint (not supported), several
+    without `root=`, an unknown joint type, a locked planar joint, several
     floating joints or one that is not the root's only joint with an identity origin, a
     mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
     loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
@@ -237,6 +242,8 @@ def _lock(joints: list[JointElement], locked: Mapping[str, float] | None) -> Non
             )
         if j.kind == "fixed":
             raise URDFError(f"locked: joint {name!r} is a fixed joint already")
+        if j.kind == "planar":
+            raise URDFError(f"locked: joint {name!r} is planar (three coordinates)")
         if j.mimic is not None:
             raise URDFError(
                 f"locked: joint {name!r} mimics joint {j.mimic[0]!r}; lock its master "
@@ -333,6 +340,11 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[Body], _Pl
             joint_rot, joint_pos = rot @ j.rot, pos + rot @ j.xyz
             if j.kind == "fixed":
                 place[link] = (body, joint_rot, joint_pos)
+            elif j.kind == "planar":  # three bodies in a row, the link on the last
+                for k, part in enumerate(planar_parts(j)):
+                    at = (joint_rot, joint_pos) if k == 0 else (part.rot, part.xyz)
+                    bodies.append(Body(part, body if k == 0 else len(bodies) - 1, *at))
+                place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))
             else:
                 bodies.append(Body(j, body, joint_rot, joint_pos))
                 place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))

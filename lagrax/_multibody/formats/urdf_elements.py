@@ -15,10 +15,6 @@ from ..._core.errors import ParameterError, URDFError, URDFWarning
 from ..inertia import check_inertia
 
 MOVING = {"revolute": "R", "continuous": "R", "prismatic": "P"}
-_UNSUPPORTED = {
-    "planar": "planar joints are not supported (model them as two prismatic joints and a "
-    "revolute one)",
-}
 
 
 def rpy_matrix(rpy: Any) -> np.ndarray:
@@ -167,12 +163,10 @@ def _joint(element: ET.Element, links: dict) -> JointElement:
         raise URDFError("a <joint> has no name attribute")
     where = f"joint {name!r}"
     kind = element.get("type")
-    if kind in _UNSUPPORTED:
-        raise URDFError(f"{where} has type {kind!r}: {_UNSUPPORTED[kind]}")
-    if kind not in (*MOVING, "fixed", "floating"):
+    if kind not in (*MOVING, "fixed", "floating", "planar"):
         raise URDFError(
             f"{where} has unknown type {kind!r}; URDF joints are revolute, continuous, "
-            "prismatic, fixed, floating (and planar: not supported)"
+            "prismatic, fixed, floating and planar"
         )
     ends = []
     for tag in ("parent", "child"):
@@ -185,7 +179,7 @@ def _joint(element: ET.Element, links: dict) -> JointElement:
         ends.append(link)
     xyz, rot = _origin(element, where)
     axis = np.asarray(_floats(element.find("axis"), "xyz", np.array([1.0, 0, 0]), 3, where))
-    if kind in MOVING and np.linalg.norm(axis) == 0:
+    if kind in (*MOVING, "planar") and np.linalg.norm(axis) == 0:
         raise URDFError(f"{where}: its <axis xyz> is the zero vector")
     joint = JointElement(name, kind, ends[0], ends[1], xyz, rot, axis)
     mimic = element.find("mimic")
@@ -261,6 +255,30 @@ def parse(text: str) -> tuple[dict, list[JointElement]]:
         if names.count(name) > 1:
             raise URDFError(f"joint {name!r} is defined twice")
     return links, joints
+
+
+def planar_parts(j: JointElement) -> list[JointElement]:
+    """A `planar` joint (motion in the plane normal to its axis) as three joints in a
+    row: slides along two directions of the plane (`name/x`, `name/y`, in the joint's
+    frame), then a continuous rotation about the axis (`name`): `q = (x, y, θ)`, the
+    translation in the joint's frame (Pinocchio's planar joint has `(x, y, cos θ,
+    sin θ)`, with the velocity in the moving frame)."""
+    normal = j.axis / np.linalg.norm(j.axis)
+    seed = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    e1 = np.cross(normal, seed)
+    e1 = e1 / np.linalg.norm(e1)
+    if np.allclose(np.abs(normal), [0.0, 0.0, 1.0]):
+        e1 = np.array([1.0, 0.0, 0.0])  # the joint frame's own x and y in the xy plane
+    e2 = np.cross(normal, e1)
+    zero, eye = np.zeros(3), np.eye(3)
+    parts = [
+        JointElement(f"{j.name}/x", "prismatic", j.parent, f"{j.child}/x", j.xyz, j.rot, e1),
+        JointElement(f"{j.name}/y", "prismatic", f"{j.child}/x", f"{j.child}/y", zero, eye, e2),
+        JointElement(j.name, "continuous", f"{j.child}/y", j.child, zero, eye, normal),
+    ]
+    for part in parts:
+        part.damping = j.damping
+    return parts
 
 
 def floating_joint(
