@@ -4,7 +4,8 @@ stiction, the contacts' law (``lagrax._core.friction``), as a dissipation of the
 - Closed forms on a block on a slide (mass ``m``, friction loss ``f``, stiction velocity
   ``v_s``, no gravity): sliding (``|v| ≥ v_s``) it accelerates at ``(τ − f sign v)/m``;
   pushed from rest by ``τ < f`` it stays put but for the creep ``v* = v_s (1 − √(1 −
-  τ/f))`` the law holds it at; the energy balance (``Solution.work``) holds.
+  τ/f))`` the law holds it at; the energy balance (``Solution.work``) holds; with a
+  stiction peak ``f_s``, the force is ``f_s`` at ``v_s`` and ``f`` from ``3 v_s`` on.
 - ``forward_dynamics_derivatives``' ``∂q̈/∂q̇`` against the closed form ``−f μ̂'(s)/(m
   v_s)`` in each branch of the law (at rest, creeping, easing, sliding), and against
   central differences.
@@ -45,6 +46,16 @@ def test_sliding_block_accelerates_at_the_kinetic_force(block):
     for v, tau in [(0.5, 0.3), (-0.5, 0.3), (VS, 2.0), (-3 * VS, -2.0)]:
         qdd = system.forward_dynamics(jnp.zeros(1), jnp.array([v]), params, jnp.array([tau]))
         assert abs(float(qdd[0]) - (tau - F * np.sign(v)) / M) < 1e-13
+
+
+def test_stiction_peak_holds_more_than_sliding(block):
+    """``frictionloss_static`` ``f_s > f``: the law peaks at ``f_s`` at ``v_s`` and is
+    ``f`` from ``3 v_s`` on (the contacts' stiction)."""
+    system, params = block
+    params = dict(params, frictionloss_static=jnp.array([1.5 * F]))
+    for v, force in [(VS, 1.5 * F), (-3 * VS, -F), (2 * VS, 1.25 * F)]:
+        qdd = system.forward_dynamics(jnp.zeros(1), jnp.array([v]), params, jnp.array([0.1]))
+        assert abs(float(qdd[0]) - (0.1 - force) / M) < 1e-13
 
 
 def test_block_pushed_below_the_friction_loss_stays_put(block):
