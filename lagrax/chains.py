@@ -66,7 +66,11 @@ from ._multibody.floating.forest import ForestSystem as ForestSystem
 from ._multibody.floating.system import FloatingBaseSystem as FloatingBaseSystem
 from ._multibody.floating.system import FloatingTree as FloatingTree
 from ._multibody.formats.mjcf import from_mjcf as from_mjcf
+from ._multibody.formats.mjcf_actuators import MJCFActuation as MJCFActuation
+from ._multibody.formats.mjcf_actuators import mjcf_actuation as mjcf_actuation
 from ._multibody.formats.mjcf_equality import ConstrainedRobot as ConstrainedRobot
+from ._multibody.formats.mjcf_fluid import MJCFFluid as MJCFFluid
+from ._multibody.formats.mjcf_fluid import mjcf_fluid as mjcf_fluid
 from ._multibody.formats.mujoco_state import from_mujoco_state as from_mujoco_state
 from ._multibody.formats.mujoco_state import to_mujoco_state as to_mujoco_state
 from ._multibody.formats.urdf import from_urdf as from_urdf
@@ -86,6 +90,10 @@ __all__ = [
     "ConstrainedRobot",
     "from_urdf",
     "from_mjcf",
+    "mjcf_actuation",
+    "MJCFActuation",
+    "mjcf_fluid",
+    "MJCFFluid",
     "from_mujoco_state",
     "to_mujoco_state",
     "limit_events",

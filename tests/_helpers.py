@@ -110,3 +110,19 @@ def assert_free_motion_conserved(system, params, sol, tol=1e-10):
     assert sol.constraint_violation is not None
     assert np.max(np.abs(sol.constraint_violation)) < 1e-12  # |q_quat| − 1 at the saves
     assert abs(float(np.linalg.norm(np.asarray(sol.q_end[3:7]))) - 1.0) < 1e-14
+
+
+def lqr_model(n_bodies: int, n_actuators: int):
+    """The model dm_control's ``lqr`` domain builds from ``lqr.xml`` (a scene without
+    bodies, refused alone): a chain of ``n_bodies`` slide joints with random springs, the
+    first ``n_actuators`` driven by motors, and spatial tendons between them (limits only)."""
+    import warnings
+
+    import mujoco
+    import pytest
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dm_control's renderer looks for a display
+        lqr = pytest.importorskip("dm_control.suite.lqr")
+    xml, assets = lqr.get_model_and_assets(n_bodies, n_actuators, np.random.RandomState(0))
+    return mujoco.MjModel.from_xml_string(xml, assets)

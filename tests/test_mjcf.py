@@ -313,9 +313,13 @@ BAD = {
         ),
         ["a dead-band spring length [0.1, 0.3] on tendon 't1'"],
     ),
-    "friction loss": (
-        _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"')),
-        ["friction loss", "'j1'"],
+    "tendon friction loss": (
+        _xml(
+            ARM,
+            '<tendon><fixed name="t1" frictionloss="0.5"><joint joint="j1" coef="1"/></fixed>'
+            "</tendon>",
+        ),
+        ["friction loss (a constraint) 0.5 on tendon 't1'"],
     ),
     "gravcomp": (_xml(ARM.replace('name="b1"', 'name="b1" gravcomp="1"')), ["gravity comp"]),
     "no joint": (
@@ -340,8 +344,8 @@ def test_refused_constructs_are_named(case):
 
 
 def test_ignore_unsupported_drops_with_a_warning():
-    text = _xml(ARM.replace('axis="0 1 0"', 'axis="0 1 0" frictionloss="0.5"'))
-    with pytest.warns(UserWarning, match="friction loss"):
+    text = _xml(ARM.replace('name="b1"', 'name="b1" gravcomp="1"'))
+    with pytest.warns(UserWarning, match="gravity compensation"):
         tree, _ = from_mjcf(text, ignore_unsupported=True)
     assert tree.joint_names == ("j1",)
     with pytest.raises(lx.MJCFError, match="ball joint"):  # still: not one coordinate

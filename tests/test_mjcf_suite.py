@@ -4,12 +4,14 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 - The files that load (``LOADS``): ``M`` against ``mj_fullM`` (armature included) and
   ``q̈`` against ``mj_forward``'s ``qacc`` at a random state with a random generalized
   force (``qfrc_applied``), MuJoCo's contacts, constraints (limits, friction loss,
-  equality) and actuators disabled, to 1e-10 relative; a floating model through
-  ``from_mujoco_state`` (``M`` congruent by the base's rotation), a model with several
-  free bodies (the dog and its ball, the quadruped and its ball: a ``Forest``) through
-  ``from_mujoco_state(..., robot)``; a model with equality constraints (manipulator,
-  stacker, quadruped: a ``ConstrainedRobot``) by its unconstrained robot, and its
-  constraints ``φ(q)`` against MuJoCo's equality residuals ``efc_pos``.
+  equality) and actuators disabled, to 1e-10 relative (lagrax's friction loss taken out
+  too); a floating model through ``from_mujoco_state`` (``M`` congruent by the base's
+  rotation), a model with several free bodies (the dog and its ball, the quadruped and
+  its ball: a ``Forest``) through ``from_mujoco_state(..., robot)``; a model with
+  equality constraints (manipulator, stacker, quadruped: a ``ConstrainedRobot``) by its
+  unconstrained robot, and its constraints ``φ(q)`` against MuJoCo's equality residuals
+  ``efc_pos``. The finger's friction loss: ``−f sign(q̇)`` away from rest.
+- ``lqr.xml``, a template without bodies, is refused; the model its task builds loads.
 - The files that do not (``REFUSED``): an ``MJCFError`` naming the construct.
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
@@ -30,7 +32,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import rel_error
+from _helpers import lqr_model, rel_error
 from lagrax.chains import from_mjcf, from_mujoco_state
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
@@ -45,6 +47,7 @@ LOADS = [
     "cartpole",
     "cheetah",
     "dog",
+    "finger",
     "hopper",
     "humanoid",
     "humanoid_CMU",
@@ -57,10 +60,9 @@ LOADS = [
     "walker",
 ]
 REFUSED = {
-    "finger": ["friction loss", "'hinge'"],
     "fish": ["fluid forces", "density=5000"],
     "swimmer": ["fluid forces", "density=3000"],
-    "lqr": ["no hinge or slide joint"],
+    "lqr": ["no hinge or slide joint", "lqr.xml"],
 }
 
 
@@ -150,6 +152,16 @@ def _size(robot) -> int:
     return 7 + robot.n if isinstance(robot, lx.chains.FloatingTree) else robot.n
 
 
+FRICTION = ("frictionloss", "friction_velocity")
+
+
+def _without_friction(params):
+    """`params` (a dict, or a forest's tuple of them) without friction loss."""
+    if isinstance(params, tuple):
+        return tuple(_without_friction(p) for p in params)
+    return {k: v for k, v in params.items() if k not in FRICTION}
+
+
 # the dog (85 velocities, two free bodies) and the stacker (an equality on a fixed robot)
 # compile for long: the quadruped (two free bodies, equalities) and the manipulator (an
 # equality on a fixed robot) hold the same constructs to MuJoCo in the quick run
@@ -161,6 +173,8 @@ SLOW = {"dog", "stacker"}
 )
 def test_suite_file_matches_mujoco(name):
     robot, params = from_mjcf(SUITE / f"{name}.xml")
+    # MuJoCo's friction loss is a constraint, off here: lagrax's is taken out too
+    params = _without_friction(params)
     model = _compiled(name)
     if isinstance(robot, lx.chains.ConstrainedRobot):
         _constraints_against_mujoco(robot, params, name)
@@ -192,6 +206,41 @@ def test_suite_file_refused_names_the_construct(name):
         from_mjcf(SUITE / f"{name}.xml")
     for word in REFUSED[name]:
         assert word in str(info.value), str(info.value)
+
+
+def test_lqr_as_the_task_builds_it_matches_mujoco():
+    """``lqr.xml`` is a template: the task's ``lqr_6_2`` model (six slides with springs)
+    loads and matches MuJoCo."""
+    model = lqr_model(6, 2)
+    robot, params = from_mjcf(model)
+    assert robot.n == model.nq == 6 and params["stiffness"].shape == (6,)
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
+    err_m, err_a = _against_mujoco(robot, params, model, seed=5)
+    assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
+
+
+def test_finger_friction_loss_is_coulomb_away_from_rest():
+    """The finger's friction loss (0.1 on its ``hinge``): with it, ``M (q̈ − qacc) =
+    −f sign(q̇)`` against MuJoCo's constraint-free ``qacc`` and ``mj_fullM`` at a state
+    sliding faster than the stiction velocity."""
+    robot, params = from_mjcf(SUITE / "finger.xml")
+    model = _compiled("finger")
+    f = np.asarray(model.dof_frictionloss)
+    assert np.array_equal(np.asarray(params["frictionloss"]), f) and f[2] == 0.1
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(2)
+    data.qpos[:] = model.qpos0 + rng.uniform(-0.5, 0.5, model.nq)
+    data.qvel[:] = [0.3, -0.8, -0.5]
+    data.qfrc_applied[:] = rng.uniform(-1.0, 1.0, model.nv)
+    mujoco.mj_forward(model, data)
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    qdd = robot.system().forward_dynamics(
+        jnp.asarray(data.qpos), jnp.asarray(data.qvel), params, jnp.asarray(data.qfrc_applied)
+    )
+    force = m_mj @ (np.asarray(qdd) - data.qacc)
+    assert np.max(np.abs(force + f * np.sign(data.qvel))) < 1e-12, force
 
 
 def test_fish_without_fluid_matches_mujoco():

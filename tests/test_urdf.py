@@ -289,8 +289,14 @@ BAD = {
         "loop",
     ),
     "unknown joint type": (_robot(_joint("hinge", "ball", "base", "a"), GOOD_A), "'hinge'"),
-    "floating joint": (_robot(_joint("free", "floating", "base", "a"), GOOD_A), "'free'"),
-    "planar joint": (_robot(_joint("slide", "planar", "base", "a"), GOOD_A), "'slide'"),
+    "floating joint with an offset": (
+        _robot(_joint("free", "floating", "base", "a", xyz="0 0 1"), GOOD_A),
+        "floating joint 'free' has an <origin> offset",
+    ),
+    "planar joint without a normal": (
+        _robot(_joint("slide", "planar", "base", "a", axis="0 0 0"), GOOD_A),
+        "joint 'slide': its <axis xyz> is the zero vector",
+    ),
     "unknown link": (_robot(_joint("j", "revolute", "base", "nowhere"), GOOD_A), "'nowhere'"),
     "malformed XML": ('<robot name="r"><link name="base"></robot>', "XML"),
     "bad number": (

@@ -6,7 +6,8 @@ r"""The contact laws, as pure functions of one contact's gap and velocities.
   the dissipation.
 - **Tangential**: regularized Coulomb friction with stiction, `F_t = −μ(s) f_n v_t/|v_t|`
   with `s = |v_t|/v_s`; `μ(s)` rises from 0 as `μ_s s (2 − s)` to `μ_s` at `s = 1`,
-  falls smoothly to `μ` at `s = 3` and stays there (`friction_ratio` is `μ(s)/s`).
+  falls smoothly to `μ` at `s = 3` and stays there (`friction_ratio` is `μ(s)/s`): the
+  law of `lagrax._core.friction`, which joints' friction loss shares.
 
 Every function is smooth where its value is (the positive part and the norm are taken
 by the double-`where` pattern, so their derivatives are finite at zero: `jax.grad` of a
@@ -14,6 +15,8 @@ solve through a contact onset is not NaN).
 """
 
 import jax.numpy as jnp
+
+from .._core.friction import friction_ratio
 
 
 def positive_power(x, p):
@@ -47,29 +50,6 @@ def safe_norm(x):
     squared = jnp.sum(x * x, axis=-1)
     pos = squared > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, squared, 1.0)), 0.0)
-
-
-def friction_coefficient(s, kinetic, static):
-    r"""`μ(s)`, the regularized friction coefficient at the slip speed `s = |v_t|/v_s`:
-
-    $$
-    μ(s) = \begin{cases} μ_s\, s(2 − s) & s ≤ 1 \\
-    μ_s − (μ_s − μ)\,x^2(3 − 2x),\ x = (s − 1)/2 & 1 < s < 3 \\
-    μ & s ≥ 3 \end{cases}
-    $$
-
-    continuous with its first derivative, `μ(0) = 0`, `μ'(0) = 2 μ_s`."""
-    low = static * s * (2.0 - s)
-    x = jnp.clip((s - 1.0) / 2.0, 0.0, 1.0)
-    high = static - (static - kinetic) * x * x * (3.0 - 2.0 * x)
-    return jnp.where(s <= 1.0, low, high)
-
-
-def friction_ratio(s, kinetic, static):
-    """`μ(s)/s` (finite at `s = 0`, where it is `2 μ_s`)."""
-    low = static * (2.0 - s)
-    safe = jnp.maximum(s, 1.0)
-    return jnp.where(s <= 1.0, low, friction_coefficient(safe, kinetic, static) / safe)
 
 
 def friction_force(v_t, f_n, kinetic, static, stiction_velocity):

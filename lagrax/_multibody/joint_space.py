@@ -13,7 +13,13 @@ entries of `params` (absent: the term is not there and costs nothing):
 - fixed tendons, `L = C θ` (`"tendon"` `(n_t, n_bodies)`: each tendon's coefficients on
   the joints): `"tendon_stiffness"` `(n_t,)` about `"tendon_length"` `(n_t,)`,
   `V ⊃ ½ Σ k_t (L_t − L_0,t)²`, and `"tendon_damping"` `(n_t,)`, Rayleigh `D ⊃ ½ Σ b_t
-  L̇_t²`.
+  L̇_t²`;
+- `"frictionloss"` `(n_bodies,)` with `"friction_velocity"` `()`: MuJoCo's joint friction
+  loss, regularized Coulomb friction with stiction (`lagrax._core.friction`, the law the
+  contacts use): the dissipation `D ⊃ Σ f_i v_s Φ(|θ̇_i|/v_s)`, whose force
+  `−f_i μ̂(|θ̇_i|/v_s) sign(θ̇_i)` is `−f_i sign(θ̇_i)` above `3 v_s` and holds a load
+  below `f_i` by a creep below `v_s` (`"frictionloss_static"` `(n_bodies,)`, optional: a
+  stiction peak `f_s ≥ f` at `v_s`; MuJoCo has none, `f_s = f`).
 
 The springs' generalized force is `∂V_s/∂θ = K_s θ − f_0` with the constant stiffness
 matrix `K_s = diag(k) + Cᵀ diag(k_t) C`: `∂τ/∂q ⊃ K_s` in the derivatives.
@@ -26,8 +32,13 @@ import jax.numpy as jnp
 
 from .._core.checks import param_shapes
 from .._core.custom_types import Params
+from .._core.friction import joint_friction, joint_friction_dissipation
 
-JOINT_KEYS = ("armature", "stiffness", "springref")
+# the default stiction velocity `v_s` of joint friction loss (rad/s or m/s): the creep
+# that holds a load below the friction loss is below it
+FRICTION_VELOCITY = 0.01
+
+JOINT_KEYS = ("armature", "stiffness", "springref", "frictionloss", "frictionloss_static")
 TENDON_KEYS = ("tendon", "tendon_stiffness", "tendon_length", "tendon_damping")
 
 
@@ -47,6 +58,8 @@ def check(params: Params, n_bodies: int) -> None:
     }
     if params.get("stiffness") is not None:
         shapes["springref"] = (n_bodies,)
+    if params.get("frictionloss") is not None:
+        shapes["friction_velocity"] = ()
     if params.get("tendon") is not None:
         n_t = int(jnp.shape(params["tendon"])[0])
         shapes["tendon"] = (n_t, n_bodies)
@@ -108,6 +121,30 @@ def tendon_dissipation(params: Params, theta_d: Any) -> Any:
     if c is None or b is None:
         return 0.0
     return 0.5 * jnp.sum(b * (c @ theta_d) ** 2)
+
+
+def _friction_laws(params: Params, dtype: Any):
+    """`(f, f_s, v_s)` of the joints' friction loss, or `None` without it."""
+    f = _get(params, "frictionloss", dtype)
+    if f is None:
+        return None
+    static = _get(params, "frictionloss_static", dtype)
+    return f, f if static is None else static, jnp.asarray(params["friction_velocity"], dtype)
+
+
+def friction_dissipation(params: Params, theta_d: Any) -> Any:
+    """`Σ f_i v_s Φ(|θ̇_i|/v_s)`, the friction loss's dissipation (`0.0` without)."""
+    laws = _friction_laws(params, theta_d.dtype)
+    if laws is None:
+        return 0.0
+    return jnp.sum(joint_friction_dissipation(theta_d, *laws))
+
+
+def friction_force(params: Params, theta_d: Any) -> jnp.ndarray | None:
+    """`∂D_f/∂θ̇ = f μ̂(s) sign(θ̇)` (the friction loss's force is its negative), with
+    its analytic derivative as its JVP; `None` without friction loss."""
+    laws = _friction_laws(params, theta_d.dtype)
+    return None if laws is None else joint_friction(theta_d, *laws)
 
 
 def with_armature(mass: Any, params: Params, offset: int = 0) -> Any:

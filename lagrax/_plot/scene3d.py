@@ -305,7 +305,8 @@ def camera_commands(members: list[Poses], offsets: np.ndarray) -> list[dict]:
 _PAGE = """<!DOCTYPE html>
 <html>
 <head><meta charset="utf-8"><title>{title}</title>
-<style>body {{ margin: 0; overflow: hidden; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+<style>body {{ margin: 0; overflow: hidden; }}
+#meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
 </style></head>
 <body>
 <div id="meshcat-pane"></div>

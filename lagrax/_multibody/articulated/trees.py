@@ -58,7 +58,8 @@ def _joint_damping(q, qd, params):
         ("damping",),
     )
     tendons = joint_space.tendon_dissipation(params, qd)  # fixed tendons' damping, if any
-    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2) + tendons
+    friction = joint_space.friction_dissipation(params, qd)  # friction loss, if any
+    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2) + tendons + friction
 
 
 class _CoupledDamping(eqx.Module):
@@ -518,6 +519,8 @@ class Tree(AbstractTree):
         armature: Any = None,
         stiffness: Any = None,
         springref: Any = 0.0,
+        frictionloss: Any = None,
+        friction_velocity: Any = joint_space.FRICTION_VELOCITY,
     ) -> dict[str, jnp.ndarray]:
         """Parameters as arrays, broadcast to all `n_bodies` bodies.
 
@@ -531,12 +534,14 @@ class Tree(AbstractTree):
         `lagrax._multibody.joint_space`), left out of the dict unless given:
         `armature` (scalar or `(n,)`: rotor inertia, `M += diag(armature)`),
         `stiffness` and `springref` (scalar or `(n,)`: joint springs
-        `V += ½ Σ k (q − q_ref)²`). Give the tree `joint_terms=True` for its scene's
-        energies to include them.
+        `V += ½ Σ k (q − q_ref)²`), `frictionloss` (scalar or `(n,)`: Coulomb joint
+        friction `f`, regularized with the stiction velocity `friction_velocity`
+        `v_s`, a dissipation; see [`lagrax.chains.from_mjcf`][]). Give the tree
+        `joint_terms=True` for its scene's energies to include armature and springs.
 
         **Returns:** ``{"m": (n,), "offset": (n, 3), "com": (n, 3), "inertia": (n, 3, 3),
-        "damping": (n,), "g": ()}`` (and `"armature"`, `"stiffness"`, `"springref"`
-        where given).
+        "damping": (n,), "g": ()}`` (and `"armature"`, `"stiffness"`, `"springref"`,
+        `"frictionloss"`, `"friction_velocity"` where given).
 
         **Raises:** `ShapeError` if a value does not broadcast; `ParameterError` for a
         negative mass or damping, or an inertia that is not symmetric positive-semidefinite
@@ -556,11 +561,21 @@ class Tree(AbstractTree):
             k = broadcast("stiffness", stiffness, shape, dtype)
             out["stiffness"] = physical(k, "Tree.params stiffness", what="stiffness", item="joint")
             out["springref"] = broadcast("springref", springref, shape, dtype)
+        if frictionloss is not None:
+            f = broadcast("frictionloss", frictionloss, shape, dtype)
+            what = "friction loss"
+            out["frictionloss"] = physical(f, "Tree.params frictionloss", what=what, item="joint")
+            v_s = broadcast("friction_velocity", friction_velocity, (), dtype)
+            what = "stiction velocity"
+            out["friction_velocity"] = physical(
+                v_s, "Tree.params friction_velocity", what=what, positive=True
+            )
         return out
 
     def dissipation(self) -> Callable:
         """Viscous joint damping: the Rayleigh dissipation `½ Σ b_i θ̇_i²` over all
-        joints (`θ̇ = q̇` without mimic joints)."""
+        joints (`θ̇ = q̇` without mimic joints), with fixed tendons' damping and joint
+        friction loss where `params` has them (`lagrax._multibody.joint_space`)."""
         return _CoupledDamping(self) if self.mimic else _joint_damping
 
     def label(self) -> str:

@@ -143,7 +143,8 @@ def _aba(system: Any, q: Any, v: Any, params: Params, force: Any) -> jnp.ndarray
 
 def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
     """`∂D/∂v` of `D = ½ Σ b_j θ̇_j²` over the tree's joints (`θ̇ = J v_joints`, mimic
-    joints included: `Jᵀ (b θ̇)`; the base is free)."""
+    joints included: `Jᵀ (b θ̇)`; the base is free), with the fixed tendons' damping and
+    the joints' friction loss where `params` has them."""
     param_shapes(
         params,
         {"damping": (tree.n_bodies,)},
@@ -156,6 +157,9 @@ def _joint_damping(tree: Tree, params: Params, v: Any) -> jnp.ndarray:
     if params.get("tendon") is not None:  # fixed tendons: ½ Σ b_t (C θ̇)²
         c = jnp.asarray(params["tendon"], v.dtype)
         rates = rates + c.T @ (jnp.asarray(params["tendon_damping"], v.dtype) * (c @ theta_d))
+    friction = js.friction_force(params, theta_d)  # friction loss: f μ̂(s) sign(θ̇)
+    if friction is not None:
+        rates = rates + friction
     if tree.mimic:
         rates = jnp.asarray(tree.coupling_matrix(), v.dtype).T @ rates
     return jnp.concatenate([jnp.zeros(6, v.dtype), rates])

@@ -35,6 +35,7 @@ from ..._core.errors import MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..floating.forest import Forest
+from ..joint_space import FRICTION_VELOCITY
 from ..limits import with_limits
 from .mjcf_equality import constrained, equality_rows
 from .mjcf_parts import split_parts
@@ -55,7 +56,7 @@ def _mujoco():
         ) from None
 
 
-def _quat_matrix(quat: Any) -> np.ndarray:
+def quat_matrix(quat: Any) -> np.ndarray:
     """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
     w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
     return np.array(
@@ -92,6 +93,7 @@ class _Body:
     stiffness: float = 0.0
     springref: float = 0.0
     joint_id: int = -1
+    frictionloss: float = 0.0
     mass: float = 0.0
     moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
@@ -112,6 +114,13 @@ def _load(mujoco, source: Any):
         return load()
     except ValueError as err:
         raise MJCFError(f"MuJoCo cannot compile {what}: {err}".strip()) from None
+
+
+def load_model(source: Any):
+    """`(mujoco, model)`: the `mujoco` module and `source` compiled (a model, XML text or
+    a path; `MJCFError` as `from_mjcf` raises it)."""
+    mujoco = _mujoco()
+    return mujoco, _load(mujoco, source)
 
 
 class _Names:
@@ -162,6 +171,7 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         for what, values, flag in (
             ("damping", model.dof_damping, off.mjDSBL_DAMPER),
             ("armature", model.dof_armature, None),
+            ("friction loss", model.dof_frictionloss, off.mjDSBL_FRICTIONLOSS),
         ):
             if np.any(np.asarray(values)[dofs]) and not (flag and disabled & int(flag)):
                 found.append(
@@ -178,14 +188,12 @@ def _unsupported(mujoco, model, names: _Names) -> list[str]:
         )
     if hasattr(model, "dof_dampingpoly"):
         first_nonzero(model.dof_dampingpoly, "nonlinear joint damping", "dof", off.mjDSBL_DAMPER)
-    first_nonzero(
-        model.dof_frictionloss, "friction loss (a constraint)", "dof", off.mjDSBL_FRICTIONLOSS
-    )
     first_nonzero(model.body_gravcomp, "gravity compensation", "body")
     found += tendons_unsupported(mujoco, model, names)
     if model.opt.density > 0 or model.opt.viscosity > 0:
         found.append(
-            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g})"
+            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g}"
+            "; lagrax.chains.mjcf_fluid loads the model with them as an applied force)"
         )
     return found
 
@@ -196,6 +204,7 @@ def from_mjcf(
     limits: str | None = None,
     restitution: Any = 0.0,
     ignore_unsupported: bool = False,
+    friction_velocity: float = FRICTION_VELOCITY,
     dtype: Any = None,
 ) -> tuple[Tree, dict]:
     r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
@@ -260,14 +269,24 @@ def from_mjcf(
       about `"tendon_length"` (`tendon_lengthspring`), the potential `½ k (L − L_0)²`,
       and `"tendon_damping"`, the dissipation `½ b L̇²`. A fixed or spatial tendon with
       neither carries only a length limit (a MuJoCo constraint, not enforced, as joint
-      limits) and actuators' paths, and adds nothing.
+      limits) and actuators' paths, and adds nothing;
+    - `dof_frictionloss` (`params["frictionloss"]`, with `"friction_velocity"`): Coulomb
+      joint friction, by the regularized law with stiction the contacts use
+      (`lagrax.contact`): the force `−f μ̂(|q̇|/v_s) sign(q̇)` is `−f sign(q̇)` for
+      `|q̇| ≥ v_s`, and a load `τ < f` is held by a creep `|q̇| = v_s (1 − √(1 − τ/f))`
+      below `v_s` (none where friction loss or constraints are disabled). It derives
+      from a dissipation function (so its power is in `Solution.work`), with its
+      analytic derivative. MuJoCo solves friction loss as a soft constraint instead;
+      away from rest (`|q̇| ≥ v_s`) the two forces agree. A small `v_s` makes the
+      equations stiff near rest: an implicit solver (`solver="kvaerno5"`) steps over it.
 
     Not read: geometry and contacts (lagrax has none), actuators (`tau` is the
-    generalized force: MuJoCo's `qfrc_applied`), sensors, `timestep` and the
-    integrator. Joint limits are MuJoCo constraints, inactive inside the range; with
-    `limits="impact"` lagrax stops a joint at them instead (below). The equations agree with
-    MuJoCo's `mj_fullM` and `mj_forward`'s `qacc` with contacts and constraints (limits,
-    friction loss, equality) disabled.
+    generalized force: MuJoCo's `qfrc_applied`; [`lagrax.chains.mjcf_actuation`][] maps
+    MuJoCo's `ctrl` to it), sensors, `timestep` and the integrator. Joint limits are
+    MuJoCo constraints, inactive inside the range; with `limits="impact"` lagrax stops a
+    joint at them instead (below). The equations agree with MuJoCo's `mj_fullM` and
+    `mj_forward`'s `qacc` with contacts and constraints (limits, friction loss,
+    equality) disabled, friction loss taken out of lagrax's too.
 
     **Arguments:**
 
@@ -280,11 +299,13 @@ def from_mjcf(
       [`lagrax.simulate`][]).
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
-    - `ignore_unsupported`: drop what lagrax does not model (friction loss, gravity
-      compensation, spatial tendons with stiffness or damping, tendon armature or
-      friction loss, dead-band or nonlinear springs, fluid forces, damping, armature or
+    - `ignore_unsupported`: drop what lagrax does not model (gravity compensation,
+      spatial tendons with stiffness or damping, tendon armature or friction loss,
+      dead-band or nonlinear springs, fluid forces, damping, armature, friction loss or
       stiffness on a free joint; an equality on a spatial tendon or a flex drops every
       equality) with one `UserWarning` naming each, instead of refusing the model.
+    - `friction_velocity`: the stiction velocity `v_s` of joint friction loss (default
+      0.01: rad/s for a hinge, m/s for a slide).
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
@@ -331,12 +352,14 @@ def from_mjcf(
     parts = split_parts(model, names)
     if not parts:
         raise MJCFError(
-            "the model has no hinge or slide joint and no free joint: there is nothing to move"
+            "the model has no hinge or slide joint and no free joint: there is nothing to "
+            "move (a scene that code fills with bodies, such as dm_control's lqr.xml, loads "
+            "once filled: pass the generated model or XML)"
         )
     robots, all_params, places = [], [], {}
     for k, part in enumerate(parts):
         bodies, base, place = _bodies(model, names, part.free, set(part.bodies))
-        tree, params = _tree_and_params(model, bodies, dtype)
+        tree, params = _tree_and_params(model, bodies, dtype, friction_velocity)
         places.update({b: (k, *place[b]) for b in part.bodies})
         if base is None:
             tree, params = with_limits(tree, params, limits, restitution)
@@ -393,6 +416,22 @@ def _floating(tree: Tree, params: dict, base: "_Body"):
 _WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
 
 
+def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
+    """Each MuJoCo body `b`'s place in `from_mjcf`'s tree of a model of one part (one
+    robot, fixed or floating): `(tree body, rotation, position)` of its frame in the
+    tree body's (tree body −1: the floating base, or the world without one; −2: the
+    world beside a floating base). A model of several parts (a `Forest`) is an
+    `MJCFError`."""
+    names = _Names(_mujoco(), model)
+    parts = split_parts(model, names)
+    if len(parts) != 1:
+        raise MJCFError(
+            f"the model has {len(parts)} parts (free bodies, or robots fixed to the world "
+            "beside them): only a model of one robot is supported here"
+        )
+    return _bodies(model, names, parts[0].free, set(parts[0].bodies))[2]
+
+
 def _bodies(
     model, names: _Names, free: int | None, keep: set[int]
 ) -> tuple[list[_Body], _Body | None, dict]:
@@ -428,7 +467,7 @@ def _bodies(
             continue
         tb, rot, pos = place[int(model.body_parentid[b])]
         pos = pos + rot @ model.body_pos[b]
-        rot = rot @ _quat_matrix(model.body_quat[b])
+        rot = rot @ quat_matrix(model.body_quat[b])
         first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
         for j in range(first, first + count):
             anchor = np.asarray(model.jnt_pos[j], float)
@@ -461,6 +500,7 @@ def _bodies(
                     float(model.jnt_stiffness[j]),
                     float(model.qpos_spring[model.jnt_qposadr[j]]),
                     j,
+                    float(model.dof_frictionloss[model.jnt_dofadr[j]]),
                 )
             )
             tb, rot, pos = len(bodies) - 1, np.eye(3), -anchor
@@ -484,17 +524,17 @@ def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray)
     # then use the body frame itself: so does lagrax (convex meshes: ipos ~1e-9)
     same = int(model.body_sameframe[b]) if hasattr(model, "body_sameframe") else 0
     c = pos + (0.0 if same == 1 else rot @ model.body_ipos[b])
-    r = rot if same in (1, 3) else rot @ _quat_matrix(model.body_iquat[b])
+    r = rot if same in (1, 3) else rot @ quat_matrix(model.body_iquat[b])
     inertia = r @ np.diag(model.body_inertia[b]) @ r.T
     target.mass += mass
     target.moment = target.moment + mass * c
     target.inertia_o = target.inertia_o + inertia + steiner(mass, c)
 
 
-def _joint_terms(model, bodies: list[_Body], dtype: Any) -> dict:
+def _joint_terms(model, bodies: list[_Body], dtype: Any, friction_velocity: float) -> dict:
     """The tree's joint-space params (`lagrax._multibody.joint_space`): `armature`,
-    `stiffness` and `springref` (MuJoCo's `qpos_spring`) where any is nonzero, and the
-    fixed tendons' (`mjcf_tendons`)."""
+    `stiffness` and `springref` (MuJoCo's `qpos_spring`), `frictionloss` (with
+    `friction_velocity`) where any is nonzero, and the fixed tendons' (`mjcf_tendons`)."""
     mujoco = _mujoco()
     disabled = int(model.opt.disableflags)
     out: dict = {}
@@ -507,15 +547,23 @@ def _joint_terms(model, bodies: list[_Body], dtype: Any) -> dict:
     if np.any(stiffness):
         out["stiffness"] = stiffness
         out["springref"] = np.array([b.springref for b in bodies])
+    friction = np.array([b.frictionloss for b in bodies])
+    if np.any(friction) and not disabled & int(
+        mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    ):
+        out["frictionloss"] = friction
+        out["friction_velocity"] = np.asarray(friction_velocity, float)
     out.update(fixed_tendons(mujoco, model, [b.joint_id for b in bodies]))
     dtype = float_dtype(dtype)
     return {k: jnp.asarray(v, dtype) for k, v in out.items()}
 
 
-def _tree_and_params(model, bodies: list[_Body], dtype: Any) -> tuple[Tree, dict]:
+def _tree_and_params(
+    model, bodies: list[_Body], dtype: Any, friction_velocity: float
+) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] and its params from the merged bodies."""
     masses, coms, inertias = about_centres(bodies)
-    terms = _joint_terms(model, bodies, dtype)
+    terms = _joint_terms(model, bodies, dtype, friction_velocity)
     gravity = np.asarray(model.opt.gravity, float)
     g = float(np.linalg.norm(gravity))
     mujoco = _mujoco()

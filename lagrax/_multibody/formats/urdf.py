@@ -22,7 +22,17 @@ from ..._core.errors import URDFError, URDFWarning
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
-from .urdf_elements import MOVING, Body, JointElement, keep_links, parse, read_inertial, structure
+from .urdf_elements import (
+    MOVING,
+    Body,
+    JointElement,
+    floating_joint,
+    keep_links,
+    parse,
+    planar_parts,
+    read_inertial,
+    structure,
+)
 
 
 def from_urdf(
@@ -42,7 +52,11 @@ def from_urdf(
 ) -> tuple[Tree, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
-    Each revolute, continuous or prismatic joint becomes a body of the tree (bodies are
+    Each revolute, continuous or prismatic joint becomes a body of the tree, a planar
+    joint three (a slide along `name/x` and `name/y` in its plane, then a continuous
+    rotation `name` about its axis: `q = (x, y, θ)`, the translation in the joint's
+    frame; Pinocchio's planar joint has `(x, y, cos θ, sin θ)` with the velocity in the
+    moving frame) (bodies are
     numbered depth-first from the root, children in file order), with its
     `<origin xyz rpy>` as the placement (`offset` in `params`, the rotation
     `Rz(yaw) Ry(pitch) Rx(roll)` in the structure), its `<axis>`, `<limit>` (kept in
@@ -136,7 +150,10 @@ def from_urdf(
       acts on its joint alone, not on the base). A robot with no moving joint (a single
       rigid body: a quadrotor, every link fixed to the root) is the base alone, a
       `FloatingTree` of a [`Tree`][lagrax.chains.Tree] with no joints: `q = (x, y, z,
-      qx, qy, qz, qw)`, `v = (v_b, ω_b)`.
+      qx, qy, qz, qw)`, `v = (v_b, ω_b)`. A URDF `floating` joint from the root link
+      (a world link, carrying nothing else) with no `<origin>` offset is the same: its
+      child becomes the floating base (as Pinocchio reads it, a free flyer), with or
+      without `floating_base=True`.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
@@ -147,7 +164,8 @@ def from_urdf(
     `<inertial>`, a negative mass, an inertia that is not positive-semidefinite (or,
     with `strict_inertia`, violates the triangle inequality), a joint that moves no
     mass (a singular mass matrix), a link with two parents, a loop, several roots
-    without `root=`, an unknown joint type, a floating or planar joint (not supported), a
+    without `root=`, an unknown joint type, a locked planar joint, several
+    floating joints or one that is not the root's only joint with an identity origin, a
     mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
     loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
     that is not finite, a robot with no moving joint below `root` on a fixed base (a
@@ -166,6 +184,8 @@ def from_urdf(
     ```
     """
     links, joints = parse(_read(source))
+    joints, root, floating = floating_joint(joints, root)
+    floating_base = floating_base or floating
     _lock(joints, locked)
     root, parent_of, children = structure(links, joints, root)
     keep = keep_links(root, tip, links, parent_of, children)
@@ -222,6 +242,8 @@ def _lock(joints: list[JointElement], locked: Mapping[str, float] | None) -> Non
             )
         if j.kind == "fixed":
             raise URDFError(f"locked: joint {name!r} is a fixed joint already")
+        if j.kind == "planar":
+            raise URDFError(f"locked: joint {name!r} is planar (three coordinates)")
         if j.mimic is not None:
             raise URDFError(
                 f"locked: joint {name!r} mimics joint {j.mimic[0]!r}; lock its master "
@@ -318,6 +340,11 @@ def _place_bodies(root: str, keep: set, children: dict) -> tuple[list[Body], _Pl
             joint_rot, joint_pos = rot @ j.rot, pos + rot @ j.xyz
             if j.kind == "fixed":
                 place[link] = (body, joint_rot, joint_pos)
+            elif j.kind == "planar":  # three bodies in a row, the link on the last
+                for k, part in enumerate(planar_parts(j)):
+                    at = (joint_rot, joint_pos) if k == 0 else (part.rot, part.xyz)
+                    bodies.append(Body(part, body if k == 0 else len(bodies) - 1, *at))
+                place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))
             else:
                 bodies.append(Body(j, body, joint_rot, joint_pos))
                 place[link] = (len(bodies) - 1, np.eye(3), np.zeros(3))

@@ -15,11 +15,6 @@ from ..._core.errors import ParameterError, URDFError, URDFWarning
 from ..inertia import check_inertia
 
 MOVING = {"revolute": "R", "continuous": "R", "prismatic": "P"}
-_UNSUPPORTED = {
-    "floating": "a floating joint is not supported yet (lagrax trees are fixed to the world)",
-    "planar": "planar joints are not supported (model them as two prismatic joints and a "
-    "revolute one)",
-}
 
 
 def rpy_matrix(rpy: Any) -> np.ndarray:
@@ -168,12 +163,10 @@ def _joint(element: ET.Element, links: dict) -> JointElement:
         raise URDFError("a <joint> has no name attribute")
     where = f"joint {name!r}"
     kind = element.get("type")
-    if kind in _UNSUPPORTED:
-        raise URDFError(f"{where} has type {kind!r}: {_UNSUPPORTED[kind]}")
-    if kind not in (*MOVING, "fixed"):
+    if kind not in (*MOVING, "fixed", "floating", "planar"):
         raise URDFError(
             f"{where} has unknown type {kind!r}; URDF joints are revolute, continuous, "
-            "prismatic, fixed (and floating, planar: not supported)"
+            "prismatic, fixed, floating and planar"
         )
     ends = []
     for tag in ("parent", "child"):
@@ -186,11 +179,11 @@ def _joint(element: ET.Element, links: dict) -> JointElement:
         ends.append(link)
     xyz, rot = _origin(element, where)
     axis = np.asarray(_floats(element.find("axis"), "xyz", np.array([1.0, 0, 0]), 3, where))
-    if kind in MOVING and np.linalg.norm(axis) == 0:
+    if kind in (*MOVING, "planar") and np.linalg.norm(axis) == 0:
         raise URDFError(f"{where}: its <axis xyz> is the zero vector")
     joint = JointElement(name, kind, ends[0], ends[1], xyz, rot, axis)
     mimic = element.find("mimic")
-    if mimic is not None and kind != "fixed":
+    if mimic is not None and kind in MOVING:
         master = mimic.get("joint")
         if not master:
             raise URDFError(f"{where}: its <mimic> has no joint=... (the joint it follows)")
@@ -198,7 +191,7 @@ def _joint(element: ET.Element, links: dict) -> JointElement:
         offset = float(_floats(mimic, "offset", 0.0, 1, where))
         joint.mimic = (master, multiplier, offset)
     limit = element.find("limit")
-    if limit is not None and kind != "fixed":
+    if limit is not None and kind in MOVING:
         if kind != "continuous":
             lower = _floats(limit, "lower", 0.0, 1, where)
             upper = _floats(limit, "upper", 0.0, 1, where)
@@ -262,6 +255,66 @@ def parse(text: str) -> tuple[dict, list[JointElement]]:
         if names.count(name) > 1:
             raise URDFError(f"joint {name!r} is defined twice")
     return links, joints
+
+
+def planar_parts(j: JointElement) -> list[JointElement]:
+    """A `planar` joint (motion in the plane normal to its axis) as three joints in a
+    row: slides along two directions of the plane (`name/x`, `name/y`, in the joint's
+    frame), then a continuous rotation about the axis (`name`): `q = (x, y, θ)`, the
+    translation in the joint's frame (Pinocchio's planar joint has `(x, y, cos θ,
+    sin θ)`, with the velocity in the moving frame)."""
+    normal = j.axis / np.linalg.norm(j.axis)
+    seed = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    e1 = np.cross(normal, seed)
+    e1 = e1 / np.linalg.norm(e1)
+    if np.allclose(np.abs(normal), [0.0, 0.0, 1.0]):
+        e1 = np.array([1.0, 0.0, 0.0])  # the joint frame's own x and y in the xy plane
+    e2 = np.cross(normal, e1)
+    zero, eye = np.zeros(3), np.eye(3)
+    parts = [
+        JointElement(f"{j.name}/x", "prismatic", j.parent, f"{j.child}/x", j.xyz, j.rot, e1),
+        JointElement(f"{j.name}/y", "prismatic", f"{j.child}/x", f"{j.child}/y", zero, eye, e2),
+        JointElement(j.name, "continuous", f"{j.child}/y", j.child, zero, eye, normal),
+    ]
+    for part in parts:
+        part.damping = j.damping
+    return parts
+
+
+def floating_joint(
+    joints: list[JointElement], root: str | None
+) -> tuple[list[JointElement], str | None, bool]:
+    """`(joints, root, floating)`: a URDF `floating` joint (Pinocchio's free flyer) from
+    the root link (a world link, carrying nothing else) with an identity origin is the
+    floating base at its child: the joints without it, the child as the root, `True`;
+    without one, the arguments and `False`. `URDFError` for several floating joints, or
+    one elsewhere (below a moving joint, beside other joints on its parent, or with an
+    `<origin>` offset)."""
+    free = [j for j in joints if j.kind == "floating"]
+    if not free:
+        return joints, root, False
+    joint = free[0]
+    where = f"floating joint {joint.name!r}"
+    if len(free) > 1:
+        raise URDFError(
+            f"the URDF has {len(free)} floating joints ({joint.name!r}, {free[1].name!r}, "
+            "...): lagrax loads one floating base"
+        )
+    if any(j.child == joint.parent for j in joints):
+        raise URDFError(f"{where}: its parent link {joint.parent!r} is not the root link")
+    if any(j.parent == joint.parent and j is not joint for j in joints):
+        raise URDFError(
+            f"{where}: its parent link {joint.parent!r} carries other joints too; lagrax "
+            "loads a floating robot or a robot fixed to the world, not both"
+        )
+    if np.any(joint.xyz != 0) or not np.allclose(joint.rot, np.eye(3), atol=0):
+        raise URDFError(
+            f"{where} has an <origin> offset; a floating base starts at the world's frame "
+            "(move the offset into the initial state)"
+        )
+    if root not in (None, joint.parent, joint.child):
+        raise URDFError(f"root={root!r} is not the floating base {joint.child!r} of the {where}")
+    return [j for j in joints if j is not joint], joint.child, True
 
 
 def structure(links: dict, joints: list[JointElement], root: str | None) -> tuple[str, dict, dict]:

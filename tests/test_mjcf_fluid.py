@@ -1,0 +1,99 @@
+"""MuJoCo's inertia-box fluid model as ``lagrax.chains.mjcf_fluid``'s applied force.
+
+- The swimmer as its task builds it (6 links on a planar base of two slides and a
+  hinge) and the fish (a free body with 7 hinges), with the files' density and a
+  viscosity and wind added (every term of the model acts): the generalized force
+  against MuJoCo's ``qfrc_fluid`` at a random state, to round-off; the fish through
+  ``from_mujoco_state`` (the base's force rotated as its velocity is).
+- Dissipative: without wind the force's power ``q̇·τ`` is negative.
+- ``∂τ/∂q̇`` (autodiff) against central differences.
+- The shipped files are refused by ``from_mjcf``, naming the fluid and ``mjcf_fluid``,
+  and load through it; MuJoCo's ellipsoid model is refused by name.
+"""
+
+import warnings
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+from lagrax.chains import from_mjcf, from_mujoco_state, mjcf_fluid
+
+mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for its fluid model")
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")  # dm_control's renderer looks for a display
+    suite = pytest.importorskip("dm_control.suite", reason="dm_control ships the models")
+    fish = pytest.importorskip("dm_control.suite.fish")
+    swimmer = pytest.importorskip("dm_control.suite.swimmer")
+
+
+def _model(name: str, viscosity: float = 0.3, wind=(0.2, -0.4, 0.1)):
+    xml, assets = (
+        swimmer.get_model_and_assets(6) if name == "swimmer" else fish.get_model_and_assets()
+    )
+    model = mujoco.MjModel.from_xml_string(xml, assets)
+    model.opt.viscosity, model.opt.wind[:] = viscosity, wind
+    return model
+
+
+def _state(model, seed: int):
+    rng = np.random.default_rng(seed)
+    data = mujoco.MjData(model)
+    free = int(model.jnt_type[0]) == 0
+    data.qpos[:] = model.qpos0
+    if free:
+        quat = rng.normal(size=4)
+        data.qpos[3:7] = quat / np.linalg.norm(quat)
+    data.qpos[7 if free else 0 :] += rng.uniform(-0.5, 0.5, model.nq - (7 if free else 0))
+    data.qvel[:] = rng.uniform(-1.0, 1.0, model.nv)
+    mujoco.mj_forward(model, data)
+    if not free:
+        return jnp.asarray(data.qpos), jnp.asarray(data.qvel), np.array(data.qfrc_fluid)
+    q, v = from_mujoco_state(data.qpos, data.qvel)
+    rot = data.xmat[model.jnt_bodyid[0]].reshape(3, 3)
+    ref = np.concatenate([rot.T @ data.qfrc_fluid[:3], data.qfrc_fluid[3:]])
+    return q, v, ref
+
+
+@pytest.mark.parametrize("name", ["swimmer", "fish"])
+def test_fluid_force_matches_mujoco(name):
+    model = _model(name)
+    robot, params, fluid = mjcf_fluid(model)
+    assert isinstance(robot, lx.chains.FloatingTree) == (name == "fish")
+    force = jax.jit(lambda q, v, p: fluid(q, v, p))
+    for seed in range(2):
+        q, v, ref = _state(model, seed)
+        err = np.max(np.abs(np.asarray(force(q, v, params)) - ref)) / np.max(np.abs(ref))
+        assert err < 1e-12, err
+
+
+def test_fluid_force_dissipates_and_its_jacobian():
+    model = _model("swimmer", wind=(0.0, 0.0, 0.0))
+    _, params, fluid = mjcf_fluid(model)
+    q, v, _ = _state(model, 3)
+    force = jax.jit(lambda q, v, p: fluid(q, v, p))
+    for scale in (0.1, 1.0, 3.0):
+        assert float(v @ force(q, scale * v, params)) < 0.0
+    jac = jax.jit(jax.jacfwd(lambda a, b: fluid(a, b, params), argnums=1))(q, v)
+    h, e = 1e-6, jnp.eye(len(v))
+    fd = jnp.stack([(force(q, v + h * e[i], params) - force(q, v - h * e[i], params)) / (2 * h)
+                    for i in range(len(v))], axis=1)  # fmt: skip
+    assert float(jnp.max(jnp.abs(jac - fd))) < 1e-7 * max(1.0, float(jnp.max(jnp.abs(jac))))
+
+
+def test_shipped_files_point_to_mjcf_fluid():
+    path = suite.__path__[0] + "/swimmer.xml"
+    with pytest.raises(lx.MJCFError, match="fluid forces .*mjcf_fluid"):
+        from_mjcf(path)
+    robot, _, fluid = mjcf_fluid(path)
+    assert robot.n == 3 and fluid.box.shape == (1, 3)  # the head on its planar base
+
+
+def test_ellipsoid_fluid_model_is_refused():
+    text = """<mujoco><option density="1000"/><worldbody><body><joint axis="0 0 1"/>
+      <geom type="box" size="0.1 0.05 0.02" fluidshape="ellipsoid"/></body></worldbody>
+      </mujoco>"""
+    with pytest.raises(lx.MJCFError, match="ellipsoid fluid model"):
+        mjcf_fluid(text)
