@@ -225,3 +225,20 @@ def test_nonlinear_motion_follows_the_linearization(bicycle):
     assert abs(rate - eigs[k].real) < 1e-3 * abs(eigs[k].real), (rate, eigs[k])
     others = np.delete(np.abs(modes), [k, int(np.argmin(eigs.imag))], axis=1)
     assert np.max(others) < 1e-3 * np.abs(modes[0, k])
+
+
+def test_benchmark_baseline_is_sympys_published_linearization():
+    """`benchmarks/bench_bicycle.py --quick` checks lagrax against the `A(v)` SymPy's
+    test_kane3 hard-codes: as transcribed there, its eigenvalues are Table 2's."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_bicycle.py"
+    spec = importlib.util.spec_from_file_location("bench_bicycle", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    speeds = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    expected = [[re + 1j * im, re - 1j * im, cap, cas] for re, im, cap, cas in
+                (TABLE2[int(v)] for v in speeds)]  # fmt: skip
+    assert bench.largest_difference(bench.published_eigenvalues(speeds), expected) < 1e-10
