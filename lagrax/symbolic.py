@@ -29,7 +29,8 @@ print(lx.symbolic.c_code(eq, prefix="arm").source)   # C for an embedded control
 Errors: [`UnsupportedPrimitiveError`][lagrax.symbolic.UnsupportedPrimitiveError] names a JAX
 operation without an exact SymPy meaning;
 [`ExpressionSizeError`][lagrax.symbolic.ExpressionSizeError] names an expression past the size
-or time budget. Both are
+or time budget; [`ConstrainedSystemError`][lagrax.symbolic.ConstrainedSystemError] refuses
+a `ConstrainedSystem` and names its parts to use instead. All are
 [`SymbolicError`][lagrax.symbolic.SymbolicError]s (a `lagrax.LagraxError`).
 
 SymPy is imported on first use: `pip install "lagrax[symbolic]"`.
@@ -49,6 +50,7 @@ from ._symbolic.derivations import planar_2r_scene as planar_2r_scene
 from ._symbolic.derivations import slide_2r as slide_2r
 from ._symbolic.equations import Equations as Equations
 from ._symbolic.equations import equations as equations
+from ._symbolic.errors import ConstrainedSystemError as ConstrainedSystemError
 from ._symbolic.errors import ExpressionSizeError as ExpressionSizeError
 from ._symbolic.errors import SymbolicError as SymbolicError
 from ._symbolic.errors import SympyMissingError as SympyMissingError
@@ -79,4 +81,5 @@ __all__ = [
     "UnsupportedPrimitiveError",
     "ExpressionSizeError",
     "SympyMissingError",
+    "ConstrainedSystemError",
 ]

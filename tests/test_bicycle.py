@@ -187,7 +187,10 @@ def test_nonlinear_motion_follows_the_linearization(bicycle):
     """The nonlinear constrained bicycle at 5 m/s, kicked by a lean rate of 1e-4 rad/s,
     leans as `exp(A t) δx₀` of the steady-motion linearization predicts (the weave and
     capsize modes decaying), to 1e-7 relative (measured 4e-9: the nonlinear terms and
-    the integrator's tolerance)."""
+    the integrator's tolerance). Such a kick excites all modes, and after the weave has
+    died out the slower capsize mode (−0.32/s against the weave's −0.78/s) is what is
+    left; started along the weave's eigenvector, the motion decays at the weave's rate,
+    to 1e-3 relative (the issue's target)."""
     scipy_linalg = pytest.importorskip("scipy.linalg")
     system, params = bicycle
     q = jnp.zeros(8)
@@ -201,3 +204,41 @@ def test_nonlinear_motion_follows_the_linearization(bicycle):
     x0[7] = kick  # the lean rate in the state (q_i, u_i)
     lean = [(scipy_linalg.expm(np.asarray(a_mat) * t) @ x0)[3] for t in np.asarray(sol.ts)]
     assert _rel(sol.q[:, 3], lean) < 1e-7
+
+    # along the weave's eigenvector (lean 1e-4 rad, its steer and rates; the pitch and
+    # the dependent speeds projected onto the constraints), the nonlinear motion decays at
+    # the weave's rate: its modal coordinate `wᴴ x(t)` (`w` the left eigenvector) shrinks
+    # as `exp(Re λ_w t)` (notebook 10 measures 1e-7 relative), the other modes stay
+    # unexcited
+    block = np.array([3, 4, 7, 8])  # lean, steer and their rates in (q_i, u_i)
+    a4 = np.asarray(a_mat)[np.ix_(block, block)]
+    eigs, right = np.linalg.eig(a4)
+    left = np.linalg.inv(right)  # rows: left eigenvectors, normalized against right
+    k = int(np.argmax(eigs.imag))
+    x0 = 1e-4 * np.real(right[:, k] / right[0, k])
+    q0 = q.at[3].set(x0[0]).at[5].set(x0[1])
+    q0, qd0 = system.project(q0, qd.at[3].set(x0[2]).at[5].set(x0[3]), params)
+    sol = lx.simulate(system, q0, qd0, params, t1=4.0, n_save=41, rtol=1e-11, atol=1e-13)
+    x = np.asarray(jnp.stack([sol.q[:, 3], sol.q[:, 5], sol.qd[:, 3], sol.qd[:, 5]], axis=-1))
+    modes = x @ left.T
+    rate = np.polyfit(np.asarray(sol.ts), np.log(np.abs(modes[:, k])), 1)[0]
+    assert abs(rate - eigs[k].real) < 1e-3 * abs(eigs[k].real), (rate, eigs[k])
+    others = np.delete(np.abs(modes), [k, int(np.argmin(eigs.imag))], axis=1)
+    assert np.max(others) < 1e-3 * np.abs(modes[0, k])
+
+
+def test_benchmark_baseline_is_sympys_published_linearization():
+    """`benchmarks/bench_bicycle.py --quick` checks lagrax against the `A(v)` SymPy's
+    test_kane3 hard-codes: as transcribed there, its eigenvalues are Table 2's."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_bicycle.py"
+    spec = importlib.util.spec_from_file_location("bench_bicycle", path)
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    speeds = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    expected = [[re + 1j * im, re - 1j * im, cap, cas] for re, im, cap, cas in
+                (TABLE2[int(v)] for v in speeds)]  # fmt: skip
+    assert bench.largest_difference(bench.published_eigenvalues(speeds), expected) < 1e-10

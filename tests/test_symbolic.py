@@ -572,8 +572,10 @@ def test_params_that_are_not_a_dict_of_numbers(params, match):
 
 def test_other_bad_arguments():
     system, params = lx.models.cartesian_pendulum()
-    with pytest.raises(lx.ArgumentTypeError, match="LagrangianSystem"):
+    with pytest.raises(lx.ArgumentTypeError, match="is a ConstrainedSystem"):
         sym.equations(system, params)
+    with pytest.raises(lx.ArgumentTypeError, match="needs a lagrax.LagrangianSystem"):
+        sym.equations(system.system.kinetic, params)
     with pytest.raises(lx.ConfigurationError, match="coordinates"):
         sym.equations(_pendulum(), {"m": 1.0}, coordinates=("x", "y"))
     with pytest.raises(lx.ConfigurationError, match="not keys of params"):
@@ -601,3 +603,77 @@ def test_missing_sympy_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "sympy", None)  # `import sympy` now raises ImportError
     with pytest.raises(sym.SympyMissingError, match=r'pip install "lagrax\[symbolic\]"'):
         sym.equations(_pendulum(), {"m": 1.0})
+
+
+# ------------------------------------------------- constrained systems: refused, by parts
+
+
+def _disk_pose(q, p):
+    """A thin disk rolling on z = 0: q = (x, y, ψ, θ, φ) the contact point, yaw, lean and
+    spin; orientation Rz(ψ) Rx(θ) Ry(φ), centre R above the contact along the lean frame's
+    z axis (the model of tests/test_steady_linearization.py)."""
+
+    def rot(axis, a):
+        c, s = jnp.cos(a), jnp.sin(a)
+        one, zero = 1.0 + 0.0 * a, 0.0 * a
+        rows = {
+            0: [[one, zero, zero], [zero, c, -s], [zero, s, c]],
+            1: [[c, zero, s], [zero, one, zero], [-s, zero, c]],
+            2: [[c, -s, zero], [s, c, zero], [zero, zero, one]],
+        }[axis]
+        return jnp.stack([jnp.stack(r) for r in rows])
+
+    lean = rot(2, q[2]) @ rot(0, q[3])
+    return jnp.stack([q[0], q[1], 0.0 * q[0]]) + p["R"] * lean[:, 2], lean @ rot(1, q[4])
+
+
+def _disk_no_slip(q, p):
+    """The contact point's horizontal material velocity `v_C + ω × (r_P − r_C)` as rows
+    of `A(q)`: the rotation's derivative by `jax.jacfwd`."""
+    centre, rot = _disk_pose(q, p)
+    d_centre, d_rot = jax.jacfwd(lambda a: _disk_pose(a, p))(q)
+    arm = jnp.stack([q[0], q[1], 0.0 * q[0]]) - centre
+    return (d_centre + jnp.einsum("abj,cb,c->aj", d_rot, rot, arm))[:2]
+
+
+def test_constrained_system_is_refused_and_its_parts_match_sympy():
+    """The rolling disk: `equations` refuses it by name; its no-slip constraint `A(q)`,
+    interpreted, equals the velocity constraints SymPy's KanesMethod is given for the same
+    disk (contact velocity by `v2pt` kinematics) and the hand-derived rows."""
+    me = pytest.importorskip("sympy.physics.mechanics")
+    inertia = lambda p: p["m"] * p["R"] ** 2 * jnp.diag(jnp.array([0.25, 0.5, 0.25]))  # noqa: E731
+    free = Scene([SpatialBody(Param("m"), inertia, _disk_pose, None)], gravity=Param("g"), n_dof=5)
+    disk = lx.ConstrainedSystem(free.system(), velocity_constraints=_disk_no_slip, name="disk")
+    params = {"m": 2.0, "R": 0.3, "g": 9.81}
+    with pytest.raises(sym.ConstrainedSystemError, match=r"disk is a ConstrainedSystem.*interpret"):
+        sym.equations(disk, params)
+    assert issubclass(sym.ConstrainedSystemError, lx.ArgumentTypeError)
+
+    q = me.dynamicsymbols("x y psi theta phi")
+    u = me.dynamicsymbols("u1:6")
+    r = sp.Symbol("R", positive=True)
+    n = me.ReferenceFrame("N")
+    lean = n.orientnew("Y", "Axis", [q[2], n.z])
+    lean = lean.orientnew("L", "Axis", [q[3], lean.x])
+    wheel = lean.orientnew("D", "Axis", [q[4], lean.y])
+    to_u = {a.diff(): b for a, b in zip(q, u, strict=True)}
+    wheel.set_ang_vel(n, wheel.ang_vel_in(n).subs(to_u))
+    origin = me.Point("O")
+    origin.set_vel(n, 0)
+    centre = origin.locatenew("C", q[0] * n.x + q[1] * n.y + r * lean.z)
+    centre.set_vel(n, centre.pos_from(origin).dt(n).subs(to_u))
+    contact = me.Point("P")
+    contact.set_pos(centre, -r * lean.z)
+    contact.v2pt_theory(centre, n, wheel)
+    rows = [contact.vel(n).dot(axis) for axis in (n.x, n.y)]
+    expected = sp.Matrix([[sp.diff(row, b) for b in u] for row in rows])
+
+    names = sp.symbols("x y psi theta phi", real=True)
+    to_plain = dict(zip(q, names, strict=True))
+    got = sp.Matrix(sym.interpret(_disk_no_slip, sp.Matrix(names), {"R": r}))
+    zero = sp.zeros(2, 5)
+    assert (got - expected.xreplace(to_plain)).applyfunc(sym.simplify) == zero
+    # and by hand: the contact moves with the spin only, ẋ = R cos ψ φ̇, ẏ = R sin ψ φ̇
+    psi = names[2]
+    by_hand = sp.Matrix([[1, 0, 0, 0, -r * sp.cos(psi)], [0, 1, 0, 0, -r * sp.sin(psi)]])
+    assert (got - by_hand).applyfunc(sym.simplify) == zero

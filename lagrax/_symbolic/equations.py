@@ -29,8 +29,10 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import ArgumentTypeError, ParameterError, ShapeError
+from .._systems.constrained import ConstrainedSystem
 from .._systems.lagrangian import LagrangianSystem
 from .conversions import load_sympy, to_sympy, tree_size
+from .errors import ConstrainedSystemError
 from .interpreter import interpret_arrays
 from .simplification import DEFAULT_MAX_SIZE, DEFAULT_TIMEOUT, Budget, Deadline, check_size
 from .simplification import simplify as simplify_expr
@@ -113,6 +115,25 @@ class Equations:
 
 
 def _check_system(system: Any) -> None:
+    if isinstance(system, ConstrainedSystem):
+        kinds = [
+            kind
+            for kind, fn in (
+                ("holonomic constraints phi(q)", system.constraints),
+                ("velocity constraints A(q) qd = 0", system.velocity_constraints),
+            )
+            if fn is not None
+        ]
+        raise ConstrainedSystemError(
+            f"lagrax.symbolic.equations writes M, C, G of free coordinates; {system.name} "
+            f"is a ConstrainedSystem (with {' and '.join(kinds)}), whose equations also "
+            "need the constraint forces or a reduction to independent speeds, which "
+            "Equations does not hold. Use lagrax.symbolic.equations(system.system, "
+            "params) for the unconstrained M, C, G and lagrax.symbolic.interpret("
+            "system.constraints or system.velocity_constraints, q, params) for phi(q) "
+            "and A(q); ConstrainedSystem.linearize(..., independent=...) gives the "
+            "reduced equations' linearization numerically"
+        )
     if not isinstance(system, LagrangianSystem):
         raise ArgumentTypeError(
             "lagrax.symbolic.equations needs a lagrax.LagrangianSystem (its energies are "
@@ -302,7 +323,8 @@ def equations(
     **Raises:** `UnsupportedPrimitiveError` for an operation of the energies without a
     SymPy meaning (named); `ExpressionSizeError` past `max_size` or `timeout` (naming the
     expression and its size); `ArgumentTypeError` for `params` that is not a dict of
-    numbers, or a system that is not a `LagrangianSystem`; `ParameterError` for a
+    numbers, or a system that is not a `LagrangianSystem` (`ConstrainedSystemError`, one,
+    for a `ConstrainedSystem`: its parts instead); `ParameterError` for a
     parameter an energy reads that `params` lacks; `ShapeError` for an energy that is not a
     scalar (or a force that is not `(n,)`); `ConfigurationError` for coordinates or
     options that do not fit the system; `SympyMissingError` without SymPy.

@@ -1,6 +1,6 @@
 """The errors of `lagrax.symbolic`: each names what it could not do and what to do instead."""
 
-from .._core.errors import LagraxError
+from .._core.errors import ArgumentTypeError, LagraxError
 
 
 class SymbolicError(LagraxError, ValueError):
@@ -25,3 +25,14 @@ class ExpressionSizeError(SymbolicError):
 class SympyMissingError(SymbolicError, ImportError):
     """SymPy, which [`lagrax.symbolic`][] needs, is not installed: `pip install
     "lagrax[symbolic]"`."""
+
+
+class ConstrainedSystemError(SymbolicError, ArgumentTypeError):
+    """[`lagrax.symbolic.equations`][] was given a `ConstrainedSystem` (holonomic or
+    velocity constraints: the rolling disk, the bicycle). Its `Equations` are `M`, `C`, `G`
+    of one set of free coordinates; a constrained system's equations also need the
+    constraint forces (`Jᵀλ`, `Aᵀλ`) or a reduction to independent speeds (Kane's form,
+    through `K_d(q)⁻¹`: rational in sines and cosines, outside the canonical form the
+    simplification works in), which they do not hold. The message says what to use
+    instead: `equations(system.system, params)` for the free `M`, `C`, `G` and
+    [`interpret`][lagrax.symbolic.interpret] for the constraints `φ(q)` and `A(q)`."""
