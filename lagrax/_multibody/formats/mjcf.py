@@ -25,6 +25,7 @@ import importlib
 import math
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,6 +36,8 @@ from ..._core.errors import MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
+from .collision import check_meshes, mjcf_ground, mjcf_points
+from .contact_scene import contact_friction, contact_scene
 from .mjcf_tendons import fixed_tendons, tendons_unsupported
 
 # mujoco.mjtJoint: free, ball, slide, hinge
@@ -199,7 +202,10 @@ def from_mjcf(
     restitution: Any = 0.0,
     ignore_unsupported: bool = False,
     dtype: Any = None,
-) -> tuple[Tree, dict]:
+    contact: bool | Sequence[str] = False,
+    meshes: str = "bounding_sphere",
+    friction: float | None = None,
+) -> tuple[Any, dict]:
     r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
     and its params, built from MuJoCo's compiled model.
 
@@ -249,7 +255,22 @@ def from_mjcf(
       neither carries only a length limit (a MuJoCo constraint, not enforced, as joint
       limits) and actuators' paths, and adds nothing.
 
-    Not read: geometry and contacts (lagrax has none), actuators (`tau` is the
+    **Contact** (`contact=True`, or a list of geom names): each colliding geom
+    (`contype` or `conaffinity` nonzero) on a moving body becomes
+    [`Sphere`][lagrax.contact.Sphere]s fixed to its tree body (by
+    [`body_sphere`][lagrax.contact.body_sphere]): a sphere itself, a box its 8 corners
+    (radius 0), a capsule its 2 end spheres, a cylinder 8 points on each end's rim, an
+    ellipsoid its bounding sphere, a mesh its bounding sphere (`geom_rbound`, about the
+    geom's origin) or its vertices (`meshes="vertices"`). The result is then a
+    [`ContactSystem`][lagrax.contact.ContactSystem] on the model's ground, its first
+    plane geom on the world body (else `z = 0`), with the contact's default coefficients
+    and one friction coefficient per sphere in `params["contact_friction"]`: the larger of
+    the geom's and the ground's sliding friction (`geom_friction[:, 0]`; MuJoCo's rule for
+    geoms of equal priority), or `friction` if given. MuJoCo's torsional and rolling
+    friction, `solref`/`solimp`, `condim` and contacts between the robot's own geoms are
+    not modelled.
+
+    Not read: contacts unless `contact=` (above), actuators (`tau` is the
     generalized force: MuJoCo's `qfrc_applied`), sensors, `timestep` and the
     integrator. Joint limits are MuJoCo constraints, inactive inside the range; with
     `limits="impact"` lagrax stops a joint at them instead (below). The equations agree with
@@ -273,12 +294,20 @@ def from_mjcf(
       damping, armature or stiffness on a free joint) with one `UserWarning` naming
       each, instead of refusing the model.
     - `dtype`: of the params (default float64 with x64).
+    - `contact`: `True` (every colliding geom on a moving body) or the names of the geoms
+      that touch the ground; `False` (default): none. See *Contact* above.
+    - `meshes`: `"bounding_sphere"` (default) or `"vertices"`, how a mesh geom becomes
+      spheres.
+    - `friction`: with `contact`, one friction coefficient for every sphere (default: read
+      from the geoms, as above).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
     joint-space terms above where the model has them); with a free joint, the
     [`FloatingTree`][lagrax.chains.FloatingTree] and the params plus `{"base_m",
-    "base_com", "base_inertia"}`.
+    "base_com", "base_inertia"}`. With `contact`: `(scene, params)`, the
+    `ContactSystem` (`scene.system` the robot's system, `scene.spheres` in geom order)
+    and the params plus `"contact_friction"`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
     message); for a ball joint, naming the joint and its body; for more than one free
@@ -298,6 +327,7 @@ def from_mjcf(
     ```
     """
     mujoco = _mujoco()
+    check_meshes(meshes)
     model = _load(mujoco, source)
     names = _Names(mujoco, model)
     found = _unsupported(mujoco, model, names)
@@ -314,16 +344,21 @@ def from_mjcf(
             stacklevel=2,
         )
     free = _free_body(model, names)
-    bodies, base = _bodies(model, names, free)
+    bodies, base, place = _bodies(model, names, free)
     if not bodies and base is None:
         raise MJCFError(
             "the model has no hinge or slide joint and no free joint: there is nothing to move"
         )
     tree, params = _tree_and_params(model, bodies, dtype)
     if base is None:
-        return with_limits(tree, params, limits, restitution)
-    robot, params = _floating(tree, params, base)
-    return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
+        robot, params = with_limits(tree, params, limits, restitution)
+    else:
+        robot, params = _floating(tree, params, base)
+        params = with_limits(tree, params, limits, restitution)[1]
+    if contact is False or contact is None:
+        return robot, params
+    points = mjcf_points(model, names, place, contact, meshes, base is not None)
+    return contact_scene(robot, params, points, mjcf_ground(model), contact_friction(friction))
 
 
 def _free_body(model, names: _Names) -> int | None:
@@ -380,11 +415,13 @@ def _floating(tree: Tree, params: dict, base: "_Body"):
 _WORLD = -2  # the world's tree body when a free body is the base (tree body −1)
 
 
-def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body], _Body | None]:
+def _bodies(
+    model, names: _Names, free: int | None = None
+) -> tuple[list[_Body], _Body | None, dict]:
     """The tree's bodies, in MuJoCo's joint order, with every MuJoCo body's inertia
-    merged into the tree body that carries it; and with a free body `free`, the floating
+    merged into the tree body that carries it; with a free body `free`, the floating
     base (tree body −1: its frame is the free body's, and it carries the bodies welded
-    to it), else `None`."""
+    to it), else `None`; and each MuJoCo body's place `(tree body, R, p)` in it."""
     bodies: list[_Body] = []
     base = None
     # each MuJoCo body's frame in its tree body's frame (tree body −1: the world, or the
@@ -451,7 +488,7 @@ def _bodies(model, names: _Names, free: int | None = None) -> tuple[list[_Body],
         elif tb == -1 and base is not None:
             _add_inertia(model, b, base, rot, pos)  # welded to the floating base
         # else: welded to the world
-    return bodies, base
+    return bodies, base, place
 
 
 def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray) -> None:
