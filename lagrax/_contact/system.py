@@ -99,6 +99,8 @@ class ContactSystem(AbstractSystem):
 
     Each coefficient is a number or a function `f(params)`: a function reads it from
     `params`, so that `jax.grad` and `sweep` can vary it (`friction=lambda p: p["mu"]`).
+    A function for `friction` or `static_friction` may return one coefficient per
+    sphere, `(S,)` (the model-file loaders' `params["contact_friction"]`).
 
     **Raises:** `ConfigurationError` for a coefficient that is negative or not finite,
     `static_friction < friction`, a sphere whose plane dimension does not match or no
