@@ -276,18 +276,15 @@ class ContactSystem(AbstractSystem):
         in the velocities `v`."""
         rate = self.system.configuration_rate(q, v)
         normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
-        centres, velocities = jax.jvp(lambda a: self.centres(a, params), (q,), (rate,))
-        # the spatial bodies' rotations and their rates in one pass (spheres of one
-        # robot share its kinematics: `body_sphere`)
+        # the centres, and the spatial bodies' rotations, with their rates in one pass
+        # (the spheres of one robot then share its kinematics: `body_sphere`)
         turning = [i for i, s in enumerate(self.spheres) if s.rotation is not None and s.radius > 0]
-        if turning:
 
-            def rotations(a):
-                return jnp.stack(
-                    [jnp.asarray(self.spheres[i].rotation(a, params)) for i in turning]
-                )
+        def placed(a):
+            rotations = [jnp.asarray(self.spheres[i].rotation(a, params)) for i in turning]
+            return self.centres(a, params), jnp.stack(rotations) if turning else None
 
-            rots, rot_dots = jax.jvp(rotations, (q,), (rate,))
+        (centres, rots), (velocities, rot_dots) = jax.jvp(placed, (q,), (rate,))
         out = []
         for i, s in enumerate(self.spheres):
             vel = velocities[i]

@@ -60,10 +60,7 @@ def contact_scene(
             "of the names given), so nothing can touch the ground"
         )
     floating = isinstance(robot, FloatingTree)
-    spheres = [
-        body_sphere(robot, p.body if floating or p.body >= 0 else 0, p.radius, p.offset)
-        for p in points
-    ]
+    spheres = [body_sphere(robot, p.body, p.radius, p.offset) for p in points]
     normal, offset, ground_mu = ground
     coefficients = []
     for p in points:
