@@ -1,5 +1,6 @@
 """Spheres fixed to a tree's bodies, by name, from the kinematics the recursions use."""
 
+import weakref
 from typing import Any
 
 import jax
@@ -32,20 +33,23 @@ def _index(names: tuple[str, ...], body: Any, base: str | None) -> int:
     raise ArgumentTypeError(f"body must be a body's name or index, got {body!r}")
 
 
-_LAST: list = [None]  # the last (tree, q, params, frames) that _frames computed
+_LAST: list = [None]  # the last (tree (weakly), q, params, frames) that _frames computed
 
 
 def _frames(tree: AbstractTree, q: Any, params: Any, floating: bool):
     """`tree.frames` at the joints of `q` (a floating base's: `q[7:]`), computed once for
-    the same `q` and `params` objects (the spheres of one robot at one state: a
-    `ContactSystem` passes each sphere the same arrays or tracers), so that `S` spheres
-    trace the tree's kinematics once, not `S` times. Objects compared by identity: a
-    new state, a new trace or other params compute anew."""
+    the same traced `q` and `params` (the spheres of one robot at one state: a
+    `ContactSystem` passes each sphere the same tracers), so that `S` spheres trace the
+    tree's kinematics once, not `S` times. Objects compared by identity: a
+    new state, a new trace or other params compute anew (the tree is held weakly, so the
+    cache keeps no model alive)."""
+    if not isinstance(q, jax.core.Tracer):  # eager: params may change between calls
+        return tree.frames(q[7:] if floating else q, params)
     last = _LAST[0]
-    if last is not None and last[0] is tree and last[1] is q and last[2] is params:
+    if last is not None and last[0]() is tree and last[1] is q and last[2] is params:
         return last[3]
     out = tree.frames(q[7:] if floating else q, params)
-    _LAST[0] = (tree, q, params, out)
+    _LAST[0] = (weakref.ref(tree), q, params, out)
     return out
 
 
