@@ -225,3 +225,28 @@ def test_mjcf_friction_is_the_one_mujocos_contacts_carry():
     expected = np.concatenate([_geom_spheres(model, data, g)[0] for g in geoms])
     found = jax.jit(scene.centres)(jnp.asarray(data.qpos), params)
     np.testing.assert_allclose(found, expected, atol=1e-12)
+
+
+def test_a_mesh_is_its_bounding_sphere_or_its_hull_vertices(tmp_path):
+    """A box written as a mesh file (found relative to the URDF, scaled): its bounding
+    sphere is centred on the box with its half-diagonal as radius; its convex hull's
+    vertices are its 8 corners, where the same box as a `<box>` puts them."""
+    half = np.array([0.1, 0.05, 0.03])
+    trimesh.creation.box(extents=[2.0, 2.0, 2.0]).export(tmp_path / "block.stl")
+    mesh = f'<mesh filename="block.stl" scale="{half[0]} {half[1]} {half[2]}"/>'
+    (tmp_path / "robot.urdf").write_text(_SHAPES.replace('<box size="0.2 0.1 0.06"/>', mesh))
+    kw = dict(floating_base=True, contact=["base"])
+    sphere, params = lx.chains.from_urdf(str(tmp_path / "robot.urdf"), **kw)
+    hull, _ = lx.chains.from_urdf(str(tmp_path / "robot.urdf"), meshes="vertices", **kw)
+    box, _ = lx.chains.from_urdf(_SHAPES, **kw)  # the same box as a <box>
+    model = pin.buildModelFromXML(_SHAPES, pin.JointModelFreeFlyer())
+    q = _random_q(model, np.random.default_rng(5))
+    corners = np.asarray(jax.jit(box.centres)(q, params))
+    found = np.asarray(jax.jit(hull.centres)(q, params))
+    assert len(hull.spheres) == 8 and all(s.radius == 0.0 for s in hull.spheres)
+    order = lambda x: x[np.lexsort(np.round(x, 9).T)]  # noqa: E731
+    np.testing.assert_allclose(order(found), order(corners), atol=1e-12)
+    assert len(sphere.spheres) == 1
+    assert abs(sphere.spheres[0].radius - np.linalg.norm(half)) < 1e-12
+    centre = np.asarray(jax.jit(sphere.centres)(q, params))[0]
+    np.testing.assert_allclose(centre, corners.mean(axis=0), atol=1e-12)
