@@ -20,9 +20,9 @@ sol.contact_force[:, 0]   # the force on the ball's contact point along the way
 robot's foot), from the tree's own kinematics.
 """
 
-from ._contact.bodies import body_sphere as body_sphere
 from ._contact.geometry import Plane as Plane
 from ._contact.geometry import Sphere as Sphere
 from ._contact.system import ContactSystem as ContactSystem
+from ._multibody.spheres import body_sphere as body_sphere
 
 __all__ = ["ContactSystem", "Plane", "Sphere", "body_sphere"]

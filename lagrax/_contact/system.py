@@ -99,6 +99,8 @@ class ContactSystem(AbstractSystem):
 
     Each coefficient is a number or a function `f(params)`: a function reads it from
     `params`, so that `jax.grad` and `sweep` can vary it (`friction=lambda p: p["mu"]`).
+    A function for `friction` or `static_friction` may return one coefficient per
+    sphere, `(S,)` (the model-file loaders' `params["contact_friction"]`).
 
     **Raises:** `ConfigurationError` for a coefficient that is negative or not finite,
     `static_friction < friction`, a sphere whose plane dimension does not match or no
@@ -274,7 +276,15 @@ class ContactSystem(AbstractSystem):
         in the velocities `v`."""
         rate = self.system.configuration_rate(q, v)
         normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
-        centres, velocities = jax.jvp(lambda a: self.centres(a, params), (q,), (rate,))
+        # the centres, and the spatial bodies' rotations, with their rates in one pass
+        # (the spheres of one robot then share its kinematics: `body_sphere`)
+        turning = [i for i, s in enumerate(self.spheres) if s.rotation is not None and s.radius > 0]
+
+        def placed(a):
+            rotations = [jnp.asarray(self.spheres[i].rotation(a, params)) for i in turning]
+            return self.centres(a, params), jnp.stack(rotations) if turning else None
+
+        (centres, rots), (velocities, rot_dots) = jax.jvp(placed, (q,), (rate,))
         out = []
         for i, s in enumerate(self.spheres):
             vel = velocities[i]
@@ -282,11 +292,9 @@ class ContactSystem(AbstractSystem):
             if s.angle is not None and s.radius > 0:
                 _, omega = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
                 vel = vel + omega * jnp.stack([-arm[1], arm[0]])
-            if s.rotation is not None and s.radius > 0:
-                rot, rot_dot = jax.jvp(
-                    lambda a, s=s: jnp.asarray(s.rotation(a, params)), (q,), (rate,)
-                )
-                w = rot_dot @ rot.T  # [ω]× in the world frame
+            if i in turning:
+                k = turning.index(i)
+                w = rot_dots[k] @ rots[k].T  # [ω]× in the world frame
                 omega = 0.5 * jnp.stack([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1]])
                 vel = vel + jnp.cross(omega, arm)
             out.append(vel)
@@ -310,7 +318,9 @@ class ContactSystem(AbstractSystem):
         mus = mu if self.static_friction is None else value(self.static_friction)
         good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
         good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
-        return Coefficients(k, c, mu, mus, vs, ok & jnp.all(jnp.stack(good)))
+        # (a friction read from params may be one coefficient per sphere, `(S,)`)
+        valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
+        return Coefficients(k, c, mu, mus, vs, ok & valid)
 
     # ------------------------------------------------------------ forces
     def contact_state(self, q, v, params):
@@ -407,14 +417,17 @@ class ContactSystem(AbstractSystem):
             ("static_friction", co.static_friction, ">= friction"),
             ("stiction_velocity", co.stiction_velocity, "> 0"),
         )
-        for label, x, rule in named:
-            x = float(x)
-            bad = not math.isfinite(x) or x < 0 or (rule == "> 0" and x == 0)
-            if bad or (label == "static_friction" and x < float(co.friction)):
-                raise ConfigurationError(
-                    f"the contact of {self.name} has {label}={x!r}; it must be finite and "
-                    f"{rule} (check the value or the params entry it is read from)"
-                )
+        for label, value, rule in named:
+            # (a friction read from params may be one coefficient per sphere, `(S,)`)
+            values = np.broadcast_to(np.asarray(value, float), (len(self.spheres),))
+            floors = np.broadcast_to(np.asarray(co.friction, float), values.shape)
+            for x, floor in zip(values.tolist(), floors.tolist(), strict=True):
+                bad = not math.isfinite(x) or x < 0 or (rule == "> 0" and x == 0)
+                if bad or (label == "static_friction" and x < floor):
+                    raise ConfigurationError(
+                        f"the contact of {self.name} has {label}={x!r}; it must be finite "
+                        f"and {rule} (check the value or the params entry it is read from)"
+                    )
         if not bool(co.ok):
             raise ConfigurationError(
                 f"the contact of {self.name} scales its default stiffness, dissipation and "

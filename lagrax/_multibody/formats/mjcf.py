@@ -25,6 +25,7 @@ import importlib
 import math
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,9 +38,12 @@ from ..common import about_centres, float_dtype, steiner
 from ..floating.forest import Forest
 from ..joint_space import FRICTION_VELOCITY
 from ..limits import with_limits
+from .collision import check_meshes, mjcf_ground, mjcf_points
+from .contact_scene import contact_friction, contact_scene
 from .mjcf_equality import constrained, equality_rows
 from .mjcf_parts import split_parts
-from .mjcf_tendons import fixed_tendons, tendons_unsupported
+from .mjcf_support import unsupported
+from .mjcf_tendons import fixed_tendons
 
 # mujoco.mjtJoint: free, ball, slide, hinge
 _FREE, _BALL, _SLIDE, _HINGE = 0, 1, 2, 3
@@ -135,69 +139,6 @@ class _Names:
         return name if name else f"{obj}{i}"
 
 
-def _unsupported(mujoco, model, names: _Names) -> list[str]:
-    """What lagrax does not model in `model`, each a sentence naming it and its value;
-    free and ball joints are refused in any case (they are not one coordinate)."""
-    for j, kind in enumerate(model.jnt_type):
-        where = f"joint {names('joint', j)!r} (body {names('body', model.jnt_bodyid[j])!r})"
-        if kind == _BALL:
-            raise MJCFError(
-                f"{where} is a ball joint, which lagrax trees do not have (a quaternion "
-                "coordinate): model it as three hinge joints in one body"
-            )
-    found: list[str] = []
-    disabled = int(model.opt.disableflags)
-    off = mujoco.mjtDisableBit
-
-    def first_nonzero(values, what: str, obj: str, flag=None) -> None:
-        """Adds `what` of the first `obj` (joint, dof: named by its joint, body) with a
-        nonzero value, unless `flag` disables it."""
-        values = np.asarray(values, float)
-        if values.size == 0:
-            return
-        values = values.reshape(len(values), -1)
-        if (flag is not None and disabled & int(flag)) or not np.any(values):
-            return
-        i = int(np.argmax(np.any(values != 0, axis=1)))
-        row = values[i]
-        shown = f"{row[0]:g}" if row.size == 1 else str(row.tolist())
-        who = f"joint {names('joint', int(model.dof_jntid[i]))!r}" if obj == "dof" else None
-        who = who or f"{obj} {names(obj, i)!r}"
-        found.append(f"{what} {shown} on {who}")
-
-    free = [j for j, kind in enumerate(model.jnt_type) if kind == _FREE]
-    for j in free:  # a floating base has no damping, armature or spring of its own
-        dofs = [int(model.jnt_dofadr[j]) + k for k in range(6)]
-        for what, values, flag in (
-            ("damping", model.dof_damping, off.mjDSBL_DAMPER),
-            ("armature", model.dof_armature, None),
-            ("friction loss", model.dof_frictionloss, off.mjDSBL_FRICTIONLOSS),
-        ):
-            if np.any(np.asarray(values)[dofs]) and not (flag and disabled & int(flag)):
-                found.append(
-                    f"{what} on the free joint {names('joint', j)!r} (a floating base has "
-                    "none in lagrax)"
-                )
-        if model.jnt_stiffness[j] and not disabled & int(off.mjDSBL_SPRING):
-            found.append(f"stiffness on the free joint {names('joint', j)!r}")
-    if hasattr(model, "jnt_springyield"):
-        first_nonzero(model.jnt_springyield, "joint spring yield (plasticity)", "joint")
-    if hasattr(model, "jnt_stiffnesspoly"):
-        first_nonzero(
-            model.jnt_stiffnesspoly, "nonlinear joint stiffness", "joint", off.mjDSBL_SPRING
-        )
-    if hasattr(model, "dof_dampingpoly"):
-        first_nonzero(model.dof_dampingpoly, "nonlinear joint damping", "dof", off.mjDSBL_DAMPER)
-    first_nonzero(model.body_gravcomp, "gravity compensation", "body")
-    found += tendons_unsupported(mujoco, model, names)
-    if model.opt.density > 0 or model.opt.viscosity > 0:
-        found.append(
-            f"fluid forces (opt density={model.opt.density:g}, viscosity={model.opt.viscosity:g}"
-            "; lagrax.chains.mjcf_fluid loads the model with them as an applied force)"
-        )
-    return found
-
-
 def from_mjcf(
     source: Any,
     *,
@@ -206,7 +147,10 @@ def from_mjcf(
     ignore_unsupported: bool = False,
     friction_velocity: float = FRICTION_VELOCITY,
     dtype: Any = None,
-) -> tuple[Tree, dict]:
+    contact: bool | Sequence[str] = False,
+    meshes: str = "bounding_sphere",
+    friction: float | None = None,
+) -> tuple[Any, dict]:
     r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
     and its params, built from MuJoCo's compiled model.
 
@@ -280,13 +224,28 @@ def from_mjcf(
       away from rest (`|q̇| ≥ v_s`) the two forces agree. A small `v_s` makes the
       equations stiff near rest: an implicit solver (`solver="kvaerno5"`) steps over it.
 
-    Not read: geometry and contacts (lagrax has none), actuators (`tau` is the
-    generalized force: MuJoCo's `qfrc_applied`; [`lagrax.chains.mjcf_actuation`][] maps
-    MuJoCo's `ctrl` to it), sensors, `timestep` and the integrator. Joint limits are
-    MuJoCo constraints, inactive inside the range; with `limits="impact"` lagrax stops a
-    joint at them instead (below). The equations agree with MuJoCo's `mj_fullM` and
-    `mj_forward`'s `qacc` with contacts and constraints (limits, friction loss,
-    equality) disabled, friction loss taken out of lagrax's too.
+    **Contact** (`contact=True`, or a list of geom names): each colliding geom
+    (`contype` or `conaffinity` nonzero) on a moving body becomes
+    [`Sphere`][lagrax.contact.Sphere]s fixed to its tree body (by
+    [`body_sphere`][lagrax.contact.body_sphere]): a sphere itself, a box its 8 corners
+    (radius 0), a capsule its 2 end spheres, a cylinder 8 points on each end's rim, an
+    ellipsoid its bounding sphere, a mesh its bounding sphere (`geom_rbound`, about the
+    geom's origin) or its vertices (`meshes="vertices"`). The result is then a
+    [`ContactSystem`][lagrax.contact.ContactSystem] on the model's ground, its first
+    plane geom on the world body (else `z = 0`), with the contact's default coefficients
+    and one friction coefficient per sphere in `params["contact_friction"]`: the larger of
+    the geom's and the ground's sliding friction (`geom_friction[:, 0]`; MuJoCo's rule for
+    geoms of equal priority), or `friction` if given. MuJoCo's torsional and rolling
+    friction, `solref`/`solimp`, `condim` and contacts between the robot's own geoms are
+    not modelled.
+
+    Not read: contacts unless `contact=` (above; a model of one robot without equality
+    constraints), actuators (`tau` is the generalized force: MuJoCo's `qfrc_applied`;
+    [`lagrax.chains.mjcf_actuation`][] maps MuJoCo's `ctrl` to it), sensors, `timestep` and the
+    integrator. Joint limits are MuJoCo constraints, inactive inside the range; with
+    `limits="impact"` lagrax stops a joint at them instead (below). The equations agree with
+    MuJoCo's `mj_fullM` and `mj_forward`'s `qacc` with contacts and constraints (limits,
+    friction loss, equality) disabled, friction loss taken out of lagrax's too.
 
     **Arguments:**
 
@@ -307,6 +266,12 @@ def from_mjcf(
     - `friction_velocity`: the stiction velocity `v_s` of joint friction loss (default
       0.01: rad/s for a hinge, m/s for a slide).
     - `dtype`: of the params (default float64 with x64).
+    - `contact`: `True` (every colliding geom on a moving body) or the names of the geoms
+      that touch the ground; `False` (default): none. See *Contact* above.
+    - `meshes`: `"bounding_sphere"` (default) or `"vertices"`, how a mesh geom becomes
+      spheres.
+    - `friction`: with `contact`, one friction coefficient for every sphere (default: read
+      from the geoms, as above).
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
@@ -315,6 +280,8 @@ def from_mjcf(
     "base_com", "base_inertia"}`; with several free bodies, a
     [`Forest`][lagrax.chains.Forest] and a tuple of its parts' params; with equality
     constraints, a [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot] around either.
+    With `contact`: `(scene, params)`, the `ContactSystem` (`scene.system` the robot's
+    system, `scene.spheres` in geom order) and the params plus `"contact_friction"`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
     message); for a ball joint, naming the joint and its body; for a free body with
@@ -334,9 +301,10 @@ def from_mjcf(
     ```
     """
     mujoco = _mujoco()
+    check_meshes(meshes)
     model = _load(mujoco, source)
     names = _Names(mujoco, model)
-    found = _unsupported(mujoco, model, names)
+    found = unsupported(mujoco, model, names)
     if found and not ignore_unsupported:
         raise MJCFError(
             f"the model has {found[0]}, which lagrax does not model; pass "
@@ -374,7 +342,17 @@ def from_mjcf(
     else:
         part_names = [names("body", p.free) if p.free is not None else "world" for p in parts]
         robot, params = Forest(robots, part_names), tuple(all_params)
-    return _equalities(mujoco, model, names, robot, places, ignore_unsupported), params
+    robot = _equalities(mujoco, model, names, robot, places, ignore_unsupported)
+    if contact is False or contact is None:
+        return robot, params
+    if len(parts) != 1 or robot is not robots[0]:
+        raise MJCFError(
+            "contact= is read for a model of one robot without equality constraints; this "
+            f"one has {len(parts)} part(s)"
+            + (" and equality constraints" if robot is not robots[-1] else "")
+        )
+    points = mjcf_points(model, names, place, contact, meshes, base is not None)
+    return contact_scene(robot, params, points, mjcf_ground(model), contact_friction(friction))
 
 
 def _equalities(mujoco, model, names, robot, places: dict, ignore: bool):

@@ -3,16 +3,15 @@
 Read with the standard library's `xml.etree.ElementTree`: lagrax needs only the
 kinematic and inertial elements of URDF (`<link><inertial>`, `<joint>` with its
 `<origin>`, `<axis>`, `<limit>`, `<dynamics>`), which are a few attributes each;
-geometry (`<visual>`, `<collision>`, meshes) is never read, so a missing mesh file
-cannot be an error, and no dependency (`yourdfpy` brings `trimesh` and `lxml` to
-load meshes lagrax does not use) is added. Reading the elements here also lets every error
-name the link or joint at fault.
+geometry is read only for `contact=` (`<collision>`, `collision.py`; meshes with
+`trimesh`), so without it a missing mesh file cannot be an error. Reading the elements
+here also lets every error name the link or joint at fault.
 """
 
 import math
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import jax.numpy as jnp
@@ -22,6 +21,8 @@ from ..._core.errors import URDFError, URDFWarning
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
+from .collision import check_meshes, urdf_points
+from .contact_scene import contact_friction, contact_scene, robot_up
 from .urdf_elements import (
     MOVING,
     Body,
@@ -49,7 +50,11 @@ def from_urdf(
     limits: str | None = None,
     restitution: Any = 0.0,
     floating_base: bool = False,
-) -> tuple[Tree, dict]:
+    contact: bool | Sequence[str] = False,
+    meshes: str = "bounding_sphere",
+    package_dirs: Sequence[str] = (),
+    friction: float | None = None,
+) -> tuple[Any, dict]:
     r"""A robot from a URDF file (or string) as a [`Tree`][lagrax.chains.Tree] and its params.
 
     Each revolute, continuous or prismatic joint becomes a body of the tree, a planar
@@ -96,8 +101,25 @@ def from_urdf(
     the system's `coordinate_names` and `q` only the independent ones. A mimic of a
     mimic follows the end of the chain (multipliers and offsets composed).
 
-    Geometry (`<visual>`, `<collision>`, meshes) is ignored: a missing mesh file is no
-    error.
+    Geometry (`<visual>`, `<collision>`, meshes) is ignored unless `contact=` asks for
+    the `<collision>` elements: without it a missing mesh file is no error.
+
+    **Contact** (`contact=True`, or a list of link names): each `<collision>` shape of
+    the chosen links becomes [`Sphere`][lagrax.contact.Sphere]s fixed to its body (by
+    [`body_sphere`][lagrax.contact.body_sphere], the tree's own kinematics): a `<sphere>`
+    itself, a `<box>` its 8 corners (radius 0), a `<capsule radius length>` its 2 end
+    spheres, a `<cylinder>` 8 points on each end's rim (radius 0: exact standing or tilted
+    on a face, an octagon rolling on its side), a `<mesh>` its smallest bounding sphere
+    (`meshes="bounding_sphere"`, read with `trimesh`) or its convex hull's vertices
+    (`meshes="vertices"`). The result is then a
+    [`ContactSystem`][lagrax.contact.ContactSystem] of the robot's system on the ground
+    `z = 0` (normal `up`), with the contact's default coefficients (scaled from the scene)
+    and one friction coefficient per sphere in `params["contact_friction"]`: `friction`
+    if given, else the link's Bullet `<contact><lateral_friction value>`, else 1
+    (MuJoCo's default). Links fixed to the world on a fixed base do not move and are
+    skipped. A link's bounding sphere can reach below the part that should touch the
+    ground (solo12's lower leg, with its foot): name the links that touch,
+    `contact=["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]`.
 
     **Arguments:**
 
@@ -157,7 +179,10 @@ def from_urdf(
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] (`tree.system()` gives the
     system) and `{"m", "offset", "com", "inertia", "damping", "g"}` (one row per
-    body, mimic ones included; and `"restitution"` with `limits="impact"`).
+    body, mimic ones included; and `"restitution"` with `limits="impact"`). With
+    `contact`: `(scene, params)`, the `ContactSystem` (`scene.system` the robot's system,
+    `scene.spheres` in the order the links and their `<collision>` elements appear) and
+    the params plus `"contact_friction"`.
 
     **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a
     xacro file (macros, not a robot) or a `<robot>` without links, an incomplete
@@ -183,6 +208,7 @@ def from_urdf(
     panda, params = lagrax.chains.from_urdf(panda_urdf, locked={"panda_finger_joint1": 0.0})
     ```
     """
+    check_meshes(meshes)
     links, joints = parse(_read(source))
     joints, root, floating = floating_joint(joints, root)
     floating_base = floating_base or floating
@@ -205,8 +231,17 @@ def from_urdf(
         from ..floating.loading import base_from_urdf
 
         robot, params = base_from_urdf(tree, params, place, order, links, root, read_inertial)
-        return robot, with_limits(tree, params, limits, restitution)[1]  # type: ignore[return-value]
-    return with_limits(tree, params, limits, restitution)
+        params = with_limits(tree, params, limits, restitution)[1]
+    else:
+        robot, params = with_limits(tree, params, limits, restitution)
+    if contact is False or contact is None:
+        return robot, params
+    text = os.fspath(source)
+    folder = None if text.lstrip().startswith("<") else os.path.dirname(os.path.abspath(text))
+    mesh_info = (folder, tuple(os.fspath(d) for d in package_dirs), meshes)
+    points = urdf_points(links, order, place, contact, floating_base, mesh_info)
+    ground = (robot_up(robot), 0.0, None)
+    return contact_scene(robot, params, points, ground, contact_friction(friction))
 
 
 def _read(source: str | os.PathLike) -> str:

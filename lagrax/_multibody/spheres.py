@@ -1,15 +1,17 @@
 """Spheres fixed to a tree's bodies, by name, from the kinematics the recursions use."""
 
+import weakref
 from typing import Any
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._contact.geometry import Sphere
 from .._core.errors import ArgumentTypeError, ConfigurationError
-from .._multibody.algorithms.floating_recursions import quaternion_rotation
-from .._multibody.articulated.trees import AbstractTree, Tree
-from .._multibody.floating.system import FloatingTree
-from .geometry import Sphere
+from .algorithms.floating_recursions import quaternion_rotation
+from .articulated.trees import AbstractTree, Tree
+from .floating.system import FloatingTree
 
 
 def _index(names: tuple[str, ...], body: Any, base: str | None) -> int:
@@ -31,12 +33,34 @@ def _index(names: tuple[str, ...], body: Any, base: str | None) -> int:
     raise ArgumentTypeError(f"body must be a body's name or index, got {body!r}")
 
 
+_LAST: list = [None]  # the last (tree (weakly), q, params, frames) that _frames computed
+
+
+def _frames(tree: AbstractTree, q: Any, params: Any, floating: bool):
+    """`tree.frames` at the joints of `q` (a floating base's: `q[7:]`), computed once for
+    the same traced `q` and `params` (the spheres of one robot at one state: a
+    `ContactSystem` passes each sphere the same tracers), so that `S` spheres trace the
+    tree's kinematics once, not `S` times. Objects compared by identity: a
+    new state, a new trace or other params compute anew (the tree is held weakly, so the
+    cache keeps no model alive)."""
+    if not isinstance(q, jax.core.Tracer):  # eager: params may change between calls
+        return tree.frames(q[7:] if floating else q, params)
+    last = _LAST[0]
+    if last is not None and last[0]() is tree and last[1] is q and last[2] is params:
+        return last[3]
+    out = tree.frames(q[7:] if floating else q, params)
+    _LAST[0] = (weakref.ref(tree), q, params, out)
+    return out
+
+
 def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0.0)) -> Sphere:
     r"""A [`Sphere`][lagrax.contact.Sphere] fixed to a body of a tree (a URDF robot's
     link, a foot), its centre at `offset` in the body's frame.
 
     The centre and the body's rotation come from the tree's own forward kinematics
-    (`frames`, the recursions' joint transforms): for a fixed-base tree (a
+    (`frames`, the recursions' joint transforms; computed once for all the spheres of
+    a tree that a [`ContactSystem`][lagrax.contact.ContactSystem] evaluates at one
+    state): for a fixed-base tree (a
     [`Tree`][lagrax.chains.Tree] or [`SpatialChain`][lagrax.chains.SpatialChain], `q` its
     coordinates) `c = o_i + R_i offset`; for a
     [`FloatingTree`][lagrax.chains.FloatingTree] (`q = (p, quaternion (x, y, z, w),
@@ -75,18 +99,19 @@ def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0
     arm_t = tuple(float(x) for x in arm)
 
     def local(joints, params):
-        """The body's origin and rotation in the base (fixed tree: world) frame."""
+        """The body's origin and rotation in the base (fixed tree: world) frame
+        (`joints`: the whole `q`)."""
         if i < 0:
             return jnp.zeros(3, joints.dtype), jnp.eye(3, dtype=joints.dtype)
-        origins, rots = tree.frames(joints, params)
+        origins, rots = _frames(tree, joints, params, floating)
         return origins[i], rots[i]
 
     def pose(q, params):
-        q = jnp.asarray(q)
+        q = q if isinstance(q, jax.Array) else jnp.asarray(q)  # (keeps a tracer's identity)
         if not floating:
             o, rot = local(q, params)
             return o + rot @ jnp.asarray(arm_t, rot.dtype), rot
-        o, rot = local(q[7:], params)
+        o, rot = local(q, params)
         base = quaternion_rotation(q[3:7])
         centre = q[:3] + base @ (o + rot @ jnp.asarray(arm_t, rot.dtype))
         return centre, base @ rot
