@@ -291,7 +291,8 @@ def mjcf_points(
         g
         for g in range(model.ngeom)
         if (int(model.geom_contype[g]) or int(model.geom_conaffinity[g]))
-        and place[int(model.geom_bodyid[g])][0] >= lowest
+        # a body outside `place` has no joint above it: welded to the world, not moving
+        and place.get(int(model.geom_bodyid[g]), (lowest - 1,))[0] >= lowest
     ]
     chosen = selected(contact, [names("geom", g) for g in colliding], "colliding geom")
     points = []
