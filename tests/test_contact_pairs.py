@@ -230,3 +230,21 @@ def test_gradients_of_a_settling_ball_match_the_static_penetration():
     for g, f, e in ((grads[0], fd_m, exact_m), (grads[1], fd_k, exact_k)):
         assert abs(g / f - 1.0) < 1e-6
         assert abs(g / e - 1.0) < 1e-6
+
+
+def test_gradient_through_an_elastic_bounce_from_its_onset_matches_the_closed_form():
+    """A ball that starts at the onset of its contact (gap 0), falling at `v0`, bounces
+    elastically (Hertz, default stiffness, no dissipation) to the apex `R + v0²/(2 g)`:
+    `jax.jacfwd` of the apex through the impact is `v0/g` to 1e-6. (Moving the onset
+    inside a step, with the drop height, is the case of the contact guide's table.)"""
+    body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, lambda q, p: G * q[1], n_dof=2)
+    scene = ContactSystem(body, Sphere(R, lambda q, p: q), FLOOR, dissipation=0.0)
+    kw = dict(t1=0.3, n_save=2, rtol=1e-12, atol=1e-12)
+
+    def apex(v0):
+        sol = lx.simulate(scene, jnp.array([0.0, R]), jnp.stack([0.0, -v0]), {}, **kw)
+        return sol.q[-1, 1] + sol.qd[-1, 1] ** 2 / (2 * G)
+
+    v0 = 2.0
+    assert abs(float(apex(v0)) - R - v0**2 / (2 * G)) < 1e-9  # back up to the apex
+    assert abs(float(jax.jacfwd(apex)(v0)) / (v0 / G) - 1.0) < 1e-6
