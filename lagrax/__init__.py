@@ -39,6 +39,7 @@ from ._core.errors import CheckpointError as CheckpointError  # noqa: E402
 from ._core.errors import CheckpointWarning as CheckpointWarning  # noqa: E402
 from ._core.errors import ConfigurationError as ConfigurationError  # noqa: E402
 from ._core.errors import ConstraintError as ConstraintError  # noqa: E402
+from ._core.errors import ContactError as ContactError  # noqa: E402
 from ._core.errors import LagraxError as LagraxError  # noqa: E402
 from ._core.errors import MassMatrixError as MassMatrixError  # noqa: E402
 from ._core.errors import MJCFError as MJCFError  # noqa: E402
@@ -143,6 +144,7 @@ __all__ = [
     "InverseDynamicsDerivatives",
     "rigid_body",
     "ConstraintError",
+    "ContactError",
     "simulate",
     "Event",
     "EventRecord",

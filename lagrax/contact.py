@@ -16,13 +16,18 @@ sol = lx.simulate(scene, [0.0, 1.0], [1.0, 0.0], {"m": 1.0}, t1=2.0)
 sol.contact_force[:, 0]   # the force on the ball's contact point along the way
 ```
 
+A [`Capsule`][lagrax.contact.Capsule] is its two end spheres and a
+[`Box`][lagrax.contact.Box] its corners (exact against a plane); `pairs=` makes spheres
+touch each other (billiards, Newton's cradle), with the same law.
 [`body_sphere`][lagrax.contact.body_sphere] fixes a sphere to a tree's body by name (a
 robot's foot), from the tree's own kinematics.
 """
 
 from ._contact.geometry import Plane as Plane
 from ._contact.geometry import Sphere as Sphere
+from ._contact.shapes import Box as Box
+from ._contact.shapes import Capsule as Capsule
 from ._contact.system import ContactSystem as ContactSystem
 from ._multibody.spheres import body_sphere as body_sphere
 
-__all__ = ["ContactSystem", "Plane", "Sphere", "body_sphere"]
+__all__ = ["Box", "Capsule", "ContactSystem", "Plane", "Sphere", "body_sphere"]

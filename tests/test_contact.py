@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax.contact import ContactSystem, Plane, Sphere
+from lagrax.contact import Box, ContactSystem, Plane, Sphere
 
 G = 9.81
 R = 0.1  # the disk's and the point mass's radius
@@ -174,15 +174,8 @@ def test_box_on_a_slope_below_its_friction_angle_stays_put():
     def kinetic(q, qd, p):
         return 0.5 * p["m"] * (qd[0] ** 2 + qd[1] ** 2) + 0.5 * inertia * qd[2] ** 2
 
-    def corner(sx, sy):
-        def position(q, p):
-            c, s = jnp.cos(q[2]), jnp.sin(q[2])
-            return q[:2] + jnp.stack([c * sx * a - s * sy * b, s * sx * a + c * sy * b])
-
-        return Sphere(0.0, position)
-
     body = lx.LagrangianSystem(kinetic, _potential, n_dof=3)
-    corners = [corner(sx, sy) for sx in (-1, 1) for sy in (-1, 1)]
+    corners = Box((a, b), lambda q, p: q[:2], angle=lambda q, p: q[2])  # its 4 corners
     box = ContactSystem(body, corners, FLOOR, friction=0.5)
     angle = np.deg2rad(15.0)
     params = {"m": m, **_gravity(angle)}

@@ -46,11 +46,25 @@ def reference_configuration(system, reference, dtype):
     return q
 
 
+def scene_size(contact, params, dtype):
+    """`ℓ`: the largest radius or distance of a sphere's centre from the spheres'
+    centroid at the reference configuration (one point alone: 1)."""
+    q_ref = reference_configuration(contact.system, contact.reference, dtype)
+    centres = contact.centres(q_ref, params)
+    radii = jnp.asarray([s.radius for s in contact.spheres], dtype)
+    spread = jnp.max(jnp.linalg.norm(centres - jnp.mean(centres, axis=0, keepdims=True), axis=-1))
+    size = jnp.maximum(jnp.max(radii), spread)
+    return jnp.where(size > 0, size, 1.0)
+
+
 def scene_scale(contact, params, dtype):
     """`(k, c, v_s, ok)`: the default stiffness, dissipation and stiction velocity of
     `contact` (a `ContactSystem`) at `params`, and whether the scene has a weight on the
     plane to scale them by (`ok` false: no gravity towards it)."""
     system, p = contact.system, contact.exponent
+    if contact.plane is None:  # pairs alone: no weight on a plane to scale by
+        one = jnp.ones((), dtype)
+        return one, one, one, jnp.asarray(False)
     q_ref = reference_configuration(system, contact.reference, dtype)
     v0 = jnp.zeros((system.n_dof,), dtype)
     free = system.accelerations(jnp.zeros((), dtype), q_ref, v0, params, None)
@@ -68,11 +82,7 @@ def scene_scale(contact, params, dtype):
     )
     load = jnp.mean(jnp.abs(loads))
     g_n = jnp.max(jnp.abs(jac @ free))
-    centres = contact.centres(q_ref, params)
-    radii = jnp.asarray([s.radius for s in contact.spheres], dtype)
-    spread = jnp.max(jnp.linalg.norm(centres - jnp.mean(centres, axis=0, keepdims=True), axis=-1))
-    size = jnp.maximum(jnp.max(radii), spread)
-    size = jnp.where(size > 0, size, 1.0)
+    size = scene_size(contact, params, dtype)
     ok = jnp.isfinite(load) & (load > 0) & jnp.isfinite(g_n) & (g_n > 0)
     load, g_n = jnp.where(ok, load, 1.0), jnp.where(ok, g_n, 1.0)
     delta = PENETRATION * size

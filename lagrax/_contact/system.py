@@ -5,16 +5,17 @@ from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core.checks import coords, eager_only, traced
-from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
+from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
-from . import laws, scale
+from . import forces, pairs, scale, stability, start
 from .geometry import Plane, Sphere, real_number
+from .pairs import pair_list as pairs_of
+from .shapes import Box, Capsule
 
 Coefficient = float | Callable[[Any], Any] | None
 
@@ -47,6 +48,49 @@ def _coefficient(name: str, value: Coefficient, *, allow_none: bool) -> Coeffici
     if not (math.isfinite(x) and x >= 0):
         raise ConfigurationError(
             f"ContactSystem's {name} must be finite and >= 0, got {name}={value!r}"
+        )
+    return x
+
+
+def _spheres(spheres: Any, plane: Any) -> tuple[Sphere, ...]:
+    """`spheres=` as a tuple of `Sphere`s (a `Capsule` or `Box` stands for its own),
+    each oriented for the plane's dimension (or, without a plane, all alike)."""
+    items = (spheres,) if isinstance(spheres, (Sphere, Capsule, Box)) else tuple(spheres)
+    out = tuple(
+        part for x in items for part in (x.spheres if isinstance(x, (Capsule, Box)) else (x,))
+    )
+    if not out or not all(isinstance(s, Sphere) for s in out):
+        raise ConfigurationError(
+            f"ContactSystem needs one or more lagrax.contact.Sphere (or Capsule, Box), got {out!r}"
+        )
+    planar = any(s.angle is not None for s in out)
+    if planar and any(s.rotation is not None for s in out):
+        raise ConfigurationError(
+            "the Spheres mix angle= (planar) and rotation= (spatial) orientations"
+        )
+    dim = getattr(plane, "dim", None)
+    if planar and dim == 3:
+        raise ConfigurationError(
+            "a Sphere with angle= (a planar body's orientation) needs a 2-D plane; this plane "
+            "is 3-D: give rotation= instead"
+        )
+    if any(s.rotation is not None for s in out) and dim == 2:
+        raise ConfigurationError(
+            "a Sphere with rotation= (a 3x3 rotation matrix) needs a 3-D plane; this plane is "
+            "2-D: give angle= instead"
+        )
+    return out
+
+
+def _max_penetration(value: Any) -> float | None:
+    """`max_penetration=`, checked: a finite number > 0, or `None`."""
+    if value is None:
+        return None
+    x = real_number(value, "ContactSystem's max_penetration must be a number or None")
+    if not (math.isfinite(x) and x > 0):
+        raise ConfigurationError(
+            f"ContactSystem's max_penetration must be finite and > 0 (or None), got "
+            f"max_penetration={value!r}"
         )
     return x
 
@@ -84,8 +128,16 @@ class ContactSystem(AbstractSystem):
 
     - `system`: the system the spheres are fixed to (any `AbstractSystem`: a
       `LagrangianSystem`, a chain's or tree's `system()`, a floating base).
-    - `spheres`: a `Sphere` or a sequence of them.
-    - `plane`: the ground, a `Plane` of the spheres' dimension.
+    - `spheres`: a `Sphere` or a sequence of them; a [`Capsule`][lagrax.contact.Capsule]
+      or [`Box`][lagrax.contact.Box] among them stands for its spheres (its end spheres,
+      its corners), in order.
+    - `plane`: the ground, a `Plane` of the spheres' dimension, or `None` (only
+      `pairs`: a Newton's cradle).
+    - `pairs`: the spheres that touch each other, as sphere–sphere contacts with the
+      same normal law, friction and coefficients: `"all"` (every pair), a sequence of
+      index pairs `(i, j)` into `spheres`, or `None` (default: none). A pair's gap is
+      `|c_j − c_i| − r_i − r_j`; its force acts on `j` along `n = (c_j − c_i)/|c_j −
+      c_i|` and on `i` opposite.
     - `friction`: the kinetic friction coefficient `μ ≥ 0` (default 0: frictionless).
     - `static_friction`: `μ_s ≥ μ` (default `μ`).
     - `stiffness`: `k` (force per length^p), `dissipation`: `c` (time per length),
@@ -95,6 +147,11 @@ class ContactSystem(AbstractSystem):
     - `exponent`: `p` (default 1.5, Hertz's sphere).
     - `reference`: the configuration the defaults are scaled at (default zeros; a
       floating base upright).
+    - `max_penetration`: the deepest start allowed, as a fraction of the sphere's
+      radius (a point: of the scene's size; a pair: of the smaller radius); default
+      `0.01`. A deeper start is a `ContactError` (see `check_state`); a shallower one is
+      pushed out by the contact spring, its stored energy part of the energy balance.
+      `None`: no limit.
     - `name`: a label for messages.
 
     Each coefficient is a number or a function `f(params)`: a function reads it from
@@ -125,7 +182,7 @@ class ContactSystem(AbstractSystem):
 
     system: AbstractSystem
     spheres: tuple[Sphere, ...]
-    plane: Plane
+    plane: Plane | None
     friction: Coefficient
     static_friction: Coefficient
     stiffness: Coefficient
@@ -134,13 +191,16 @@ class ContactSystem(AbstractSystem):
     exponent: float = eqx.field(static=True)
     reference: tuple[float, ...] | None = eqx.field(static=True)
     name: str = eqx.field(static=True)
+    pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
+    max_penetration: float | None = eqx.field(static=True)
 
     def __init__(
         self,
         system: AbstractSystem,
         spheres: Sphere | Sequence[Sphere],
-        plane: Plane,
+        plane: Plane | None = None,
         *,
+        pairs: Any = None,
         friction: Coefficient = 0.0,
         static_friction: Coefficient = None,
         stiffness: Coefficient = None,
@@ -148,6 +208,7 @@ class ContactSystem(AbstractSystem):
         stiction_velocity: Coefficient = None,
         exponent: float = 1.5,
         reference: Any = None,
+        max_penetration: float | None = 0.01,
         name: str | None = None,
     ):
         if not isinstance(system, AbstractSystem):
@@ -155,24 +216,15 @@ class ContactSystem(AbstractSystem):
                 f"ContactSystem wraps a lagrax system (an AbstractSystem), got "
                 f"{type(system).__name__}"
             )
-        spheres = (spheres,) if isinstance(spheres, Sphere) else tuple(spheres)
-        if not spheres or not all(isinstance(s, Sphere) for s in spheres):
+        spheres = _spheres(spheres, plane)
+        if plane is not None and not isinstance(plane, Plane):
+            raise ArgumentTypeError(f"plane must be a lagrax.contact.Plane or None, got {plane!r}")
+        self.pairs = pairs_of(pairs, len(spheres))
+        if plane is None and not self.pairs:
             raise ConfigurationError(
-                f"ContactSystem needs one or more lagrax.contact.Sphere, got {spheres!r}"
+                "a ContactSystem needs something to touch: a plane, or pairs= of spheres "
+                "(pairs='all': every pair)"
             )
-        if not isinstance(plane, Plane):
-            raise ArgumentTypeError(f"plane must be a lagrax.contact.Plane, got {plane!r}")
-        for s in spheres:
-            if s.angle is not None and plane.dim != 2:
-                raise ConfigurationError(
-                    "a Sphere with angle= (a planar body's orientation) needs a 2-D plane; "
-                    f"this plane is {plane.dim}-D: give rotation= instead"
-                )
-            if s.rotation is not None and plane.dim != 3:
-                raise ConfigurationError(
-                    "a Sphere with rotation= (a 3x3 rotation matrix) needs a 3-D plane; this "
-                    "plane is 2-D: give angle= instead"
-                )
         self.system = system
         self.spheres = spheres
         self.plane = plane
@@ -203,6 +255,7 @@ class ContactSystem(AbstractSystem):
         self.exponent = exponent
         self.reference = None if reference is None else tuple(float(x) for x in np.ravel(reference))
         self.name = f"{system.name} (contact)" if name is None else name
+        self.max_penetration = _max_penetration(max_penetration)
 
     # ------------------------------------------------------------ shared with the system
     @property
@@ -239,66 +292,63 @@ class ContactSystem(AbstractSystem):
         return self.system.project_configuration(q)
 
     def initial_state(self, q, qd, params):
-        """The wrapped system's initial state (the contact changes nothing there)."""
-        return self.system.initial_state(q, qd, params)
+        """The wrapped system's initial state (the contact changes nothing there), `ok`
+        false also where a sphere starts deeper than `max_penetration` allows."""
+        q, qd, ok = self.system.initial_state(q, qd, params)
+        return q, qd, ok & start.admissible(self, q, params)
 
     def mass_matrix(self, q, params, qd=None, *, t=0.0):
         """The wrapped system's mass matrix (the contact adds no inertia)."""
         return self.system.mass_matrix(q, params, qd, t=t)
+
+    def stiff_rate(self, q, v, params):
+        """The magnitude `λ` of the fastest eigenvalue of the touching contacts at one
+        state (1/s; 0 with none touching): the spring's `ω = √(k_eff/m_n)` (or its
+        overdamped rate) and the friction's `f_n (μ(s)/s)/(v_s m_t)`, on the contact's
+        effective masses along its normal and tangent (see the contact guide). A
+        fixed-step explicit solve is stopped where `h λ > 2`."""
+        return stability.rate(self, q, v, params)
 
     def failure_hint(self, q, params):
         """The wrapped system's hint."""
         return self.system.failure_hint(q, params)
 
     # ------------------------------------------------------------ geometry
+    @property
+    def dim(self) -> int | None:
+        """The dimension of the space, 2 or 3: the plane's, or the spheres' orientation's
+        (`None`: known from the centres once traced)."""
+        if self.plane is not None:
+            return self.plane.dim
+        if any(s.angle is not None for s in self.spheres):
+            return 2
+        if any(s.rotation is not None for s in self.spheres):
+            return 3
+        return None
+
     def centres(self, q, params):
         """The spheres' centres, shape `(S, d)`."""
-        out = []
-        for s in self.spheres:
-            c = jnp.asarray(s.position(q, params))
-            if c.shape != (self.plane.dim,):
-                raise ShapeError(
-                    f"a Sphere's position(q, params) of {self.name} returned shape {c.shape}; "
-                    f"the plane is {self.plane.dim}-D, so it must return ({self.plane.dim},)"
-                )
-            out.append(c)
-        return jnp.stack(out).astype(jnp.result_type(q, float))
+        return forces.centres(self, q, params)
 
     def gaps(self, q, params):
-        """The gaps `g_i = n·c_i − offset − r_i`, shape `(S,)` (negative: penetration)."""
-        normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
-        radii = jnp.asarray([s.radius for s in self.spheres], normal.dtype)
-        return self.centres(q, params) @ normal - self.plane.offset - radii
+        """The gaps `g_i = n·c_i − offset − r_i` to the plane, shape `(S,)` (negative:
+        penetration); with no plane, the pairs' gaps (see `pair_gaps`)."""
+        plane, pair = forces.gaps(self, q, params)
+        return pair if plane is None else plane
+
+    def pair_gaps(self, q, params):
+        """The pairs' gaps `|c_j − c_i| − r_i − r_j`, shape `(P,)` (negative: overlap)."""
+        pair = forces.gaps(self, q, params)[1]
+        return jnp.zeros((0,), jnp.result_type(q, float)) if pair is None else pair
 
     def point_velocities(self, q, v, params):
-        """`(velocities, centres)`: the velocities of the spheres' contact points
-        `c_i − r_i n`, `ċ_i + ω_i × (−r_i n)`, and their centres, both `(S, d)`; linear
-        in the velocities `v`."""
-        rate = self.system.configuration_rate(q, v)
-        normal = jnp.asarray(self.plane.normal, jnp.result_type(q, float))
-        # the centres, and the spatial bodies' rotations, with their rates in one pass
-        # (the spheres of one robot then share its kinematics: `body_sphere`)
-        turning = [i for i, s in enumerate(self.spheres) if s.rotation is not None and s.radius > 0]
-
-        def placed(a):
-            rotations = [jnp.asarray(self.spheres[i].rotation(a, params)) for i in turning]
-            return self.centres(a, params), jnp.stack(rotations) if turning else None
-
-        (centres, rots), (velocities, rot_dots) = jax.jvp(placed, (q,), (rate,))
-        out = []
-        for i, s in enumerate(self.spheres):
-            vel = velocities[i]
-            arm = -s.radius * normal  # from the centre to the contact point
-            if s.angle is not None and s.radius > 0:
-                _, omega = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
-                vel = vel + omega * jnp.stack([-arm[1], arm[0]])
-            if i in turning:
-                k = turning.index(i)
-                w = rot_dots[k] @ rots[k].T  # [ω]× in the world frame
-                omega = 0.5 * jnp.stack([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1]])
-                vel = vel + jnp.cross(omega, arm)
-            out.append(vel)
-        return jnp.stack(out), centres
+        """`(velocities, centres)`: the velocities of the spheres' contact points with
+        the plane, `c_i − r_i n`, `ċ_i + ω_i × (−r_i n)`, and their centres, both
+        `(S, d)`; linear in the velocities `v`."""
+        c, c_dot, w = forces.motion(self, q, v, params)
+        normal = jnp.asarray(self.plane.normal, c.dtype)
+        r = forces.radii(self, c.dtype)
+        return c_dot + pairs.turn(w, -r[:, None] * normal[None, :]), c
 
     # ------------------------------------------------------------ coefficients
     def coefficients(self, params, dtype=float) -> Coefficients:
@@ -309,11 +359,14 @@ class ContactSystem(AbstractSystem):
             return jnp.asarray(c(params) if callable(c) else c, dtype)
 
         ok = jnp.asarray(True)
-        if None in (self.stiffness, self.dissipation, self.stiction_velocity):
+        stiction = self.stiction_velocity
+        if stiction is None and self.friction == 0.0 and self.static_friction in (None, 0.0):
+            stiction = 1.0  # frictionless: v_s plays no part
+        if None in (self.stiffness, self.dissipation, stiction):
             k0, c0, v0, ok = scale.scene_scale(self, params, dtype)
         k = k0 if self.stiffness is None else value(self.stiffness)
         c = c0 if self.dissipation is None else value(self.dissipation)
-        vs = v0 if self.stiction_velocity is None else value(self.stiction_velocity)
+        vs = v0 if stiction is None else value(stiction)
         mu = value(self.friction)
         mus = mu if self.static_friction is None else value(self.static_friction)
         good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
@@ -326,44 +379,24 @@ class ContactSystem(AbstractSystem):
     def contact_state(self, q, v, params):
         """The contact at one state: a dict of `gap` `(S,)`, `normal_force` `f_n`
         `(S,)`, `elastic_force` `k δ₊^p` `(S,)`, `force` (on each contact point, world
-        frame, `(S, d)`), `velocity` (of each contact point, `(S, d)`), the
-        generalized force `generalized` `Q = Σ J_iᵀ F_i` `(n_dof,)`, the elastic
-        `energy` `V_c` and the `coefficients`."""
-        dtype = jnp.result_type(q, v, float)
-        co = self.coefficients(params, dtype)
-        normal = jnp.asarray(self.plane.normal, dtype)
-        radii = jnp.asarray([s.radius for s in self.spheres], dtype)
-        velocity, pullback, centres = jax.vjp(
-            lambda b: self.point_velocities(q, b, params), v, has_aux=True
-        )
-        gap = centres @ normal - self.plane.offset - radii
-        rate = velocity @ normal  # n·v: the gap's rate
-        f_n, f_el = laws.normal_force(-gap, -rate, co.stiffness, co.dissipation, self.exponent)
-        v_t = velocity - rate[:, None] * normal[None, :]
-        f_t = laws.friction_force(v_t, f_n, co.friction, co.static_friction, co.stiction_velocity)
-        force = f_n[:, None] * normal[None, :] + f_t
-        (generalized,) = pullback(force.astype(velocity.dtype))
-        energy = jnp.sum(laws.elastic_energy(-gap, co.stiffness, self.exponent))
-        return {
-            "gap": gap,
-            "normal_force": f_n,
-            "elastic_force": f_el,
-            "force": force,
-            "velocity": velocity,
-            "generalized": generalized,
-            "energy": energy,
-            "coefficients": co,
-        }
+        frame, `(S, d)`), `velocity` (of each contact point, `(S, d)`) and `normal`
+        `(S, d)` for the plane's contacts (absent without a plane); the same, prefixed
+        `pair_`, for the pairs (`pair_force`: on sphere `j` of pair `(i, j)`, `−` that
+        on `i`; `pair_velocity`: `j`'s contact point's relative to `i`'s; `pair_normal`:
+        from `i` to `j`; absent without pairs); the generalized force `generalized`
+        `Q = Σ J_iᵀ F_i` `(n_dof,)`, the elastic `energy` `V_c` and the
+        `coefficients`."""
+        return forces.contact_state(self, q, v, params)
 
     def normal_forces(self, q, qd, params):
-        """The normal forces `f_n` on the spheres at one state, shape `(S,)`."""
+        """The normal forces `f_n` on the spheres from the plane at one state, shape
+        `(S,)`."""
         return self.contact_state(jnp.asarray(q), jnp.asarray(qd), params)["normal_force"]
 
     def contact_energy(self, q, params):
-        """The elastic energy stored in the contacts, `V_c = Σ k δ₊^{p+1}/(p+1)`."""
-        q = jnp.asarray(q)
-        co = self.coefficients(params, jnp.result_type(q, float))
-        return jnp.sum(laws.elastic_energy(-self.gaps(q, params), co.stiffness, self.exponent))
+        """The elastic energy stored in the contacts (the plane's and the pairs'),
+        `V_c = Σ k δ₊^{p+1}/(p+1)`."""
+        return forces.elastic_energy(self, q, params)
 
     # ------------------------------------------------------------ the dynamics
     def accelerations(self, t, q, qd, params, tau):
@@ -403,12 +436,14 @@ class ContactSystem(AbstractSystem):
         **Raises:** the wrapped system's errors; `ShapeError` for a sphere position of
         the wrong shape; `ConfigurationError` for a coefficient that is negative or not
         finite, `static_friction < friction`, or default coefficients in a scene with no
-        weight on the plane (pass `stiffness=` and `dissipation=`).
+        weight on the plane (pass `stiffness=` and `dissipation=`); `ContactError` for a
+        sphere that starts deeper inside the ground or another sphere than
+        `max_penetration` allows.
         """
         eager_only(f"check_state of {self.name}", self, q, qd, params, t)
         self.system.check_state(q, qd, params, t=t)
         q, qd = jnp.asarray(q, float), jnp.asarray(qd, float)
-        self.gaps(q, params)
+        forces.gaps(self, q, params)
         co = self.coefficients(params, q.dtype)
         named = (
             ("stiffness", co.stiffness, "> 0"),
@@ -436,6 +471,7 @@ class ContactSystem(AbstractSystem):
                 "that carry it there): pass stiffness=, dissipation= and "
                 "stiction_velocity= explicitly, or a reference= where the spheres bear weight"
             )
+        start.check(self, self.system.initial_state(q, qd, params)[0], params)
 
     # ------------------------------------------------------------ the energy balance
     def energy(self, q, qd, params, *, t=0.0):
@@ -452,11 +488,9 @@ class ContactSystem(AbstractSystem):
 
     def input_power(self, t, q, qd, params, tau):
         """The wrapped system's input power plus the contacts' dissipation and friction,
-        `Σ (F_i − f_el,i n)·v_i` (the elastic part's power is `−dV_c/dt`, in `h`)."""
-        contact = self.contact_state(q, qd, params)
-        normal = jnp.asarray(self.plane.normal, contact["force"].dtype)
-        nonconservative = contact["force"] - contact["elastic_force"][:, None] * normal[None, :]
-        power = jnp.sum(nonconservative * contact["velocity"])
+        `Σ (F_i − f_el,i n_i)·v_i` over the plane's contacts and the pairs (the
+        elastic part's power is `−dV_c/dt`, in `h`)."""
+        power = forces.dissipated_power(self.contact_state(q, qd, params))
         inner = self.system.input_power(t, q, qd, params, tau)
         return power if inner is None else inner + power
 
@@ -470,36 +504,53 @@ class ContactSystem(AbstractSystem):
         """The wrapped system's components, the gaps and the contact forces."""
         out = dict(self.system.components(t, q, qd, params))
         contact = self.contact_state(q, qd, params)
-        out["the contact gaps"] = contact["gap"]
-        out["the contact forces"] = contact["force"]
+        for key, label in _OUTPUTS:
+            if key in contact:
+                out[f"the contact {label}"] = contact[key]
         return out
 
     def observables(self, t, q, qd, params, tau):
         """The wrapped system's observables, and `contact_gap` `(S,)` and
-        `contact_force` `(S, d)` (on each contact point, in the world frame)."""
+        `contact_force` `(S, d)` (on each contact point, in the world frame; with a
+        plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
+        `(i, j)`; with pairs)."""
         out = dict(self.system.observables(t, q, qd, params, tau))
         contact = self.contact_state(q, qd, params)
-        out["contact_gap"] = contact["gap"]
-        out["contact_force"] = contact["force"]
+        for key, _ in _OUTPUTS:
+            if key in contact:
+                out[key if key.startswith("pair_") else f"contact_{key}"] = contact[key]
         return out
 
     # ------------------------------------------------------------ events
     def events(self, max_events: int = 100) -> tuple[Event, ...]:
-        """One [`Event`][lagrax.Event] per sphere on its gap, for `simulate(...,
-        events=)`: each contact's onset and release is located on the dense output and
-        the step is cut there (an identity reset), so the adaptive steps keep their
-        order across the switch. `Solution.events[i]` records sphere `i`'s crossings.
+        """One [`Event`][lagrax.Event] per sphere on its gap to the plane, then one per
+        pair on its gap, for `simulate(..., events=)`: each contact's onset and release
+        is located on the dense output and the step is cut there (an identity reset), so
+        the adaptive steps keep their order across the switch. `Solution.events[i]`
+        records sphere `i`'s crossings (with a plane), then pair `k`'s at
+        `Solution.events[S + k]` (`S`: the number of spheres; `k` without a plane).
 
-        **Arguments:** `max_events`: the most crossings recorded per sphere (a solve
+        **Arguments:** `max_events`: the most crossings recorded per contact (a solve
         with more ends with `RESULTS.event_cascade`).
 
-        **Returns:** a tuple of `Event`s, one per sphere.
+        **Returns:** a tuple of `Event`s, one per contact.
         """
 
-        def gap_of(i):
-            return lambda t, q, qd, p: self.gaps(q, p)[i]
+        def gap_of(i, which):
+            return lambda t, q, qd, p: forces.gaps(self, q, p)[which][i]
 
+        conditions = []
+        if self.plane is not None:
+            conditions += [gap_of(i, 0) for i in range(len(self.spheres))]
+        conditions += [gap_of(k, 1) for k in range(len(self.pairs))]
         return tuple(
-            Event(gap_of(i), reset=lambda t, q, qd, p: (q, qd), max_events=max_events)
-            for i in range(len(self.spheres))
+            Event(c, reset=lambda t, q, qd, p: (q, qd), max_events=max_events) for c in conditions
         )
+
+
+_OUTPUTS = (
+    ("gap", "gaps"),
+    ("force", "forces"),
+    ("pair_gap", "pair gaps"),
+    ("pair_force", "pair forces"),
+)

@@ -34,6 +34,12 @@ class ConstraintError(LagraxError, ValueError):
     `[[M, Jᵀ], [J, 0]]` is singular), or a state cannot be projected onto `φ(q) = 0`."""
 
 
+class ContactError(LagraxError, ValueError):
+    """A contact cannot start: a sphere of a `lagrax.contact.ContactSystem` starts deeper
+    inside the ground (or another sphere) than its `max_penetration` allows. The message
+    names the sphere, its depth and the limit."""
+
+
 class ConfigurationError(LagraxError, ValueError):
     """An option has a value lagrax cannot use (`t1 <= t0`, an unknown method name,
     `dt` together with `stepsize_controller`, ...): the message names the option, the

@@ -13,9 +13,11 @@ class RESULTS(dfx.RESULTS):
         "step past the method's stability limit, or a force that diverges."
     )
     constraint_projection_failed = (
-        "The initial state could not be projected onto the constraint manifold phi(q) = 0 "
-        "(no admissible configuration nearby, or a rank-deficient constraint Jacobian); the "
-        "solve ran from the unprojected state."
+        "The initial state is not admissible: it could not be projected onto the constraint "
+        "manifold phi(q) = 0 (no admissible configuration nearby, or a rank-deficient "
+        "constraint Jacobian), or a contact's sphere starts deeper inside the ground or "
+        "another sphere than its max_penetration; the solve ran from it all the same. "
+        "Call simulate outside jit for the values."
     )
     invalid_input = (
         "This member was not solved: its parameters or initial state are non-finite, or "
@@ -47,6 +49,13 @@ class RESULTS(dfx.RESULTS):
         "(grad g = 0, a guard) and it has no reset, or the guess is on the section while "
         "the reset's image is not (pass the post-reset state). Call periodic_orbit outside "
         "jit for the values."
+    )
+    step_past_stability_limit = (
+        "A fixed step past the stability limit of a stiff force (a contact's spring or its "
+        "stiction): h * lambda > 2, lambda the magnitude of the fastest eigenvalue there "
+        "(a contact's omega = sqrt(k_eff/m)); the solve stopped there, before the state "
+        "could blow up. Use a step below 2/lambda (simulate's error names it), an adaptive "
+        "step, an implicit method (kvaerno5), or a softer contact."
     )
 
 

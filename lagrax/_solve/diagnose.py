@@ -91,6 +91,8 @@ def failure_message(
         return f"simulate failed for {system.name}: " + cascade_message(
             events, sol.events, sol.t_end
         )
+    if sol.result == RESULTS.step_past_stability_limit:
+        return stability_message(system, sol, params)
     return diagnose(
         system,
         sol,
@@ -102,6 +104,25 @@ def failure_message(
         tau_const=tau_const,
         y0=y0,
         t1=t1,
+    )
+
+
+def stability_message(system: AbstractSystem, sol: Solution, params: Any) -> str:
+    """The account of a fixed step stopped past the stiff forces' stability limit: the
+    time, the state, the fastest rate `λ` there and the largest stable step `2/λ`."""
+    t_end = float(sol.t_end)
+    q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
+    rate = eqx.filter_jit(lambda s, q, v, p: s.stiff_rate(q, v, p))  # one program, not op by op
+    lam = float(rate(system, jnp.asarray(q_end), jnp.asarray(qd_end), params))
+    return (
+        f"simulate failed for {system.name}: the fixed step is past the stability limit "
+        f"of its stiff forces at t={t_end:.6g} (q={q_end}, qd={qd_end}): their fastest "
+        f"rate there is lambda={lam:.4g} 1/s (a contact's omega = sqrt(k_eff/m), or its "
+        f"stiction's 2 mu_s f_n/(v_s m)), so an explicit method needs dt <= 2/lambda = "
+        f"{2.0 / lam:.3g} s there. The solve stopped before the state could blow up. Try: "
+        "a smaller dt, an adaptive step (no dt), solver='kvaerno5', or a softer contact "
+        "(a smaller stiffness=, a larger stiction_velocity=)."
+        "\n  Pass throw=False to get the partial Solution (entries never reached are inf)."
     )
 
 

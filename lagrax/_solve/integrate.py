@@ -34,8 +34,10 @@ import numpy as np
 
 from .._core.results import RESULTS, code_of
 from .._systems.abstract import AbstractSystem
+from ..integrators import Variational
 
 _DEFAULT_PROJECTION = AbstractSystem.project_configuration
+_DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
 
 DEFAULT_DT0 = 0.01
 
@@ -192,6 +194,7 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
     y = project(term, y)
     steps = state.num_steps + 1
     result = RESULTS.where(all_finite(_primal_part(term, y)), res, RESULTS.non_finite_state)
+    result = stability_check(term, solver, controller, tprev - state.t, keep, y, args, result)
     out_of_steps = (steps >= max_steps) & (tprev < t1) & (result == RESULTS.successful)
     result = RESULTS.where(out_of_steps, RESULTS.max_steps_reached, result)
     new = StepState(
@@ -206,6 +209,39 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
         result,
     )
     return new, keep, dense
+
+
+STABILITY_BOUND = 2.0  # h λ: an explicit method's fixed step on a stiff mode of rate λ
+
+
+def stiff_system(term, solver, controller):
+    """The system whose `stiff_rate` a fixed-step explicit solve checks, or `None`: an
+    adaptive or implicit solve, the augmented system of forward sensitivities, or a
+    system without stiff forces (`AbstractSystem.stiff_rate` not overridden)."""
+    if not isinstance(controller, dfx.ConstantStepSize):
+        return None
+    if isinstance(solver, (dfx.AbstractImplicitSolver, Variational)):
+        return None
+    field = term
+    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
+        field = field.term
+    system = getattr(getattr(field, "vector_field", None), "system", None)
+    if system is None or type(system).stiff_rate is _DEFAULT_STIFF_RATE:
+        return None
+    return system
+
+
+def stability_check(term, solver, controller, h, keep, y, args, result):
+    """`result`, or `RESULTS.step_past_stability_limit` where an accepted fixed step `h`
+    of an explicit method is past the system's stiff forces' stability limit at the new
+    state `y`, `h λ > STABILITY_BOUND` ([`stiff_rate`][lagrax.AbstractSystem.stiff_rate])."""
+    system = stiff_system(term, solver, controller)
+    if system is None:
+        return result
+    q, v = y
+    lam = system.stiff_rate(q, v, args[0])
+    past = keep & (h * lam > STABILITY_BOUND) & (result == RESULTS.successful)
+    return RESULTS.where(past, RESULTS.step_past_stability_limit, result)
 
 
 def project(term, y):

@@ -64,7 +64,12 @@ class Solution(eqx.Module):
     - `contact_gap`, `contact_force`: for a
       [`lagrax.contact.ContactSystem`][], each sphere's gap to the ground at `ts`
       (negative: penetration), shape `(T, S)`, and the contact force on its contact point
-      (normal and friction, world frame), shape `(T, S, d)`; `None` otherwise.
+      (normal and friction, world frame), shape `(T, S, d)`; `None` otherwise (and
+      without a plane).
+    - `pair_gap`, `pair_force`: for a `ContactSystem` with sphere–sphere `pairs`, each
+      pair's gap `|c_j − c_i| − r_i − r_j` at `ts`, shape `(T, P)`, and the force on
+      sphere `j` of pair `(i, j)` (that on `i` is its opposite), shape `(T, P, d)`;
+      `None` otherwise.
 
     After a failed solve with `throw=False`, entries past the failure time are `inf`
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -89,6 +94,8 @@ class Solution(eqx.Module):
     events: "tuple[EventRecord, ...] | None" = None
     contact_gap: Float[Array, "T S"] | None = None
     contact_force: Float[Array, "T S d"] | None = None
+    pair_gap: Float[Array, "T P"] | None = None
+    pair_force: Float[Array, "T P d"] | None = None
 
     @property
     def ok(self) -> Array:

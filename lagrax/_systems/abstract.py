@@ -59,6 +59,7 @@ class AbstractSystem(eqx.Module):
 
     **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
     [`observables`][lagrax.AbstractSystem.observables] (none),
+    [`stiff_rate`][lagrax.AbstractSystem.stiff_rate] (none),
     [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none).
     """
 
@@ -185,6 +186,14 @@ class AbstractSystem(eqx.Module):
         """Extra quantities this kind reports at one state of a solution, by
         [`lagrax.Solution`][] field name (default none). Never raises."""
         return {}
+
+    def stiff_rate(self, q: Vector, v: Vector, params: Params) -> Any:
+        """The magnitude `λ` (1/s) of the fastest eigenvalue of the system's stiff forces
+        at one state (a contact's spring and its stiction), or `None`: none known (the
+        default). A fixed-step solve with an explicit method checks `h λ ≤ 2` after every
+        step and stops with `RESULTS.step_past_stability_limit` past it, before the state
+        can blow up. Never raises."""
+        return None
 
     def failure_hint(self, q: Any, params: Params) -> str | None:
         """Eagerly, a sentence on why the accelerations may be undefined at `q` beyond a

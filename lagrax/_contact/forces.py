@@ -1,0 +1,172 @@
+r"""The contact forces of a `ContactSystem` at one state: the spheres' motion, the gaps
+to the plane and between the paired spheres, the normal and friction forces, and their
+generalized force `Q = Σ J_iᵀ F_i`.
+
+Every function here is traced (never raises on values) and takes the `ContactSystem`
+as its first argument; the system's methods delegate to them.
+"""
+
+import jax
+import jax.numpy as jnp
+
+from .._core.errors import ShapeError
+from . import laws, pairs
+
+
+def centres(contact, q, params):
+    """The spheres' centres `(S, d)`."""
+    out = []
+    dim = contact.dim
+    for s in contact.spheres:
+        c = jnp.asarray(s.position(q, params))
+        good = c.ndim == 1 and c.shape[0] in (2, 3) and (dim is None or c.shape[0] == dim)
+        if not good:
+            want = f"({dim},)" if dim is not None else "(2,) or (3,)"
+            raise ShapeError(
+                f"a Sphere's position(q, params) of {contact.name} returned shape {c.shape}; "
+                f"it must return {want}"
+            )
+        out.append(c)
+    if len({c.shape for c in out}) > 1:
+        raise ShapeError(
+            f"the Spheres of {contact.name} return centres of different sizes "
+            f"{[c.shape for c in out]}: all planar (2) or all spatial (3)"
+        )
+    return jnp.stack(out).astype(jnp.result_type(q, float))
+
+
+def motion(contact, q, v, params):
+    """`(c, ċ, ω)`: the spheres' centres and their rates `(S, d)`, and their bodies'
+    angular velocities, `(S,)` planar or `(S, 3)` spatial (zero for a sphere without
+    orientation or of radius 0); the rates linear in the velocities `v`."""
+    rate = contact.system.configuration_rate(q, v)
+    # the centres and the spatial bodies' rotations, with their rates, in one pass (the
+    # spheres of one robot then share its kinematics: `body_sphere`)
+    turning = [i for i, s in enumerate(contact.spheres) if s.rotation is not None and s.radius > 0]
+
+    def placed(a):
+        rotations = [jnp.asarray(contact.spheres[i].rotation(a, params)) for i in turning]
+        return centres(contact, a, params), (jnp.stack(rotations) if turning else None)
+
+    (c, rots), (c_dot, rot_dots) = jax.jvp(placed, (q,), (rate,))
+    planar = c.shape[1] == 2
+    omegas = []
+    for i, s in enumerate(contact.spheres):
+        w = jnp.zeros(() if planar else (3,), c.dtype)
+        if s.angle is not None and s.radius > 0:
+            _, w = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
+        if i in turning:
+            k = turning.index(i)
+            x = rot_dots[k] @ rots[k].T  # [ω]× in the world frame
+            w = 0.5 * jnp.stack([x[2, 1] - x[1, 2], x[0, 2] - x[2, 0], x[1, 0] - x[0, 1]])
+        omegas.append(jnp.asarray(w, c.dtype))
+    return c, c_dot, jnp.stack(omegas)
+
+
+def radii(contact, dtype):
+    """The spheres' radii `(S,)`."""
+    return jnp.asarray([s.radius for s in contact.spheres], dtype)
+
+
+def plane_gaps(contact, c, dtype):
+    """`g_i = n·c_i − offset − r_i` `(S,)` for the centres `c` (negative: penetration)."""
+    normal = jnp.asarray(contact.plane.normal, dtype)
+    return c @ normal - contact.plane.offset - radii(contact, dtype)
+
+
+def gaps(contact, q, params):
+    """`(plane, pair)`: the gaps to the plane `(S,)` and between the paired spheres
+    `(P,)` (`None` where there is no plane or no pair)."""
+    c = centres(contact, q, params)
+    plane = None if contact.plane is None else plane_gaps(contact, c, c.dtype)
+    pair = None
+    if contact.pairs:
+        pair = pairs.pair_geometry(c, radii(contact, c.dtype), contact.pairs)[1]
+    return plane, pair
+
+
+def elastic_energy(contact, q, params):
+    """`V_c = Σ k δ₊^{p+1}/(p+1)` over the plane's contacts and the pairs."""
+    q = jnp.asarray(q)
+    co = contact.coefficients(params, jnp.result_type(q, float))
+    total = jnp.zeros((), jnp.result_type(q, float))
+    for g in gaps(contact, q, params):
+        if g is not None:
+            total = total + jnp.sum(laws.elastic_energy(-g, co.stiffness, contact.exponent))
+    return total
+
+
+def _forces(velocity, normal, gap, co, exponent):
+    """`(f_n, f_el, F)` of contacts with velocities `(K, d)`, unit normals `(K, d)` and
+    gaps `(K,)`: the normal force, its elastic part and the whole force along `n` plus
+    friction."""
+    rate = jnp.sum(velocity * normal, axis=-1)
+    f_n, f_el = laws.normal_force(-gap, -rate, co.stiffness, co.dissipation, exponent)
+    v_t = velocity - rate[:, None] * normal
+    f_t = laws.friction_force(v_t, f_n, co.friction, co.static_friction, co.stiction_velocity)
+    return f_n, f_el, f_n[:, None] * normal + f_t
+
+
+def velocity_map(contact, q, params, dtype):
+    """`v ↦ ({"plane": (S, d), "pair": (P, d)}, c)`: the velocities of the contact points
+    (with the plane; the pairs' relative ones), linear in the velocities `v`, and the
+    centres `(S, d)` (the keys present where there is a plane, pairs)."""
+    r = radii(contact, dtype)
+    plane = contact.plane
+
+    def velocities(b):
+        c, c_dot, w = motion(contact, q, b, params)
+        out = {}
+        if plane is not None:
+            normal = jnp.asarray(plane.normal, dtype)
+            out["plane"] = c_dot + pairs.turn(w, -r[:, None] * normal[None, :])
+        if contact.pairs:
+            n_ij = pairs.pair_geometry(c, r, contact.pairs)[0]
+            out["pair"] = pairs.relative_velocity(c_dot, w, r, n_ij, contact.pairs)
+        return out, c
+
+    return velocities
+
+
+def contact_state(contact, q, v, params):
+    """The contact at one state, see `ContactSystem.contact_state`."""
+    dtype = jnp.result_type(q, v, float)
+    co = contact.coefficients(params, dtype)
+    r = radii(contact, dtype)
+    plane = contact.plane
+    velocities = velocity_map(contact, q, params, dtype)
+    velocity, pullback, c = jax.vjp(velocities, v, has_aux=True)
+    out = {"coefficients": co}
+    cotangent = {}
+    energy = jnp.zeros((), dtype)
+    if plane is not None:
+        normal = jnp.broadcast_to(jnp.asarray(plane.normal, dtype), c.shape)
+        gap = plane_gaps(contact, c, dtype)
+        f_n, f_el, force = _forces(velocity["plane"], normal, gap, co, contact.exponent)
+        out.update(gap=gap, normal_force=f_n, elastic_force=f_el, force=force)
+        out.update(velocity=velocity["plane"], normal=normal)
+        cotangent["plane"] = force.astype(dtype)
+        energy = energy + jnp.sum(laws.elastic_energy(-gap, co.stiffness, contact.exponent))
+    if contact.pairs:
+        n_ij, gap = pairs.pair_geometry(c, r, contact.pairs)
+        f_n, f_el, force = _forces(velocity["pair"], n_ij, gap, co, contact.exponent)
+        out.update(pair_gap=gap, pair_normal_force=f_n, pair_elastic_force=f_el)
+        out.update(pair_force=force, pair_velocity=velocity["pair"], pair_normal=n_ij)
+        cotangent["pair"] = force.astype(dtype)
+        energy = energy + jnp.sum(laws.elastic_energy(-gap, co.stiffness, contact.exponent))
+    (generalized,) = pullback(cotangent)
+    out.update(generalized=generalized, energy=energy)
+    return out
+
+
+def dissipated_power(state):
+    """`Σ (F − f_el n)·v` over the plane's contacts and the pairs: the power of the
+    dissipation and the friction (the elastic part's is `−dV_c/dt`)."""
+    power = jnp.zeros((), state["generalized"].dtype)
+    for prefix in ("", "pair_"):
+        if prefix + "force" in state:
+            elastic = state[prefix + "elastic_force"][:, None] * state[prefix + "normal"]
+            power = power + jnp.sum(
+                (state[prefix + "force"] - elastic) * state[prefix + "velocity"]
+            )
+    return power
