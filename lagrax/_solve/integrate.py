@@ -194,7 +194,7 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
     y = project(term, y)
     steps = state.num_steps + 1
     result = RESULTS.where(all_finite(_primal_part(term, y)), res, RESULTS.non_finite_state)
-    result = stability_check(term, solver, controller, tprev - state.t, keep, y, args, result)
+    result = stability_check(term, solver, controller, (state.t, tprev), keep, y, args, result)
     out_of_steps = (steps >= max_steps) & (tprev < t1) & (result == RESULTS.successful)
     result = RESULTS.where(out_of_steps, RESULTS.max_steps_reached, result)
     new = StepState(
@@ -231,14 +231,16 @@ def stiff_system(term, solver, controller):
     return system
 
 
-def stability_check(term, solver, controller, h, keep, y, args, result):
-    """`result`, or `RESULTS.step_past_stability_limit` where an accepted fixed step `h`
-    of an explicit method is past the system's stiff forces' stability limit at the new
-    state `y`, `h λ > STABILITY_BOUND` ([`stiff_rate`][lagrax.AbstractSystem.stiff_rate])."""
+def stability_check(term, solver, controller, step, keep, y, args, result):
+    """`result`, or `RESULTS.step_past_stability_limit` where an accepted fixed step
+    `step = (t0, t1)`, `h = t1 − t0`, of an explicit method is past the system's stiff
+    forces' stability limit at the new state `y`, `h λ > STABILITY_BOUND`
+    ([`stiff_rate`][lagrax.AbstractSystem.stiff_rate])."""
     system = stiff_system(term, solver, controller)
     if system is None:
         return result
     q, v = y
+    h = step[1] - step[0]
     lam = system.stiff_rate(q, v, args[0])
     past = keep & (h * lam > STABILITY_BOUND) & (result == RESULTS.successful)
     return RESULTS.where(past, RESULTS.step_past_stability_limit, result)
