@@ -2,6 +2,7 @@
 difference against which gradients are checked, example-robot-data's folder and the
 conservation checks of a free floating motion."""
 
+import os
 import sys
 from pathlib import Path
 
@@ -126,3 +127,15 @@ def lqr_model(n_bodies: int, n_actuators: int):
         lqr = pytest.importorskip("dm_control.suite.lqr")
     xml, assets = lqr.get_model_and_assets(n_bodies, n_actuators, np.random.RandomState(0))
     return mujoco.MjModel.from_xml_string(xml, assets)
+
+
+ALL_ROBOTS = os.environ.get("LAGRAX_ALL_ROBOTS", "") not in ("", "0")
+
+
+def every_robot(reason: str):
+    """A mark: the test runs with `LAGRAX_ALL_ROBOTS=1` set (the tier that holds every
+    robot and the largest models, too slow to compile for the suite), where a cheaper
+    test in the suite covers the same claim (`reason` names it)."""
+    import pytest
+
+    return pytest.mark.skipif(not ALL_ROBOTS, reason=f"LAGRAX_ALL_ROBOTS=1 runs it: {reason}")

@@ -2,8 +2,8 @@
 feet, their base height steady (≤ 1 mm over the last second), their feet in the ground by
 at most 2 mm, and the feet's normal forces sum to the weight `m g`.
 
-The default suite runs a planar two-legged body (five coordinates, cheap to compile); the
-slow suite runs solo12 from example-robot-data, its feet read from its URDF
+The default suite runs a planar two-legged body (five coordinates, cheap to compile);
+`LAGRAX_ALL_ROBOTS=1` runs solo12 from example-robot-data, its feet read from its URDF
 (`from_urdf(..., contact=[feet])`).
 
 Both use an explicit method (`tsit5`) with contact coefficients chosen for it, from the
@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import every_robot
 from lagrax.contact import ContactSystem, Plane, Sphere
 
 G = 9.81
@@ -135,7 +136,7 @@ def solo12_standing(t1=2.0):
     return scene, params, ts, sol, weight
 
 
-@pytest.mark.slow
+@every_robot("the planar two-legged body above holds the claim in the suite")
 def test_solo12_dropped_under_joint_pd_stands():
     """Compiling the 18-coordinate floating base with its four feet takes minutes on a
     loaded 2-core machine (the run: 30,000 steps); the planar test above covers the

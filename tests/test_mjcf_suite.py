@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import lqr_model, rel_error
+from _helpers import every_robot, lqr_model, rel_error
 from lagrax.chains import from_mjcf, from_mujoco_state
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
@@ -164,12 +164,19 @@ def _without_friction(params):
 
 # the dog (85 velocities, two free bodies) and the stacker (an equality on a fixed robot)
 # compile for long: the quadruped (two free bodies, equalities) and the manipulator (an
-# equality on a fixed robot) hold the same constructs to MuJoCo in the quick run
+# equality on a fixed robot) hold the same constructs to MuJoCo in the suite; the dog and
+# the stacker run with LAGRAX_ALL_ROBOTS=1
 SLOW = {"dog", "stacker"}
 
 
 @pytest.mark.parametrize(
-    "name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW else n for n in LOADS]
+    "name",
+    [
+        pytest.param(n, marks=every_robot("the quadruped and the manipulator hold them"))
+        if n in SLOW
+        else n
+        for n in LOADS
+    ],
 )
 def test_suite_file_matches_mujoco(name):
     robot, params = from_mjcf(SUITE / f"{name}.xml")
