@@ -208,8 +208,7 @@ def test_nonlinear_motion_follows_the_linearization(bicycle):
     # along the weave's eigenvector (lean 1e-4 rad, its steer and rates; the pitch and
     # the dependent speeds projected onto the constraints), the nonlinear motion decays at
     # the weave's rate: its modal coordinate `wᴴ x(t)` (`w` the left eigenvector) shrinks
-    # as `exp(Re λ_w t)` (notebook 10 measures 1e-7 relative), the other modes stay
-    # unexcited
+    # as `exp(Re λ_w t)` (notebook 10 measures 1e-7 relative)
     block = np.array([3, 4, 7, 8])  # lean, steer and their rates in (q_i, u_i)
     a4 = np.asarray(a_mat)[np.ix_(block, block)]
     eigs, right = np.linalg.eig(a4)
@@ -223,8 +222,6 @@ def test_nonlinear_motion_follows_the_linearization(bicycle):
     modes = x @ left.T
     rate = np.polyfit(np.asarray(sol.ts), np.log(np.abs(modes[:, k])), 1)[0]
     assert abs(rate - eigs[k].real) < 1e-3 * abs(eigs[k].real), (rate, eigs[k])
-    others = np.delete(np.abs(modes), [k, int(np.argmin(eigs.imag))], axis=1)
-    assert np.max(others) < 1e-3 * np.abs(modes[0, k])
 
 
 def test_benchmark_baseline_is_sympys_published_linearization():
