@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import html as html_lib
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +33,14 @@ _Y_ONTO_Z = np.array(
 def meshcat_modules() -> Any:
     """meshcat's modules, imported on first use (the `viz` extra)."""
     try:
-        import meshcat.animation
-        import meshcat.commands
-        import meshcat.geometry
-        import umsgpack
+        with warnings.catch_warnings():
+            # meshcat imports pyzmq's deprecated `zmq.eventloop.ioloop` (for its server,
+            # which lagrax does not start): not the user's concern
+            warnings.simplefilter("ignore", DeprecationWarning)
+            import meshcat.animation
+            import meshcat.commands
+            import meshcat.geometry
+            import umsgpack
     except ImportError as err:  # pragma: no cover - exercised without the extra
         raise ImportError(INSTALL_HINT) from err
     return meshcat, umsgpack
