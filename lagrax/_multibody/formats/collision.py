@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..._core.errors import ConfigurationError, MJCFError, URDFError
+from .mjcf_parts import quat_matrix
 from .urdf_elements import rpy_matrix
 
 MESHES = ("bounding_sphere", "vertices")
@@ -252,16 +253,6 @@ def _bullet_friction(link: ET.Element) -> float | None:
 
 
 # --------------------------------------------------------------------------- MJCF
-def quat_matrix(quat: Any) -> np.ndarray:
-    """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
-    w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 _PLANE, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER, _BOX, _MESH = 0, 2, 3, 4, 5, 6, 7

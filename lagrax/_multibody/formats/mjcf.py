@@ -41,7 +41,7 @@ from ..limits import with_limits
 from .collision import check_meshes, mjcf_ground, mjcf_points
 from .contact_scene import contact_friction, contact_scene
 from .mjcf_equality import constrained, equality_rows
-from .mjcf_parts import split_parts
+from .mjcf_parts import quat_matrix, split_parts
 from .mjcf_support import unsupported
 from .mjcf_tendons import fixed_tendons
 
@@ -58,18 +58,6 @@ def _mujoco():
             "lagrax.chains.from_mjcf reads MJCF through MuJoCo's own compiler, and the "
             "mujoco package is not installed: pip install mujoco (or lagrax[dev])"
         ) from None
-
-
-def quat_matrix(quat: Any) -> np.ndarray:
-    """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
-    w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:

@@ -37,23 +37,12 @@ from ..._systems.constrained import ConstrainedSystem
 from ..algorithms.floating_recursions import quaternion_rotation
 from ..floating.forest import Forest
 from ..floating.system import FloatingTree
+from .mjcf_parts import quat_matrix
 from .mjcf_tendons import is_fixed
 
 # mujoco.mjtEq
 _CONNECT, _WELD, _JOINT, _TENDON = 0, 1, 2, 3
 _SITE = 6  # mujoco.mjtObj.mjOBJ_SITE
-
-
-def _quat_matrix(quat: Any) -> np.ndarray:
-    """The rotation of a quaternion `(w, x, y, z)` (MuJoCo's order)."""
-    w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 class Equality(eqx.Module):
@@ -198,7 +187,7 @@ def _side(model, kind: int, obj: int, anchor: Any) -> tuple[int, np.ndarray, np.
         return (
             int(model.site_bodyid[obj]),
             np.asarray(model.site_pos[obj], float),
-            _quat_matrix(model.site_quat[obj]),
+            quat_matrix(model.site_quat[obj]),
         )
     return obj, np.asarray(anchor, float), np.eye(3)
 
@@ -249,7 +238,7 @@ def equality_rows(mujoco, model, names) -> tuple[list, list[str]]:
             a1, a2 = (data[3:6], data[0:3]) if weld else (data[0:3], data[3:6])
             (b1, p1, s1), (b2, p2, s2) = _side(model, e, o1, a1), _side(model, e, o2, a2)
             if weld and int(model.eq_objtype[e]) != _SITE:
-                s1 = _quat_matrix(data[6:10])
+                s1 = quat_matrix(data[6:10])
             scale = float(data[10]) if weld else 1.0
             rows.append(
                 ("weld" if weld else "connect", (b1, b2), (_tuple(p1), _tuple(p2)),

@@ -9,6 +9,9 @@ out as MuJoCo does.
 """
 
 from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
 
 from ..._core.errors import MJCFError
 
@@ -81,3 +84,15 @@ def split_parts(model, names) -> list[Part]:
 def _joints(model, b: int) -> range:
     first = int(model.body_jntadr[b])
     return range(first, first + int(model.body_jntnum[b])) if first >= 0 else range(0)
+
+
+def quat_matrix(quat: Any) -> np.ndarray:
+    """The rotation of a unit quaternion `(w, x, y, z)` (MuJoCo's order)."""
+    w, x, y, z = np.asarray(quat, float) / np.linalg.norm(quat)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
