@@ -211,6 +211,15 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
     return new, keep, dense
 
 
+def system_of(term):
+    """The system whose vector field `term` holds, through diffrax's wrapping terms, or
+    `None` for a term that is not a system's vector field."""
+    field = term
+    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
+        field = field.term
+    return getattr(getattr(field, "vector_field", None), "system", None)
+
+
 STABILITY_BOUND = 2.0  # h λ: an explicit method's fixed step on a stiff mode of rate λ
 
 
@@ -222,10 +231,7 @@ def stiff_system(term, solver, controller):
         return None
     if isinstance(solver, (dfx.AbstractImplicitSolver, Variational)):
         return None
-    field = term
-    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
-        field = field.term
-    system = getattr(getattr(field, "vector_field", None), "system", None)
+    system = system_of(term)
     if system is None or type(system).stiff_rate is _DEFAULT_STIFF_RATE:
         return None
     return system
@@ -252,10 +258,7 @@ def project(term, y):
     base: its quaternion normalized), after every accepted step; `y` unchanged for a
     term that is not a system's vector field, or a system whose projection is the
     identity (the default)."""
-    field = term
-    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
-        field = field.term
-    system = getattr(getattr(field, "vector_field", None), "system", None)
+    system = system_of(term)
     if system is None or type(system).project_configuration is _DEFAULT_PROJECTION:
         return y
     q, qd = y
