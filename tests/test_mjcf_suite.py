@@ -98,12 +98,7 @@ def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
         return _forest_against_mujoco(robot, params, model, rng)
     floating = isinstance(robot, lx.chains.FloatingTree)
     qpos = _random_qpos(model, rng)
-    qvel, force = (rng.uniform(-1.0, 1.0, model.nv) for _ in range(2))
-    data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
-    mujoco.mj_forward(model, data)
-    m_mj = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, m_mj)
+    qvel, force, data, m_mj = _mujoco_at(model, qpos, rng)
     system = robot.system()
     forward = jax.jit(lambda q, v, f: system.forward_dynamics(q, v, params, f))
     mass = jax.jit(lambda q: system.mass_matrix(q, params))
@@ -121,16 +116,23 @@ def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
     return rel_error(mass(q), t.T @ m_mj @ t), rel_error(qacc, data.qacc)
 
 
-def _forest_against_mujoco(forest, params, model, rng) -> tuple[float, float]:
-    """`_against_mujoco` of a `Forest`: every free joint converted where it is; `M`
-    congruent by the bases' rotations."""
-    qpos = _random_qpos(model, rng)
+def _mujoco_at(model, qpos, rng):
+    """`(qvel, force, data, M)`: a random velocity and generalized force, and MuJoCo's
+    `mj_forward` and `mj_fullM` at them and `qpos`."""
     qvel, force = (rng.uniform(-1.0, 1.0, model.nv) for _ in range(2))
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, force
     mujoco.mj_forward(model, data)
     m_mj = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, m_mj)
+    return qvel, force, data, m_mj
+
+
+def _forest_against_mujoco(forest, params, model, rng) -> tuple[float, float]:
+    """`_against_mujoco` of a `Forest`: every free joint converted where it is; `M`
+    congruent by the bases' rotations."""
+    qpos = _random_qpos(model, rng)
+    qvel, force, data, m_mj = _mujoco_at(model, qpos, rng)
     system = forest.system()
     q, v = from_mujoco_state(qpos, qvel, forest)
     _, tau = from_mujoco_state(qpos, force, forest)
