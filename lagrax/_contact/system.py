@@ -521,6 +521,18 @@ class ContactSystem(AbstractSystem):
                 out[key if key.startswith("pair_") else f"contact_{key}"] = contact[key]
         return out
 
+    def observable_dims(self):
+        """The wrapped system's, and `("contact",)` for `contact_gap`, `("contact",
+        "axis")` for `contact_force`, `("pair",)` and `("pair", "axis")` for
+        `pair_gap` and `pair_force` (`axis`: the world frame's `x, y[, z]`)."""
+        return {
+            **self.system.observable_dims(),
+            "contact_gap": ("contact",),
+            "contact_force": ("contact", "axis"),
+            "pair_gap": ("pair",),
+            "pair_force": ("pair", "axis"),
+        }
+
     # ------------------------------------------------------------ events
     def events(self, max_events: int = 100) -> tuple[Event, ...]:
         """One [`Event`][lagrax.Event] per sphere on its gap to the plane, then one per

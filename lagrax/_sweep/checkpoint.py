@@ -4,7 +4,8 @@ that carry their sweep's fingerprint and a checksum of their arrays.
 A checkpoint directory holds `manifest.json` (the sweep's fingerprint, chunk size and
 format version) and one `chunk_NNNNNN.npz` per finished chunk: its `ChunkResult` as
 named arrays (`ChunkResult.arrays`: each field by its name, the final maxima and the
-`keep=` reduction's outputs as `final_maxima/<name>` and `reduced/<pytree path>`).
+`keep=` reduction's outputs and the kept observables as `final_maxima/<name>`,
+`reduced/<pytree path>` and `observed/<name>`).
 Beside its arrays, each chunk file stores a JSON header `__lagrax__`: the format
 version, the sweep fingerprint, the chunk size, the chunk's index and member range, and a
 SHA-256 of the header's other fields and of every array (name, dtype, shape, bytes). On

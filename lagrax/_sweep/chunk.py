@@ -26,6 +26,7 @@ from .._solve.postprocess import Summary, solution, summary
 from .._solve.simulate import SolveConfig, SolveInputs, solve_from
 from .._systems.vector_field import LagrangianVectorField
 from .devices import to_device, to_host
+from .observed import observe
 from .result import ChunkResult, NamedArrays
 
 _OK = int(code_of(RESULTS.successful))
@@ -36,13 +37,16 @@ _EVENT = int(code_of(RESULTS.event_occurred))
 
 class Setup(eqx.Module):
     """What fixes the compiled chunk function: the solve's configuration (its controller
-    always given), the `keep=` reduction, the lane count and the schedule.
+    always given), the `keep=` reduction, the lane count, the schedule, and the
+    observables kept (`observed`: their names; `observe_end`: at the end, not the saves).
 
     `n_lanes`, `refill` and `tail_lanes` (see `lanes.run_lanes`) change how
     members are scheduled onto lanes, not their steps or values (bitwise, but for a
     single lane's round-off): they are left out of the repr, and so out of a checkpoint's
     fingerprint, so that a sweep resumes on another kind of device, whose default lanes
-    differ."""
+    differ. `observed` and `observe_end` are left out too: the sweep's settings carry
+    them (where there are any, so that the fingerprints of sweeps without observables
+    stay as they were)."""
 
     config: SolveConfig
     reduce: Callable | None
@@ -50,6 +54,8 @@ class Setup(eqx.Module):
     schedule: str = eqx.field(static=True)
     refill: int | None = eqx.field(static=True, default=None, repr=False)
     tail_lanes: int = eqx.field(static=True, default=0, repr=False)
+    observed: tuple[str, ...] = eqx.field(static=True, default=(), repr=False)
+    observe_end: bool = eqx.field(static=True, default=False, repr=False)
 
 
 def _lockstep(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts) -> LaneOutput:
@@ -139,6 +145,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts) -> 
     reduced = None
     if setup.reduce is not None:
         reduced = _reduce(setup, field, members, tau_const, ts, out, measured)
+    observed = observe(setup, field, members, tau_const, ts, t1, out) if setup.observed else None
     (q, qd), (q_end, qd_end), maxima = out.ys, out.y_end, measured.final_maxima
     return ChunkResult(
         q=q,
@@ -161,6 +168,7 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts) -> 
         event_count=out.event_count,
         first_event_time=out.event_first,
         reduced=reduced,
+        observed=observed,
     )
 
 
@@ -343,4 +351,5 @@ def _on_host(raw: ChunkResult, m: int, valid, projected, keep_path: bool) -> Chu
         event_count=np.where(bad[:, None], 0, raw.event_count[:m]) if events else None,
         first_event_time=blank(raw.first_event_time) if events else None,
         reduced=None if raw.reduced is None else jtu.tree_map(blank, raw.reduced),
+        observed=None if raw.observed is None else jtu.tree_map(blank, raw.observed),
     )

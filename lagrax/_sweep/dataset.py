@@ -80,7 +80,9 @@ def labels(members: Members, kept: Kept) -> dict[str, Any]:
 
 def _kept_variables(cat: ChunkResult, dims: list[str], shaped, kept: Kept, ok) -> dict[str, Any]:
     """`q`, `qd` and `energy` at the end (`keep="final"`, `inf` for a failed member) or
-    at the saves; or the outputs of `reduce`, each named by its pytree path."""
+    at the saves, with the kept observables (`observables=`, by name, their dimensions
+    the system's `observable_dims`); or the outputs of `reduce`, each named by its
+    pytree path."""
     data: dict[str, Any] = {}
     q_dim = q_dof_dim(cat.q_end.shape[-1], cat.qd_end.shape[-1])
     if kept.mode == "final":
@@ -92,7 +94,13 @@ def _kept_variables(cat: ChunkResult, dims: list[str], shaped, kept: Kept, ok) -
         data["q"] = (dims + ["time", q_dim], shaped(cat.q))
         data["qd"] = (dims + ["time", "dof"], shaped(cat.qd))
         data["energy"] = (dims + ["time"], shaped(cat.energy))
-    else:
+    if kept.mode != "reduce" and cat.observed is not None:  # sweep(..., observables=)
+        at = ["time"] if kept.mode == "path" else []
+        for (name, value), (_, own) in zip(cat.observed.items(), kept.observed, strict=True):
+            if not at:  # at the end: `inf` for a failed member, like q
+                value = np.where(ok.reshape(ok.shape + (1,) * (value.ndim - 1)), value, np.inf)
+            data[name] = (dims + at + list(own), shaped(value))
+    if kept.mode == "reduce":
         for path, value in cat.reduced.items() if cat.reduced is not None else ():
             name = _reduce_name(path)
             x = shaped(value)

@@ -39,6 +39,7 @@ from .dataset import dataset
 from .defaults import DeviceInfo, Plan, device_info, lane_bytes, plan
 from .devices import device_list, mesh_of
 from .grid import Grid, Members
+from .observed import observables_option
 from .options import Kept, lanes_option, sweep_options, what_to_keep
 from .progress import progress_bar, progress_default
 from .result import ChunkResult
@@ -74,6 +75,7 @@ def sweep(
     progress: bool | None = None,
     allow_unused: bool = False,
     events: Any = None,
+    observables: bool | str | Sequence[str] | None = None,
 ):
     """Simulate `system` for many parameter sets (and initial states) at once.
 
@@ -160,6 +162,11 @@ def sweep(
       gains `event_count` and `first_event_time` (dimensions: the members' and
       `"event"`; `inf` where an event did not occur). A sweep with events runs
       `schedule="lockstep"` (the lane queue has no event handling).
+    - `observables`: the system's observables to keep, as `simulate`'s `Solution` has
+      them: `True` (all), a name or names, e.g. a `ContactSystem`'s
+      `("contact_gap", "contact_force")`. Each becomes a variable at the kept times (at
+      the end with `keep="final"`), its own dimensions named by the system (`"contact"`,
+      `"axis"`; see `AbstractSystem.observable_dims`). Not with a `keep=` reduction.
     - `allow_unused`: sweep parameters that nothing the solve evaluates reads (energies,
       force, `tau`, constraints, initial-state projection); by default that is an error,
       since a misspelt grid name would otherwise sweep nothing. The test is structural
@@ -247,7 +254,9 @@ def sweep(
         refuse_unused(system, tau_fn, tau_const, members)
     final = isinstance(keep, str) and keep == "final"
     balance = final and _has_power(system, tau_fn, tau_const, members, t0)
-    kept = what_to_keep(keep, n_save, t0, t1, balance)
+    probe = (t0, q0s[0], qd0s[0], members.first(), tau_const)
+    observed = observables_option(system, tau_fn, probe, observables, keep)
+    kept = dataclasses.replace(what_to_keep(keep, n_save, t0, t1, balance), observed=observed)
     method = (solver, rtol, atol, dt, dt0, max_steps, stepsize_controller)
     config, dt0_ = _solve_config(system, tau_fn, method, (t0, t1, tdt), events)
     if config.events is not None:
@@ -256,7 +265,9 @@ def sweep(
     # --- chunks and devices: defaults from the device (see defaults)
     where = (devices, client, checkpoint, store)
     info, cut, runner, (ckpt, sink) = _placement(where, members, kept, chunk_size, n_lanes)
-    setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes)
+    names = tuple(n for n, _ in observed)
+    setup = Setup(config, kept.reduce, cut.n_lanes, schedule, cut.refill, cut.tail_lanes, names)
+    setup = dataclasses.replace(setup, observe_end=bool(names) and kept.mode == "final")
     times = (t0, t1, dt0_, jnp.asarray(kept.ts, tdt))
     spec = ChunkSpec(setup, mesh_of(devices), tau_const, *times, cut.chunk_size, tdt, kept.path)
     # --- checkpoint: what defines the results (the fingerprint), and what is on disk
@@ -360,6 +371,7 @@ def _settings(t0, t1, kept: Kept, dt0, members: Members, keep, tau_const) -> dic
         keep=keep if isinstance(keep, str) else None,
         dtype=str(members.q0s.dtype),
         tau=None if tau_const is None else np.asarray(tau_const).tolist(),
+        **({"observables": list(kept.observed)} if kept.observed else {}),
     )
 
 

@@ -86,11 +86,14 @@ class Kept:
       none, or `n_save` times where the energy balance needs the work along the path
       (then dropped).
     - `reduce`: the function of `keep=reduce`, else `None`.
+    - `observed`: the system's observables kept (`observables=`), each as
+      `(name, dims)`, its dimension names at one state.
     """
 
     mode: str
     ts: np.ndarray
     reduce: Callable | None = None
+    observed: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @property
     def path(self) -> bool:

@@ -62,6 +62,8 @@ class ChunkResult(eqx.Module):
     - `reduced`: the outputs of `keep=reduce`, one array per leaf of its pytree, named by
       the leaf's path (`jax.tree_util.keystr`, e.g. `"['violation']"`), in the order of
       the pytree's leaves, `(M, ...)` each; `None` without a reduction.
+    - `observed`: the system's observables that `sweep(..., observables=)` keeps, by
+      name, at the saves `(M, T, ...)` or at the end `(M, ...)`; `None` without them.
     """
 
     q: Any
@@ -84,11 +86,12 @@ class ChunkResult(eqx.Module):
     event_count: Any = None
     first_event_time: Any = None
     reduced: NamedArrays | None = None
+    observed: NamedArrays | None = None
 
     def arrays(self) -> dict[str, np.ndarray]:
         """The chunk as named arrays (the `.npz` of a checkpoint): each array field by
-        its name, `final_maxima` and `reduced` as `"final_maxima/<name>"` and
-        `"reduced/<path>"`, fields that are `None` left out."""
+        its name, `final_maxima`, `reduced` and `observed` as `"final_maxima/<name>"`,
+        `"reduced/<path>"` and `"observed/<name>"`, fields that are `None` left out."""
         out = dict(
             q=self.q,
             qd=self.qd,
@@ -112,6 +115,8 @@ class ChunkResult(eqx.Module):
         out.update(self.final_maxima.prefixed("final_maxima"))
         if self.reduced is not None:
             out.update(self.reduced.prefixed("reduced"))
+        if self.observed is not None:
+            out.update(self.observed.prefixed("observed"))
         return {k: np.asarray(v) for k, v in out.items()}
 
     @classmethod
@@ -122,6 +127,7 @@ class ChunkResult(eqx.Module):
         group) for arrays that are not a chunk's.
         """
         groups: dict[str, dict[str, np.ndarray]] = {"final_maxima": {}, "reduced": {}}
+        groups["observed"] = {}
         fields = {}
         for key, value in arrays.items():
             group, slash, name = key.partition("/")
@@ -129,11 +135,12 @@ class ChunkResult(eqx.Module):
                 groups[group][name] = value
             else:
                 fields[key] = value
-        maxima, reduced = groups["final_maxima"], groups["reduced"]
+        maxima, reduced, seen = groups["final_maxima"], groups["reduced"], groups["observed"]
         return cls(
             **fields,
             final_maxima=NamedArrays(tuple(maxima), tuple(maxima.values())),
             reduced=NamedArrays(tuple(reduced), tuple(reduced.values())) if reduced else None,
+            observed=NamedArrays(tuple(seen), tuple(seen.values())) if seen else None,
         )
 
 

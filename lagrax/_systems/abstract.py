@@ -58,7 +58,8 @@ class AbstractSystem(eqx.Module):
     only ever go through them.
 
     **Hooks with defaults:** [`initial_state`][lagrax.AbstractSystem.initial_state] (identity),
-    [`observables`][lagrax.AbstractSystem.observables] (none),
+    [`observables`][lagrax.AbstractSystem.observables] (none) and their
+    [`observable_dims`][lagrax.AbstractSystem.observable_dims] (none named),
     [`stiff_rate`][lagrax.AbstractSystem.stiff_rate] (none),
     [`failure_hint`][lagrax.AbstractSystem.failure_hint] (none).
     """
@@ -185,6 +186,13 @@ class AbstractSystem(eqx.Module):
     ) -> dict[str, Any]:
         """Extra quantities this kind reports at one state of a solution, by
         [`lagrax.Solution`][] field name (default none). Never raises."""
+        return {}
+
+    def observable_dims(self) -> dict[str, tuple[str, ...]]:
+        """The dimension names of an [`observable`][lagrax.AbstractSystem.observables]'s
+        axes at one state, by its name, for a sweep's Dataset (`sweep(...,
+        observables=)`); an observable not named here gets `"<name>_dim_<k>"` (the
+        default: none named)."""
         return {}
 
     def stiff_rate(self, q: Vector, v: Vector, params: Params) -> Any:
