@@ -270,6 +270,70 @@ def test_gradient_through_a_bounce_matches_central_differences(point):
     assert abs(grad / _central(lambda c: float(height(c)), c0, 1e-5) - 1.0) < 1e-6
 
 
+# --------------------------------------------------------------------------- walking
+def test_rimless_wheel_on_compliant_ground_walks_the_rigid_impact_gait():
+    """McGeer's rimless wheel (hub `m`, inertia `I`, 8 massless spokes of length `l`) on
+    a slope, each spoke's tip a point against the tilted plane, started in the rigid
+    gait just after a heel strike: its steps take the rigid gait's period and its hub
+    advances at its speed. The rigid gait is closed-form (`ω⁺ = (I + m l² cos 2α)/(I +
+    m l²) ω⁻`, and the stance's energy gain), its period a quadrature of the stance."""
+    from scipy.integrate import quad
+
+    n, length, m, inertia, gamma = 8, 1.0, 1.0, 0.1, 0.1
+    alpha, j = np.pi / n, inertia + m * length**2
+    ratio = (inertia + m * length**2 * np.cos(2 * alpha)) / j
+    gain = 4 * m * G * length * np.sin(alpha) * np.sin(gamma)  # the stance's, in j ω²
+    w_plus = ratio * np.sqrt(gain / (j * (1 - ratio**2)))
+
+    def rate(theta):  # the stance's θ̇ from the energy, from θ = γ − α
+        drop = np.cos(gamma - alpha) - np.cos(theta)
+        return np.sqrt(w_plus**2 + 2 * m * G * length * drop / j)
+
+    period = quad(lambda th: 1 / rate(th), gamma - alpha, gamma + alpha, epsabs=1e-13)[0]
+
+    def tip(k):
+        def position(q, p):
+            a = q[2] + 2 * alpha * k
+            return q[:2] + length * jnp.stack([jnp.sin(a), -jnp.cos(a)])
+
+        return position
+
+    hub = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * m * (qd[0] ** 2 + qd[1] ** 2) + 0.5 * inertia * qd[2] ** 2,
+        lambda q, p: m * G * q[1],
+        n_dof=3,
+    )
+    depth = 5e-4  # static penetration under the weight
+    wheel = ContactSystem(
+        hub,
+        [Sphere(0.0, tip(k)) for k in range(n)],
+        Plane([np.sin(gamma), np.cos(gamma)]),
+        friction=1.0,
+        stiffness=m * G / depth**1.5,
+        dissipation=4 / 3 * np.sqrt(1.5 / (G * depth)),
+        stiction_velocity=0.01,
+    )
+    th, w = gamma - alpha, w_plus
+    q0 = [length * np.sin(th), length * np.cos(th), -th]
+    qd0 = [length * w * np.cos(th), -length * w * np.sin(th), -w]
+    sol = lx.simulate(wheel, q0, qd0, {}, t1=2.5, n_save=1251, rtol=1e-6, atol=1e-6)
+    assert bool(sol.ok)
+    ts, gaps = np.asarray(sol.ts), np.asarray(sol.contact_gap)
+    onsets = []  # each foot's onset, on its gap's zero crossing
+    for k in range(n):
+        for i in np.flatnonzero((gaps[1:, k] < 0) & (gaps[:-1, k] >= 0)):
+            onsets.append(ts[i] + (ts[i + 1] - ts[i]) * gaps[i, k] / (gaps[i, k] - gaps[i + 1, k]))
+    onsets = np.sort(onsets)
+    assert len(onsets) >= 3
+    steps = np.diff(onsets)
+    downhill = np.asarray(sol.q[:, :2]) @ np.array([np.cos(gamma), -np.sin(gamma)])
+    stride = np.diff(np.interp(onsets, ts, downhill))
+    # measured: the steps within 7e-4 of the rigid period (the first, from a start at
+    # zero penetration; then 3e-4), the hub's speed within 5e-4 of the rigid gait's
+    np.testing.assert_allclose(steps, period, rtol=1e-3)
+    np.testing.assert_allclose(stride / steps, 2 * length * np.sin(alpha) / period, rtol=1e-3)
+
+
 # --------------------------------------------------------------------------- bad input
 def test_bad_geometry_and_coefficients_are_refused_naming_the_value():
     body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, n_dof=2)
