@@ -607,5 +607,6 @@ def test_the_sites_simulated_recordings_from_their_simulations(browser, tmp_path
     assert 0.15 < float(drop.q[-1, 2]) < 0.3
     run = gallery.bicycle_run()
     assert bool(run.ok) and abs(float(run.q[-1, 3])) < 0.01  # upright again after 6 s
-    for page in gallery.write_simulated(tmp_path):
-        _plays(browser, page, 500, 1.0)
+    _plays(browser, gallery.bicycle_view(run).save(tmp_path / "bicycle.html"), 500, 1.0)
+    view = gallery.solo12_drop_view(drop, robots)
+    _plays(browser, view.save(tmp_path / "solo12_drop.html"), 1000, 0.5)
