@@ -5,6 +5,7 @@ import base64
 import io
 import shutil
 import sys
+from pathlib import Path
 from types import SimpleNamespace
 
 import jax.numpy as jnp
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import every_robot
 from lagrax import ArgumentTypeError, ConfigurationError, ShapeError
 
 pytest.importorskip("meshcat", reason="the 3D viewer needs the viz extra (meshcat)")
@@ -328,6 +330,71 @@ def test_sweep_members_overlaid_or_side_by_side(arm7):
         lx.plot.show3d(ds.isel(time=-1), tree, params=params)
 
 
+# -- a user's own bodies -------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def bicycle():
+    """The benchmark bicycle (four `SpatialBody`s, gravity along +z) along a made-up motion:
+    riding on, leaning and steering, its wheels rolling."""
+    system, params = lx.models.benchmark_bicycle()
+    ts = np.linspace(0.0, 1.0, 11)
+    q = np.zeros((ts.size, 8))
+    q[:, 0], q[:, 2], q[:, 3] = 2.0 * ts, 0.3 * ts, 0.2 * np.sin(3.0 * ts)
+    q[:, 5], q[:, 6], q[:, 7] = 0.4 * ts, -2.0 * ts / 0.3, -2.0 * ts / 0.35
+    return system, params, SimpleNamespace(ts=ts, q=q)
+
+
+def test_bodies_are_drawn_on_their_pose_maps_with_their_inertia(bicycle):
+    system, params, sol = bicycle
+    p = lx.plot.show3d(sol, system, params=params, fps=10.0).poses
+    (body,) = system.system.kinetic.__self__.bodies  # the scene's four bodies, in one
+    assert p.origins.shape == (11, 4, 3) and not p.planar and p.links == ()
+    flip = np.diag([1.0, -1.0, -1.0])  # the paper's z points down: turned so gravity does
+    for f in (0, 7):
+        x, rot = body.pose(jnp.asarray(sol.q[f]), params)
+        np.testing.assert_allclose(p.origins[f], np.stack(x) @ flip.T, atol=1e-12)
+        np.testing.assert_allclose(p.rotations[f], flip @ np.stack(rot), atol=1e-12)
+    assert p.origins[0, 0, 2] == pytest.approx(0.3)  # the rear wheel's centre, rR up
+    # each shape is the uniform solid of the body's mass with the body's inertia
+    masses, inertias = np.asarray(body.mass(params)), np.asarray(body.inertia(params))
+    assert [s.kind for s in p.shapes] == ["cylinder", "box", "cylinder", "cylinder"]
+    for shape, m, inertia in zip(p.shapes, masses, inertias, strict=True):
+        if shape.kind == "box":
+            own = lx.bodies.box_inertia(m, jnp.asarray(shape.size))
+        else:
+            own = lx.bodies.cylinder_inertia(m, *shape.size)
+        axes = shape.transform[:3, :3]
+        np.testing.assert_allclose(axes @ np.asarray(own) @ axes.T, inertia, atol=1e-12)
+    assert p.shapes[0].size[0] == pytest.approx(np.sqrt(2 * 0.12 / 2.0))  # m r²/2 = IRyy
+
+
+def test_planar_bodies_lie_in_the_xz_plane():
+    from lagrax.bodies import Param, PlanarBody, PointMass, Scene
+
+    def link(q, p):  # a rod pivoted at the origin, its centre half way
+        return [0.5 * jnp.stack([jnp.cos(q[0]), jnp.sin(q[0])])], [q[0]]
+
+    def tip(q, p):
+        return jnp.stack([jnp.cos(q[0]), jnp.sin(q[0])])
+
+    rod = PlanarBody(Param("m"), Param("I"), link, None)
+    scene = Scene([rod, PointMass(1.0, tip)], gravity=9.81, n_dof=1)
+    params = {"m": 2.0, "I": 2.0 / 12.0}
+    ts = np.linspace(0.0, 1.0, 6)
+    sol = SimpleNamespace(ts=ts, q=np.linspace(0.2, -1.1, 6)[:, None])
+    p = lx.plot.show3d(sol, scene.system(), params=params, fps=5.0).poses
+    assert p.planar and [s.kind for s in p.shapes] == ["box", "sphere"]
+    theta = sol.q[3, 0]
+    np.testing.assert_allclose(p.origins[3, 0], [0.5 * np.cos(theta), 0.0, 0.5 * np.sin(theta)])
+    np.testing.assert_allclose(p.origins[3, 1], [np.cos(theta), 0.0, np.sin(theta)])
+    np.testing.assert_allclose(p.rotations[3, 0][:, 0], [np.cos(theta), 0.0, np.sin(theta)])
+    length = p.shapes[0].size[0]  # the uniform rod of its moment: m L²/12 = I
+    assert float(lx.bodies.rod_inertia(2.0, length)[1, 1]) == pytest.approx(params["I"])
+    with pytest.raises(ShapeError, match="2 coordinates per state but the Scene has 1"):
+        lx.plot.show3d(SimpleNamespace(ts=ts, q=np.zeros((6, 2))), scene, params=params)
+
+
 # -- in a real browser ---------------------------------------------------------------------
 
 
@@ -427,10 +494,12 @@ def test_floating_base_page_turns_in_chromium(browser, tmp_path):
     assert errors == [], errors
 
 
-def _robot_in_view(driver, root: str = "lagrax") -> np.ndarray:
-    """Pixels that change when the scene's `root` is hidden (at the recording's start)."""
-    hidden = f"viewer.animator.seek(0); viewer.scene_tree.find(['{root}']).object.visible = false"
-    shown = f"viewer.scene_tree.find(['{root}']).object.visible = true; viewer.animator.seek(0)"
+def _robot_in_view(driver, root: str = "lagrax", at: float = 0.0) -> np.ndarray:
+    """Pixels that change when the scene's `root` is hidden (at time `at`)."""
+    hidden = (
+        f"viewer.animator.seek({at}); viewer.scene_tree.find(['{root}']).object.visible = false"
+    )
+    shown = f"viewer.scene_tree.find(['{root}']).object.visible = true; viewer.animator.seek({at})"
     background, start = _image(driver, hidden), _image(driver, shown)
     return np.abs(start - background).sum(axis=-1) > 30
 
@@ -450,18 +519,39 @@ def test_solo12_with_its_meshes_plays_in_chromium(solo12, browser, tmp_path):
     assert errors == [], errors
 
 
-def test_the_sites_gallery_pages_play_in_chromium(browser, tmp_path):
-    import importlib.util
-    from pathlib import Path
+DOCS = Path(__file__).resolve().parent.parent / "docs"
 
-    _robots()
-    docs = Path(__file__).resolve().parent.parent / "docs"
+
+def _gallery():
+    """The docs' hook that writes the site's recordings (tools/docs_gallery.py)."""
+    import importlib.util
+
     spec = importlib.util.spec_from_file_location(
-        "gallery", docs.parent / "tools" / "docs_gallery.py"
+        "gallery", DOCS.parent / "tools" / "docs_gallery.py"
     )
     assert spec is not None and spec.loader is not None
     gallery = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gallery)
+    return gallery
+
+
+def _plays(driver, page: Path, pixels: int, later: float) -> None:
+    """The page loads offline with no console error, shows its model (`pixels` at least)
+    and moves by `later` seconds."""
+    driver.get(page.as_uri())
+    assert driver.execute_script("return window.lagraxReady === true")
+    assert _robot_in_view(driver).sum() > pixels, f"{page.name}: no model in view"
+    start = _image(driver, "viewer.animator.seek(0)")
+    moved = _image(driver, f"viewer.animator.seek({later})")
+    assert (np.abs(moved - start).sum(axis=-1) > 30).sum() > 100, f"{page.name} stands still"
+    errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    assert errors == [], (page.name, errors)
+
+
+def test_the_sites_gallery_pages_play_in_chromium(browser, tmp_path):
+    _robots()
+    docs = DOCS
+    gallery = _gallery()
     pages = gallery.write_gallery(tmp_path)
     embedded = (docs / "viewer.md").read_text()
     assert len(pages) == len(gallery.GALLERY) >= 2
@@ -473,3 +563,50 @@ def test_the_sites_gallery_pages_play_in_chromium(browser, tmp_path):
         assert _robot_in_view(browser).sum() > 1000, f"{page.name}: no robot in view"
         errors = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
         assert errors == [], (page.name, errors)
+
+
+def test_the_sites_simulated_recordings_play_in_chromium(bicycle, browser, tmp_path):
+    """The contact page's solo12 drop and the bicycle's run, drawn by the hook's own
+    functions along made-up motions: simulating them compiles for about a minute and a
+    half (the docs build does it; `LAGRAX_ALL_ROBOTS=1` runs the next test)."""
+    robots = _robots()
+    gallery = _gallery()
+    for name, where in gallery.SIMULATED.items():  # each page embeds its recording
+        assert f'src="../recordings/{name}.html"' in (DOCS / where).read_text()
+    page = gallery.bicycle_view(bicycle[2], fps=10.0).save(tmp_path / "bicycle.html")
+    _plays(browser, page, 500, 1.0)
+    ts = np.linspace(0.0, 6.0, 13)  # riding 30 m, 17 times its size: the view follows it
+    q = np.zeros((ts.size, 8))
+    q[:, 0], q[:, 6], q[:, 7] = 5.0 * ts, -5.0 * ts / 0.3, -5.0 * ts / 0.35
+    page = gallery.bicycle_view(SimpleNamespace(ts=ts, q=q), fps=2.0).save(tmp_path / "ride.html")
+    browser.get(page.as_uri())
+    start = _robot_in_view(browser).sum()
+    end = _robot_in_view(browser, at=6.0).sum()
+    assert start > 500 and end == pytest.approx(start, rel=0.1)  # as large, at the end too
+    ts = np.linspace(0.0, 1.0, 31)
+    q = np.zeros((ts.size, 19))
+    q[:, 2], q[:, 6], q[:, 7:] = 0.3 - 0.1 * ts, 1.0, gallery.STANCE  # falling 10 cm
+    force = np.zeros((ts.size, 4, 3))
+    force[15:, :, 2] = 6.0  # the feet pushed up in the second half
+    drop = SimpleNamespace(ts=ts, q=q, contact_force=force)
+    view = gallery.solo12_drop_view(drop, robots)
+    assert view.poses.arrows is not None and view.poses.arrows.shape[:2] == (31, 4)
+    page = view.save(tmp_path / "solo12_drop.html")
+    assert page.stat().st_size < 10e6
+    _plays(browser, page, 1000, 1.0)
+
+
+@every_robot("the test above draws the same pages along made-up motions")
+def test_the_sites_simulated_recordings_from_their_simulations(browser, tmp_path):
+    """The hook's simulations themselves: solo12 stands on its feet at the end of its
+    drop, the bicycle rights itself, and both pages play."""
+    gallery = _gallery()
+    robots = _robots()
+    drop = gallery.solo12_drop(robots)
+    assert bool(drop.ok) and float(np.min(drop.contact_gap)) >= -2e-3
+    assert 0.15 < float(drop.q[-1, 2]) < 0.3
+    run = gallery.bicycle_run()
+    assert bool(run.ok) and abs(float(run.q[-1, 3])) < 0.01  # upright again after 6 s
+    _plays(browser, gallery.bicycle_view(run).save(tmp_path / "bicycle.html"), 500, 1.0)
+    view = gallery.solo12_drop_view(drop, robots)
+    _plays(browser, view.save(tmp_path / "solo12_drop.html"), 1000, 0.5)

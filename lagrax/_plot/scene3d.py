@@ -24,6 +24,7 @@ from .poses3d import Poses, Shape
 
 INSTALL_HINT = "the 3D viewer needs meshcat: pip install 'lagrax[viz]'"
 GHOST_OPACITY = 0.3
+TRAVEL = 5.0  # travel past this many times the model's size: the view follows it
 # meshcat's cylinders stand along +y; URDF's and MuJoCo's along +z: a quarter turn about x
 _Y_ONTO_Z = np.array(
     [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0, 0, 0, 1]]
@@ -265,6 +266,7 @@ def scene_commands(
     mc, _ = meshcat_modules()
     out: list[dict] = []
     clips: dict = {}
+    follow = following(members)
     for i, p in enumerate(members):
         root = ("lagrax",) if len(members) == 1 else ("lagrax", f"m{i}")
         t = _Track(mc, root, fps, GHOST_OPACITY if ghost and i > 0 else 1.0)
@@ -273,21 +275,43 @@ def scene_commands(
             shift[:3, 3] = offsets[i]
             out.append(mc.commands.SetTransform(shift, mc.path.Path(root)).lower())
         member_commands(t, p)
+        if follow is not None:  # the member rides on the spot; offsets[i] kept
+            t.animate((), {"position": ("vector3", offsets[i] - follow)})
         out += t.commands
         clips.update(t.clips)
     animation = mc.animation.Animation(clips=clips, default_framerate=fps)
     out.append(mc.commands.SetAnimation(animation, play=play, repetitions=1).lower())
-    return out + camera_commands(members, offsets)
+    return out + camera_commands(members, offsets, follow is not None)
 
 
-def camera_commands(members: list[Poses], offsets: np.ndarray) -> list[dict]:
-    """The camera aimed at the middle of the motion, from the side (front of a plane)."""
+def following(members: list[Poses]) -> np.ndarray | None:
+    """The first member's horizontal travel from its first frame, `(F, 3)` (`z` zero), when
+    the motion travels more than `TRAVEL` times the model's own size (a bicycle riding
+    on): the scene is shifted back by it, so the model stays in view while the floor's
+    grid stands still. `None` otherwise."""
+    flat = np.concatenate([p.origins.reshape(-1, 3) for p in members])
+    if extent(flat) <= TRAVEL * max(robot_size(p) for p in members):
+        return None
+    origins = members[0].origins
+    centre = 0.5 * (np.nanmin(origins, axis=1) + np.nanmax(origins, axis=1))
+    travel = centre - centre[0]
+    travel[:, 2] = 0.0
+    return travel
+
+
+def camera_commands(members: list[Poses], offsets: np.ndarray, follow: bool = False) -> list[dict]:
+    """The camera aimed at the middle of the motion, from the side (front of a plane);
+    aimed at the first frame and sized to the model when it `follow`s."""
     flat = np.concatenate(
         [p.origins.reshape(-1, 3) + o for p, o in zip(members, offsets, strict=True)]
     )
     flat = flat[np.all(np.isfinite(flat), axis=1)]
     centre = 0.5 * (flat.min(axis=0) + flat.max(axis=0))
     size = extent(flat) * (1.5 if any(p.shapes for p in members) else 1.0)
+    if follow:
+        first = members[0].origins[0] + offsets[0]
+        centre = 0.5 * (first.min(axis=0) + first.max(axis=0))
+        size = 2.5 * max(robot_size(p) for p in members)
     target = np.eye(4)
     target[:3, 3] = centre
     planar = all(p.planar for p in members)

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .poses3d import Shape
+from .drawn3d import Shape
 
 # triangles of one mesh file past which it is simplified (vertex clustering): the pages
 # carry every vertex, and a robot's CAD meshes reach 10⁵ triangles a link (the Panda's

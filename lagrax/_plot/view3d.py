@@ -238,7 +238,9 @@ def show3d(
 
     A planar mechanism is drawn upright in the world's x–z plane, seen from the front. The
     solution is resampled at `fps` (its coordinates linearly interpolated; a floating
-    base's quaternion renormalised), and plays in real time at speed 1. Needs the `viz`
+    base's quaternion renormalised), and plays in real time at speed 1. A model that
+    travels more than five times its own size is followed (the scene shifted back by
+    its horizontal travel). Needs the `viz`
     extra (`pip install 'lagrax[viz]'`: meshcat, trimesh).
 
     **Arguments:**
@@ -251,6 +253,12 @@ def show3d(
           `(x, y, z, w)`, joints), with `params=`;
         - a [`lagrax.chains.PlanarChain`][] with `params=`;
         - a [`lagrax.contact.ContactSystem`][] (its spheres and ground), with `params=`;
+        - a [`lagrax.bodies.Scene`][] of a user's bodies, its `system()` or a system
+          built on one (a `ConstrainedSystem`, e.g. the benchmark bicycle), with
+          `params=`: each body the uniform solid of its mass and inertia (a box on its
+          principal axes, a cylinder when two principal moments are equal; a planar
+          body the rod of its moment along its x axis; a point mass a sphere), posed by
+          its own pose map, a spatial scene turned so that a gravity vector points down;
         - a function `points(q) -> (k, 2)` or `(k, 3)`: a chain of points joined in order;
         - `None` (default): the lecture's planar serial chain, lengths `params["l1"], …`
           when `params` has them, else 1 m (right for `lagrax.models.planar_2r`); with
