@@ -130,3 +130,28 @@ def _release_programs_after_module():
     and models that no later file uses; 8-9.5 GB a worker before)."""
     yield
     release_compiled_programs()
+
+
+# a worker past this resident size releases its compiled programs after the test it is on
+RELEASE_ABOVE_BYTES = 3 * 1024**3
+
+
+def _resident_bytes() -> int:
+    """The process's resident size (Linux's `/proc/self/statm`; 0 elsewhere)."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+@pytest.fixture(autouse=True)
+def _release_programs_when_large():
+    """After a test that leaves the worker above 3 GB resident: release the compiled
+    programs then, not at the end of its file. A file that compiles many large programs
+    (`test_derivatives.py`: eight systems' Jacobians, then Pinocchio's robots) grew one
+    worker to 5.4 GB; what the next tests need again is compiled again, or read back from
+    the persistent compilation cache."""
+    yield
+    if _resident_bytes() > RELEASE_ABOVE_BYTES:
+        release_compiled_programs()

@@ -43,7 +43,8 @@ def test_partial_solution_keeps_finished_part_and_marks_the_rest():
     np.testing.assert_allclose(part.q[reached], full.q[reached], rtol=1e-6, atol=1e-8)
     assert 0.0 < float(part.t_end) < 2.0
     assert float(full.t_end) == 2.0
-    np.testing.assert_array_equal(full.q_end, full.q[-1])
+    # the save at t1 is the dense output at its step's end: the end state, to round-off
+    np.testing.assert_allclose(full.q_end, full.q[-1], rtol=1e-15, atol=0)
 
 
 def test_blow_up_reports_max_steps_and_remedies():

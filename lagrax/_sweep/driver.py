@@ -89,8 +89,10 @@ def sweep(
     TPU: see `chunk_size` and `n_lanes`), and does not change any member's numbers. On
     a CPU, chunks run on every core at once, one chunk a core (a compiled chunk runs on
     one core), so the batch is cut into a multiple of the cores' count of equal chunks.
-    `schedule="lockstep"` is a plain `vmap` of `simulate` instead (bitwise the same
-    numbers as `simulate`, but every member of a chunk steps until the slowest is done).
+    `schedule="lockstep"` is a plain `vmap` of `simulate` instead (each member the same
+    solve as `simulate`'s, to the batched operations' round-off, but every member of a
+    chunk steps until the slowest is done; a stiff contact can turn that round-off into
+    other accepted steps, within the tolerances).
 
     A member that fails (step budget, blow-up, invalid input) is flagged in the result's
     `ok` / `result` / `status` and never stops the sweep; its values past the failure
