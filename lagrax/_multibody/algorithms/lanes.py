@@ -32,13 +32,15 @@ def as_arrays(x: Any, dtype: Any) -> Any:
     return jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype), x)
 
 
-MAX_PHASES = 4
+MAX_PHASES = 5
 """The most phases (scans per pass) of a tree's [`Lanes`][]: XLA compiles one loop per
-phase and pass (a floating base's forward dynamics: about 2 s more per phase, without
+phase and pass (a floating base's forward dynamics: about 1–2 s more per phase, without
 the persistent cache), so a tree of more phases (a robot with hands, TIAGo, PR2) runs
 its passes as one scan over its bodies instead, with every body's carry in a buffer read
 and written by parent index (several times slower per state, compiled about as fast as
-one phase). Quadrupeds and arms have one phase, G1 three, TALOS four."""
+one phase). Quadrupeds and arms have one phase, G1 three, TALOS four, dm_control's
+humanoid_CMU and dog five (at 5 rather than 4: 93 → 11 µs and 136 → 15 µs a state, the
+first compile 3.5 → 6.9 s and 3.9 → 6.5 s; `bench_scale.py --sections 5`)."""
 
 
 class Lanes:
