@@ -51,6 +51,23 @@ class ContactPoint:
     friction: float | None = None
 
 
+def placed(
+    body: int,
+    frame: tuple[np.ndarray, np.ndarray],
+    centres: np.ndarray,
+    radius: float,
+    source: str,
+    friction: float | None,
+) -> list[ContactPoint]:
+    """A shape's sphere `centres` (in its own frame) as contact points of tree body
+    `body`, the shape's frame `(p, R)` given in the body's frame: offsets `p + R c`."""
+    pos, rot = frame
+    return [
+        ContactPoint(body, tuple(float(x) for x in pos + rot @ c), radius, source, friction)
+        for c in centres
+    ]
+
+
 def shape_points(kind: str, size: Sequence[float]) -> tuple[np.ndarray, float]:
     """`(centres (k, 3), radius)`: a primitive's spheres in its own frame (the shape's
     axis along `z`). `size`: sphere `(r,)`, box the half-sizes `(a, b, c)`, capsule and
@@ -206,19 +223,8 @@ def urdf_points(
             xyz = _attr(origin, "xyz", where)
             rpy = _attr(origin, "rpy", where)
             centres, radius = _geometry(geometry, where, mesh_info)
-            frame_rot = rot @ rpy_matrix(rpy)
-            frame_pos = pos + rot @ xyz
-            for c in centres:
-                offset = frame_pos + frame_rot @ c
-                points.append(
-                    ContactPoint(
-                        body,
-                        (float(offset[0]), float(offset[1]), float(offset[2])),
-                        radius,
-                        link,
-                        friction(links[link]),
-                    )
-                )
+            frame = (pos + rot @ xyz, rot @ rpy_matrix(rpy))
+            points += placed(body, frame, centres, radius, link, friction(links[link]))
     return points
 
 
@@ -311,17 +317,9 @@ def mjcf_points(
                 f"{kind}: a plane or height field on a moving body); leave it out with "
                 "contact=[geom names]"
             )
-        geom_rot = rot @ quat_matrix(model.geom_quat[g])
-        geom_pos = pos + rot @ np.asarray(model.geom_pos[g], float)
-        for c in centres:
-            offset = geom_pos + geom_rot @ c
-            points.append(
-                ContactPoint(
-                    body,
-                    (float(offset[0]), float(offset[1]), float(offset[2])),
-                    radius,
-                    name,
-                    float(model.geom_friction[g, 0]),
-                )
-            )
+        frame = (
+            pos + rot @ np.asarray(model.geom_pos[g], float),
+            rot @ quat_matrix(model.geom_quat[g]),
+        )
+        points += placed(body, frame, centres, radius, name, float(model.geom_friction[g, 0]))
     return points
