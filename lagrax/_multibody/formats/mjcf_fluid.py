@@ -110,17 +110,18 @@ class MJCFFluid(eqx.Module):
         return pullback((world_f, world_t, jnp.zeros_like(frames)))[0]
 
     def _local_jacobians(self, q, qd, params):
-        """`(R_bᵀ J_p, R_bᵀ J_ω)`, `(B, 3, n_v)` each."""
+        """`((R_bᵀ J_p, R_bᵀ J_ω), (local_v, local_w))`: the local velocity Jacobians,
+        `(B, 3, n_v)` each (the wind is constant in `q̇`), and the local velocities
+        themselves (`_local`'s) from the same pass."""
 
         def local(v):
-            vel, omega, frames = self._velocities(q, v, params)
-            return jnp.einsum("bji,bj->bi", frames, vel), jnp.einsum("bji,bj->bi", frames, omega)
+            both = self._local(*self._velocities(q, v, params))
+            return both, both
 
-        return jax.jacfwd(local)(qd)
+        return jax.jacfwd(local, has_aux=True)(qd)
 
-    def _gains(self, q, qd, params):
-        """The diagonal `∂f/∂v` and `∂t/∂ω` of each box `(B, 3)` at the state."""
-        local_v, local_w = self._local(*self._velocities(q, qd, params))
+    def _gains(self, local_v, local_w):
+        """The diagonal `∂f/∂v` and `∂t/∂ω` of each box `(B, 3)` at its local velocities."""
         box = self.box
         d = jnp.mean(box, axis=1, keepdims=True)
         b1, b2 = jnp.roll(box, -1, axis=1), jnp.roll(box, -2, axis=1)
@@ -161,8 +162,8 @@ class MJCFFluid(eqx.Module):
         on a floating base: the derivative in the quaternion's four entries).
         """
         q, qd = jnp.asarray(q), jnp.asarray(qd)
-        jac_v, jac_w = self._local_jacobians(q, qd, params)
-        gain_v, gain_w = self._gains(q, qd, params)
+        (jac_v, jac_w), local = self._local_jacobians(q, qd, params)
+        gain_v, gain_w = self._gains(*local)
         dqd = jnp.einsum("bik,bi,bil->kl", jac_v, gain_v, jac_v)
         dqd = dqd + jnp.einsum("bik,bi,bil->kl", jac_w, gain_w, jac_w)
         return jax.jacfwd(lambda x: self._force(x, qd, params))(q), dqd
