@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from .._multibody.common import value
-from ..bodies import PlanarBody, Scene, SpatialBody
+from ..bodies import PlanarBody, Scene, SpatialBody, principal_axes
 from .drawn3d import Poses, Shape, check_width
 from .shapes3d import placed
 
@@ -84,7 +84,7 @@ def spatial_shape(mass: float, inertia: np.ndarray) -> tuple[str, tuple[float, .
     """`(kind, size, axes)` of a spatial body's shape: the uniform box of its principal
     moments, or the uniform cylinder about the odd axis when two moments are equal;
     `axes` the shape's frame in the body's (a rotation, its columns principal axes)."""
-    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    moments, axes = (np.asarray(x, dtype=float) for x in principal_axes(inertia))
     moments = np.maximum(moments, 0.0)
     scale = max(float(moments.max()), 1e-300)
     pairs = [(i, j) for i in range(3) for j in range(i + 1, 3)]
@@ -104,8 +104,8 @@ def spatial_shape(mass: float, inertia: np.ndarray) -> tuple[str, tuple[float, .
         sides = np.sqrt(np.maximum(6.0 * (total - 2.0 * moments) / mass, 0.0))
         size = tuple(float(s) for s in np.maximum(sides, MIN_SIDE * sides.max()))
         kind = "box"
-    if np.linalg.det(axes) < 0:
-        axes = axes * np.array([1.0, 1.0, -1.0]) if kind == "cylinder" else -axes
+    if np.linalg.det(axes) < 0:  # the cylinder's reordered axes: right-handed again
+        axes = axes * np.array([1.0, 1.0, -1.0])
     return kind, tuple(float(s) for s in size), axes
 
 
