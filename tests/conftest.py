@@ -8,19 +8,23 @@ broadcasting slip in the library (or in a test) fails loudly.
 import os
 
 # The suite's programs mostly run once (an oracle, a check at a few states), so the time
-# goes to compiling them, not to running them: LLVM's backend optimizations are off for
-# the suite, which takes about a fifth of its CPU time off (a quarter to a third on the
-# compile-bound files; measured file by file). XLA's own HLO optimizations and the
-# programs are unchanged; the machine code may round differently, within the tests'
-# tolerances. `LAGRAX_TEST_XLA_DEFAULTS=1` tests with XLA's defaults,
-# as the benchmarks and the documentation build run. Set before JAX starts its backend;
-# the notebooks' kernels inherit it.
+# goes to compiling them, not to running them. For the suite:
+# - LLVM's backend optimizations are off: about a fifth of its CPU time off (a quarter to
+#   a third on the compile-bound files; measured file by file);
+# - XLA:CPU's newer fusion emitters are off (its loop emitter instead): a fusion of many
+#   small ops (the transposes of a second-order derivative: ~170 pads and adds) compiled
+#   in 35 s with them, 5 s without; `test_contact.py` 90 → 69 CPU s, 2.1 → 1.4 GB.
+# XLA's HLO optimizations and the programs are unchanged; the machine code may round
+# differently, within the tests' tolerances. `LAGRAX_TEST_XLA_DEFAULTS=1` tests with
+# XLA's defaults, as the benchmarks and the documentation build run. Set before JAX
+# starts its backend; the notebooks' kernels inherit it.
 if os.environ.get("LAGRAX_TEST_XLA_DEFAULTS", "") in ("", "0"):
     os.environ["XLA_FLAGS"] = " ".join(
         (
             os.environ.get("XLA_FLAGS", ""),
             "--xla_backend_optimization_level=0",
             "--xla_llvm_disable_expensive_passes=true",
+            "--xla_cpu_use_fusion_emitters=false",
         )
     ).strip()
 
