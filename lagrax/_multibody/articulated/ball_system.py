@@ -1,0 +1,425 @@
+r"""[`BallTreeSystem`][lagrax.chains.BallTreeSystem]: the equations of motion of a
+[`Tree`][lagrax.chains.Tree] with ball joints, fixed to the world at its base.
+
+A ball joint's coordinates are Pinocchio's spherical ones (`pin.JointModelSpherical`): 4
+entries of the configuration `q`, the unit quaternion `(x, y, z, w)` of the child's
+rotation relative to the joint frame, and 3 of the velocity `v`, the child's angular
+velocity relative to its parent in the child frame. The recursions run over three
+revolute lanes per ball (`lagrax._multibody.articulated.balls`) with the velocity-product
+correction `P δ(ω)`; a tree without ball joints never comes here.
+"""
+
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..._core.checks import (
+    configuration_size,
+    coords,
+    eager_only,
+    finite,
+    finite_params,
+    traced,
+)
+from ..._core.custom_types import Params
+from ..._core.errors import MassMatrixError, NonFiniteError, ShapeError
+from ..._systems.abstract import AbstractSystem
+from ..._systems.dynamics_derivatives import choose_program
+from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
+from ..._systems.sensitivity import (
+    ForwardDynamicsDerivatives,
+    InverseDynamicsDerivatives,
+    by_solves,
+    jacobian_wrt_params,
+)
+from .. import joint_space as js
+from ..algorithms import recursions as a
+from . import balls
+from .tree_equations import spatial_chain, spatial_energies
+from .tree_fields import joint_damping
+
+
+class BallTreeSystem(AbstractSystem):
+    r"""The equations of motion of a [`Tree`][lagrax.chains.Tree] with ball joints:
+
+    $$
+    M(q) v̇ + b(q, v) = τ − ∂D/∂v, \qquad q̇ = N(q) v,
+    $$
+
+    with `q` of size [`n_configuration`][lagrax.chains.BallTreeSystem.n_configuration]
+    (every joint in tree order: one angle, or a ball's quaternion `(x, y, z, w)`) and `v`
+    of size `n_dof` (a joint's rate, or a ball's angular velocity `ω` in the child
+    frame): Pinocchio's layout for `JointModelSpherical`, and MuJoCo's but for the
+    quaternion's order ([`from_mujoco_state`][lagrax.chains.from_mujoco_state]
+    converts). `M` comes from the composite-rigid-body algorithm, `v̇` from the
+    articulated-body algorithm and `M v̇ + b` from recursive Newton–Euler, each over three
+    revolute lanes per ball at angle zero, whose rates are `ω` (see
+    `lagrax._multibody.articulated.balls`): `v̇ = ABA(q, v, τ − A P δ) + P δ` and
+    `τ = RNEA(q, v, v̇ − P δ) + A v̇`, with `δ(ω) = (ω_y ω_z, −ω_x ω_z, ω_x ω_y)` on
+    each ball's lanes and `A` the armature. Joint damping, armature and friction loss
+    act on `v`'s entries (a ball's three).
+
+    `simulate` integrates `q̇ = N(q) v`
+    ([`configuration_rate`][lagrax.chains.BallTreeSystem.configuration_rate]: a
+    quaternion moves as `½ quat ⊗ (ω, 0)`) and puts every quaternion back on the unit
+    sphere after each accepted step
+    ([`project_configuration`][lagrax.chains.BallTreeSystem.project_configuration]);
+    `Solution.constraint_violation` reports each `|quat| − 1` at the saves.
+
+    The derivatives calls take `∂/∂q` on the tangent space, along `q ⊕ ξ` (a ball's
+    rotation moved to `R exp([ξ]×)`, the other joints by `ξ`; Pinocchio's `integrate`),
+    by forward-mode differentiation of the recursions.
+
+    Build it with [`Tree.system`][lagrax.chains.AbstractTree.system] of a tree with
+    `balls` ([`lagrax.chains.from_mjcf`][] makes one from MJCF ball joints).
+    """
+
+    tree: Any  # a Tree with ball joints
+    name: str = eqx.field(default="tree with ball joints", static=True)
+
+    @property
+    def n_dof(self) -> int:
+        """The number of velocities: one per one-angle joint, three per ball."""
+        return self.tree.n
+
+    @property
+    def n_configuration(self) -> int:
+        """The size of `q`: one per one-angle joint, four per ball."""
+        return self.tree.n_configuration
+
+    @property
+    def final_maxima(self) -> tuple[str, ...]:
+        """`constraint_violation`: each quaternion's norm drift `|quat| − 1`."""
+        return ("constraint_violation",)
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """The velocities' names: the joints' (a ball's three lanes: `<joint>_x`,
+        `_y`, `_z`)."""
+        return self.tree.joint_names
+
+    @property
+    def configuration_names(self) -> tuple[str, ...]:
+        """The configuration's names: a one-angle joint's name, a ball's `<joint>_qx`,
+        `_qy`, `_qz`, `_qw` (its first lane's name without the `_x`)."""
+        names = list(self.tree.joint_names)
+        out: list[str] = []
+        i = 0
+        while i < len(names):
+            if i in self.tree.balls:
+                stem = names[i].removesuffix("_x")
+                out += [f"{stem}_q{c}" for c in "xyzw"]
+                i += 3
+            else:
+                out.append(names[i])
+                i += 1
+        return tuple(out)
+
+    # ------------------------------------------------------------------ inputs
+    def _inputs(self, q: Any, q_name: str = "q", **velocities: Any) -> list[Any]:
+        size = configuration_size(self.n_configuration, self.n_dof)
+        out = [coords(q, q_name, self.n_configuration, self.name, size=size)]
+        for key, value in velocities.items():
+            out.append(None if value is None else coords(value, key, self.n_dof, self.name))
+        dtype = jnp.result_type(*(x for x in out if x is not None))
+        return [None if x is None else x.astype(dtype) for x in out]
+
+    def _at(self, q: Any, params: Params) -> tuple[a.Chain, jnp.ndarray]:
+        """The lanes' chain at `q` and their angles `θ` (zero on the balls' lanes)."""
+        js.check(params, self.tree.n_bodies)
+        theta, big_a = balls.lane_state(self.tree, q)
+        return spatial_chain(self.tree, theta, params, None, big_a), theta
+
+    def _damping(self, params: Params, v: Any) -> jnp.ndarray:
+        """`∂D/∂v` of the joint damping, fixed tendons' damping and friction loss."""
+        return jax.grad(lambda w: joint_damping(None, w, params))(v)
+
+    def _inverse(self, q: Any, v: Any, vdot: Any, params: Params) -> jnp.ndarray:
+        """`M v̇ + b + ∂D/∂v` of checked arrays (`vdot` `None`: no `∂D/∂v`, the bias)."""
+        chain, theta = self._at(q, params)
+        links = chain.passes.links
+        product = balls.velocity_product(self.tree.balls, v)
+        lanes_dd = -product if vdot is None else vdot - product
+        tau = chain.passes.vector(a.rnea(chain, links(v), links(lanes_dd)), v)
+        rotor = js.armature(params, v.dtype)
+        if rotor is not None and vdot is None:  # the armature's `−A P δ` of `A θ̈`
+            tau = tau - rotor * product
+        tau = tau + js.joint_inverse(params, theta, vdot)
+        return tau if vdot is None else tau + self._damping(params, v)
+
+    def _mass(self, chain: a.Chain, params: Params) -> jnp.ndarray:
+        return js.with_armature(a.crba(chain), params)
+
+    # ------------------------------------------------------------------ configuration
+    def configuration_rate(self, q: Any, v: Any) -> jnp.ndarray:
+        r"""`q̇ = N(q) v`: a one-angle joint's rate, and a ball's `q̇_quat = ½ q_quat ⊗
+        (ω, 0)` (the Hamilton product, scalar last). Sizes: `q` `n_configuration`, `v`
+        `n_dof`, the result `n_configuration`."""
+        return balls.configuration_rate(self.tree, q, v)
+
+    def project_configuration(self, q: Any) -> jnp.ndarray:
+        """`q` with every ball's quaternion divided by its norm."""
+        return balls.normalized(self.tree, q)
+
+    def initial_state(self, q: Any, qd: Any, params: Params) -> tuple[Any, Any, Any]:
+        """The initial state with its quaternions normalized (`ok` false for a zero
+        quaternion)."""
+        return self.project_configuration(q), qd, jnp.all(balls.quaternion_norms(self.tree, q) > 0)
+
+    def observables(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> dict[str, Any]:
+        """`constraint_violation`: `|quat| − 1` of every ball, shape `(n_balls,)`."""
+        return {"constraint_violation": balls.quaternion_norms(self.tree, q) - 1.0}
+
+    # ------------------------------------------------------------------ dynamics
+    def mass_matrix(self, q: Any, params: Params, qd: Any = None, *, t: Any = 0.0) -> jnp.ndarray:
+        """`M(q)`, shape `(n_dof, n_dof)`, by the composite-rigid-body algorithm (Pinocchio's
+        `crba`, MuJoCo's `mj_fullM`), armature included."""
+        (q,) = self._inputs(q)
+        return self._mass(self._at(q, params)[0], params)
+
+    def bias(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
+        """`b(q, v)`: Coriolis, centrifugal, gravity and spring terms (Pinocchio's
+        `nonLinearEffects`), by recursive Newton–Euler."""
+        q, v = self._inputs(q, qd=v)
+        return self._inverse(q, v, None, params)
+
+    def inverse_dynamics(
+        self, q: Any, qd: Any, qdd: Any, params: Params, t: Any = 0.0
+    ) -> jnp.ndarray:
+        """`τ = M v̇ + b + ∂D/∂v` (Pinocchio's `rnea` plus the joint damping).
+        **Arguments:** `q` `(n_configuration,)`, `qd` = `v` and `qdd` = `v̇` `(n_dof,)`,
+        `params`."""
+        q, v, vdot = self._inputs(q, qd=qd, qdd=qdd)
+        return self._inverse(q, v, vdot, params)
+
+    def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
+        """`v̇` of checked arrays by the articulated-body algorithm over the lanes, never
+        raising (NaN where an articulated inertia is not positive)."""
+        chain, theta = self._at(q, params)
+        links = chain.passes.links
+        product = balls.velocity_product(self.tree.balls, qd)
+        force = -self._damping(params, qd)
+        if tau is not None:
+            force = force + jnp.asarray(tau, qd.dtype)
+        springs = js.spring_force(params, theta)
+        if springs is not None:
+            force = force - springs
+        rotor = js.armature(params, qd.dtype)
+        if rotor is not None:
+            force = force - rotor * product
+        lanes_dd = chain.passes.vector(a.aba(chain, links(qd), links(force)), qd)
+        return lanes_dd + product
+
+    def forward_dynamics(
+        self, q: Any, qd: Any, params: Params, tau: Any = None, t: Any = 0.0
+    ) -> jnp.ndarray:
+        """`v̇ = M⁻¹ (τ − b − ∂D/∂v)` (Pinocchio's `aba`), shape `(n_dof,)`.
+
+        **Arguments:** `q` `(n_configuration,)`, `qd` = `v` `(n_dof,)`, `params`, `tau`
+        `(n_dof,)` (default zero).
+
+        **Raises:** `ShapeError` for wrong sizes or a zero quaternion; `NonFiniteError`
+        for NaN/inf inputs or non-finite accelerations; under `jit` through
+        `equinox.error_if`.
+        """
+        q, v, tau = self._inputs(q, qd=qd, tau=tau)
+        if not traced(self, q, v, tau, params):
+            for name, x in (("q", q), ("qd", v), ("tau", tau)):
+                if x is not None:
+                    finite(x, name)
+            self._check_quaternions(q)
+            vdot = self.accelerations(t, q, v, params, tau)
+            if not np.all(np.isfinite(np.asarray(vdot))):
+                raise NonFiniteError(
+                    f"forward_dynamics of {self.name} gave non-finite accelerations "
+                    f"{np.asarray(vdot)} at q={np.asarray(q)}: check tau and that every "
+                    "subtree has a positive mass"
+                )
+            return vdot
+        vdot = self.accelerations(t, q, v, params, tau)
+        return eqx.error_if(
+            vdot,
+            ~(jnp.all(jnp.isfinite(vdot)) & jnp.all(jnp.isfinite(q))),
+            f"forward_dynamics of {self.name} produced non-finite accelerations, or its "
+            "configuration q is not finite",
+        )
+
+    def _check_quaternions(self, q: Any) -> None:
+        """`ShapeError` naming the first ball whose quaternion is zero (eagerly)."""
+        norms = np.asarray(balls.quaternion_norms(self.tree, q))
+        quats = balls.layout(self.tree.joint_types, self.tree.balls)[2]
+        for k, lane in enumerate(self.tree.balls):
+            if not norms[k] > 0:
+                name = self.tree.joint_names[lane].removesuffix("_x")
+                slots = quats[k]
+                raise ShapeError(
+                    f"the quaternion of ball joint {name!r}, q[{slots[0]}:{slots[-1] + 1}] = "
+                    f"{np.asarray(q)[slots]}, is zero: a rotation needs a unit quaternion "
+                    "(x, y, z, w), e.g. (0, 0, 0, 1)"
+                )
+
+    # ------------------------------------------------------------------ derivatives
+    def forward_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        params: Params,
+        tau: Any = None,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> ForwardDynamicsDerivatives:
+        r"""`v̇` and its derivatives at one state (Pinocchio's `computeABADerivatives`
+        on a model with `JointModelSpherical`, the same numbers): `dq` along `q ⊕ ξ`
+        (`n_dof × n_dof`), from the inverse dynamics at the primal `v̇`,
+        `∂v̇/∂q = −M⁻¹ ∂τ/∂q`, `∂v̇/∂v = −M⁻¹ ∂τ/∂v`, `∂v̇/∂τ = M⁻¹`.
+
+        **Arguments:** `q` `(n_configuration,)`, `qd` = `v` `(n_dof,)`, `params`, `tau`
+        (default zero), `t` (unused), `wrt_params=True` to add `∂v̇/∂params`.
+
+        **Returns:** a [`ForwardDynamicsDerivatives`][lagrax.ForwardDynamicsDerivatives].
+
+        **Raises:** as [`forward_dynamics`][lagrax.chains.BallTreeSystem.forward_dynamics].
+        """
+        q, v, tau = self._inputs(q, qd=qd, tau=tau)
+        tau = jnp.zeros_like(v) if tau is None else tau
+        self._finite(q, v, tau, "tau")
+        program, eager = choose_program(self, _forward_body, q, v, tau, params, t)
+        params = float_arrays(params) if eager else params
+        out = program(self, t, q, v, params, tau, wrt_params)
+        return finite_derivatives(self, out, q, v, params, tau, t, "forward_dynamics")
+
+    def inverse_dynamics_derivatives(
+        self,
+        q: Any,
+        qd: Any,
+        qdd: Any,
+        params: Params,
+        t: Any = 0.0,
+        *,
+        wrt_params: bool = False,
+    ) -> InverseDynamicsDerivatives:
+        """`τ = M v̇ + b + ∂D/∂v` and its derivatives (Pinocchio's
+        `computeRNEADerivatives`): `∂τ/∂q` along `q ⊕ ξ`, `∂τ/∂v`, `∂τ/∂v̇ = M`, and
+        with `wrt_params=True` `∂τ/∂params`.
+
+        **Arguments:** `q` `(n_configuration,)`, `qd` = `v`, `qdd` = `v̇` `(n_dof,)`,
+        `params`, `t` (unused), `wrt_params`.
+
+        **Returns:** an [`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives].
+
+        **Raises:** `ShapeError` for wrong sizes.
+        """
+        q, v, vdot = self._inputs(q, qd=qd, qdd=qdd)
+        self._finite(q, v, vdot, "qdd")
+        program, eager = choose_program(self, _inverse_body, q, v, vdot, params, t)
+        params = float_arrays(params) if eager else params
+        out = program(self, t, q, v, vdot, params, wrt_params)
+        return finite_derivatives(self, out, q, v, params, None, t, "inverse_dynamics")
+
+    def _finite(self, q: Any, v: Any, w: Any, name: str) -> None:
+        """Eagerly, `NonFiniteError` for a non-finite input and `ShapeError` for a zero
+        quaternion (under `jit`, the results' check catches both)."""
+        if not traced(self, q, v, w):
+            for key, x in (("q", q), ("qd", v), (name, w)):
+                finite(x, key)
+            self._check_quaternions(q)
+
+    # ------------------------------------------------------------------ energies
+    def _energies(self, q: Any, v: Any, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
+        theta, big_a = balls.lane_state(self.tree, q)
+        kinetic, potential = spatial_energies(self.tree, theta, v, params, big_a)
+        rotor = js.armature(params, v.dtype)
+        if rotor is not None:
+            kinetic = kinetic + 0.5 * jnp.sum(rotor * v**2)
+        return kinetic, potential + js.spring_energy(params, theta)
+
+    def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
+        """The mechanical energy `T + V` (`T = ½ vᵀ M v`)."""
+        q, v = self._inputs(q, qd=qd)
+        kinetic, potential = self._energies(q, v, params)
+        return kinetic + potential
+
+    def jacobi_integral(self, t: Any, q: Any, qd: Any, params: Params) -> jnp.ndarray:
+        """`T + V` (`T` is quadratic in `v`)."""
+        kinetic, potential = self._energies(q, qd, params)
+        return kinetic + potential
+
+    def explicit_power(self, t: Any, q: Any, qd: Any, params: Params) -> None:
+        """`None`: the energies do not depend on time."""
+        return None
+
+    def input_power(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
+        """`v·(τ − ∂D/∂v)`: the power of the inputs and of the dissipation."""
+        force = -self._damping(params, qd)
+        return qd @ (force if tau is None else force + tau)
+
+    def energy_and_magnitude(
+        self, t: Any, q: Any, qd: Any, params: Params
+    ) -> tuple[jnp.ndarray, jnp.ndarray]:
+        """`(T + V, |T| + |V|)`."""
+        kinetic, potential = self._energies(q, qd, params)
+        return kinetic + potential, jnp.abs(kinetic) + jnp.abs(potential)
+
+    def components(self, t: Any, q: Any, qd: Any, params: Params) -> dict[str, Any]:
+        """The quaternions' norms, the mass matrix and the bias at one state."""
+        chain, _ = self._at(q, params)
+        return {
+            "the ball joints' quaternion norms": balls.quaternion_norms(self.tree, q),
+            "the mass matrix M (CRBA)": self._mass(chain, params),
+            "the bias b = C v + G (RNEA)": self._inverse(q, qd, None, params),
+        }
+
+    def check_state(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> None:
+        """Validate a state eagerly: sizes, finite values, no zero quaternion, finite
+        params and a positive-definite `M(q)`.
+
+        **Raises:** `ShapeError` (a zero quaternion named by its joint), `NonFiniteError`,
+        `MassMatrixError`; `ConfigurationError` for traced values.
+        """
+        eager_only(f"check_state of {self.name}", self, q, qd, params, t)
+        q, v = self._inputs(q, qd=qd)
+        finite(q, "q")
+        finite(v, "qd")
+        finite_params(params)
+        self._check_quaternions(q)
+        mass = np.asarray(self.mass_matrix(q, params))
+        eigs = np.linalg.eigvalsh(0.5 * (mass + mass.T))
+        if not (np.all(np.isfinite(eigs)) and eigs[0] > 0):
+            raise MassMatrixError(
+                f"the mass matrix of {self.name} is not positive-definite at q={np.asarray(q)} "
+                f"(smallest eigenvalue {eigs[0]:.3g}): check that every body and subtree "
+                "has a positive mass"
+            )
+
+
+def _jacobians(system: BallTreeSystem, q, v, vdot, params):
+    """`(τ, ∂τ/∂q along q ⊕ ξ, ∂τ/∂v, M)` by forward-mode differentiation of the
+    recursions."""
+    zero = jnp.zeros_like(v)
+    jq, jv = jax.jacfwd(
+        lambda xi, w: system._inverse(balls.retract(system.tree, q, xi), w, vdot, params),
+        argnums=(0, 1),
+    )(zero, v)
+    mass = system._mass(system._at(q, params)[0], params)
+    return system._inverse(q, v, vdot, params), jq, jv, mass
+
+
+def _forward_body(system: BallTreeSystem, t, q, v, params, tau, wrt_params: bool):
+    vdot = system.accelerations(t, q, v, params, tau)
+    _, jq, jv, mass = _jacobians(system, q, v, vdot, params)
+    dparams = None
+    if wrt_params:
+        dparams = jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
+    return by_solves(vdot, jq, jv, mass, dparams)
+
+
+def _inverse_body(system: BallTreeSystem, t, q, v, vdot, params, wrt_params: bool):
+    tau, jq, jv, mass = _jacobians(system, q, v, vdot, params)
+    dparams = None
+    if wrt_params:
+        dparams = jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
+    return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)

@@ -1,0 +1,211 @@
+"""Ball joints (MJCF ``type="ball"``, Pinocchio's ``JointModelSpherical``): a tree's
+ball joint is three revolute lanes with its rotation from a quaternion and a
+velocity-product correction (``lagrax._multibody.articulated.balls``).
+
+Checked against independent sources:
+
+- MuJoCo: ``M`` against ``mj_fullM`` and ``v̇`` against ``mj_forward``'s ``qacc`` with
+  contact and constraints disabled, at random states, on a chain of three bodies on ball
+  joints with a hinge among them (offset anchors, rotated bodies and inertias, damping and
+  armature on a ball);
+- Pinocchio's MJCF reader (``JointModelSpherical``): ``crba``, ``aba``, ``rnea`` and
+  ``computeABADerivatives`` / ``computeRNEADerivatives`` on the same file;
+- an invariant: an undamped ball pendulum's energy over a ``simulate`` run, with its
+  quaternions on the unit sphere;
+- bad input: a zero quaternion, a spring or a limit on a ball, a ball under a free joint.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import lagrax as lx
+
+mujoco = pytest.importorskip("mujoco")
+
+_CHAIN = """
+<mujoco>
+  <option><flag contact="disable" constraint="disable"/></option>
+  <worldbody>
+    <body name="a" pos="0.1 0.2 1.5" quat="0.9 0.1 0.3 -0.2">
+      <joint name="ja" type="ball" pos="0.02 -0.03 0.1" damping="{damping}" armature="{armature}"/>
+      <geom type="box" size="0.1 0.05 0.2" pos="0.05 0.02 -0.2" quat="0.8 0.2 -0.1 0.3"/>
+      <body name="b" pos="0.03 0.01 -0.45" quat="0.95 -0.2 0.1 0.1">
+        <joint name="jb" type="ball"/>
+        <geom type="capsule" size="0.04 0.15" pos="0.01 0 -0.17" quat="0.9 0.3 0 0.2"/>
+        <body name="h" pos="0 0.02 -0.35">
+          <joint name="hinge" type="hinge" axis="0.3 1 0.2" pos="0.01 0 0.02" damping="{damping}"/>
+          <geom type="ellipsoid" size="0.05 0.08 0.12" pos="0.02 0.01 -0.1"/>
+          <body name="c" pos="0.01 -0.02 -0.25">
+            <joint name="jc" type="ball" pos="0 0.01 0"/>
+            <geom type="box" size="0.06 0.04 0.09" pos="0.03 0.0 -0.1" quat="0.7 0.1 0.7 0.1"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+CHAIN = _CHAIN.format(damping=0.3, armature=0.05)
+
+
+def _random_state(model, rng):
+    """A random MuJoCo `(qpos, qvel, qfrc)`, every ball's quaternion a unit one."""
+    qpos = rng.normal(size=model.nq)
+    for j in range(model.njnt):
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
+            a = model.jnt_qposadr[j]
+            qpos[a : a + 4] /= np.linalg.norm(qpos[a : a + 4])
+    return qpos, rng.normal(size=model.nv), rng.normal(size=model.nv)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    tree, params = lx.chains.from_mjcf(CHAIN)
+    system = tree.system()
+    fd = jax.jit(lambda q, v, tau: system.forward_dynamics(q, v, params, tau))
+    mass = jax.jit(lambda q: system.mass_matrix(q, params))
+    return tree, params, system, fd, mass
+
+
+def test_chain_of_balls_matches_mujoco(chain):
+    """`M` and `v̇` at random states equal MuJoCo's to 1e-10 relative (measured about
+    1e-14), through `from_mujoco_state`, and the state converts back unchanged."""
+    tree, params, system, fd, mass = chain
+    assert isinstance(system, lx.chains.BallTreeSystem)
+    model = mujoco.MjModel.from_xml_string(CHAIN)
+    data = mujoco.MjData(model)
+    assert (system.n_configuration, system.n_dof) == (model.nq, model.nv)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        qpos, qvel, qfrc = _random_state(model, rng)
+        data.qpos[:], data.qvel[:], data.qfrc_applied[:] = qpos, qvel, qfrc
+        mujoco.mj_forward(model, data)
+        m_mj = np.zeros((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, m_mj)
+        q, v = lx.chains.from_mujoco_state(qpos, qvel, tree)
+        np.testing.assert_allclose(mass(q), m_mj, rtol=0, atol=1e-10 * np.abs(m_mj).max())
+        qdd = np.asarray(fd(q, v, qfrc))
+        np.testing.assert_allclose(qdd, data.qacc, rtol=0, atol=1e-10 * np.abs(data.qacc).max())
+        back = lx.chains.to_mujoco_state(q, v, tree)
+        np.testing.assert_array_equal(back[0], qpos)
+        np.testing.assert_array_equal(back[1], qvel)
+
+
+def test_chain_of_balls_matches_pinocchio(chain):
+    """`M`, `v̇`, `τ` and the ABA and RNEA derivatives (on the tangent, Pinocchio's
+    `integrate`) equal Pinocchio's on its own reading of the file (`JointModelSpherical`),
+    to 1e-10 relative; Pinocchio has no damping, added to its `τ` here."""
+    pin = pytest.importorskip("pinocchio")
+    tree, params, system, fd, mass = chain
+    model = pin.buildModelFromMJCF(_write(CHAIN))
+    data = model.createData()
+    model.gravity.linear[:] = [0.0, 0.0, -9.81]
+    rng = np.random.default_rng(1)
+    q = np.asarray(pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq)))
+    v, tau, vdot = (rng.normal(size=model.nv) for _ in range(3))
+    damping = np.asarray(params["damping"])
+
+    def close(ours, theirs):
+        theirs = np.asarray(theirs)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-10 * np.abs(theirs).max())
+
+    m_pin = pin.crba(model, data, q)
+    close(mass(q), np.triu(m_pin) + np.triu(m_pin, 1).T)
+    close(fd(q, v, tau), pin.aba(model, data, q, v, tau - damping * v))
+    close(
+        system.inverse_dynamics(q, v, vdot, params), pin.rnea(model, data, q, v, vdot) + damping * v
+    )
+    out = system.forward_dynamics_derivatives(q, v, params, tau)
+    pin.computeABADerivatives(model, data, q, v, tau - damping * v)
+    m_inv = np.triu(data.Minv) + np.triu(data.Minv, 1).T
+    close(out.dq, data.ddq_dq)
+    close(out.dqd, data.ddq_dv - m_inv * damping[None, :])
+    close(out.dtau, m_inv)
+    inv = system.inverse_dynamics_derivatives(q, v, vdot, params)
+    pin.computeRNEADerivatives(model, data, q, v, vdot)
+    close(inv.dq, data.dtau_dq)
+    close(inv.dqd, data.dtau_dv + np.diag(damping))
+
+
+def _write(xml: str) -> str:
+    import os
+    import tempfile
+
+    fd, path = tempfile.mkstemp(suffix=".xml")
+    with os.fdopen(fd, "w") as f:
+        f.write(xml)
+    return path
+
+
+def test_undamped_ball_pendulum_conserves_energy():
+    """An undamped chain on ball joints (no armature either) keeps `T + V` to 1e-9
+    relative over 2 s of `simulate`, and its quaternions stay on the unit sphere."""
+    tree, params = lx.chains.from_mjcf(_CHAIN.format(damping=0.0, armature=0.0))
+    system = tree.system()
+    model = mujoco.MjModel.from_xml_string(CHAIN)
+    qpos, qvel, _ = _random_state(model, np.random.default_rng(2))
+    q0, v0 = lx.chains.from_mujoco_state(qpos, qvel, tree)
+    sol = lx.simulate(
+        system, q0, v0, params, t1=2.0, n_save=5, solver="dopri8", rtol=1e-11, atol=1e-11
+    )
+    assert bool(sol.ok)
+    energy = np.asarray(jax.vmap(lambda q, v: system.energy(q, v, params))(sol.q, sol.qd))
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * np.max(np.abs(energy))
+    # the saves are interpolated between projected steps; the last one is a step
+    assert float(np.max(np.abs(sol.constraint_violation))) < 1e-10
+    assert float(np.max(np.abs(sol.constraint_violation[-1]))) < 1e-14
+    assert not np.allclose(sol.q[-1], sol.q[0])  # it moved
+
+
+def test_ball_joint_bad_input(chain):
+    tree, params, system, fd, mass = chain
+    q = jnp.zeros(system.n_configuration).at[3].set(1.0).at[7].set(1.0).at[12].set(1.0)
+    zero = q.at[4:8].set(0.0)  # the second ball's quaternion
+    with pytest.raises(lx.ShapeError, match="'jb'.*q\\[4:8\\]"):
+        system.forward_dynamics(zero, jnp.zeros(system.n_dof), params)
+    with pytest.raises(lx.ShapeError, match="'jb'"):
+        system.check_state(zero, jnp.zeros(system.n_dof), params)
+    with pytest.raises(lx.ShapeError, match="13"):
+        system.forward_dynamics(jnp.zeros(10), jnp.zeros(10), params)
+    spring = CHAIN.replace('type="ball"/>', 'type="ball" stiffness="2"/>')
+    with pytest.raises(lx.MJCFError, match="stiffness 2 on the ball joint 'jb'"):
+        lx.chains.from_mjcf(spring)
+    limited = CHAIN.replace('type="ball"/>', 'type="ball" range="0 30"/>')
+    with pytest.raises(lx.MJCFError, match="limit 0.523599 on the ball joint 'jb'"):
+        lx.chains.from_mjcf(limited)
+
+
+def test_real_file_with_ball_joints_matches_mujoco():
+    """A file we did not write, the MJX sensor test model the mujoco wheel ships (two
+    ball joints with anchors, hinges and slides, motors): `M` and `v̇` equal MuJoCo's to
+    1e-10 relative with contact, constraints and actuation off (measured 2e-16 and
+    5e-15), and the motors' `τ` equals `qfrc_actuator` for a random `ctrl`."""
+    from pathlib import Path
+
+    path = Path(mujoco.__file__).parent / "mjx" / "test_data" / "sensor" / "model.xml"
+    if not path.exists():
+        pytest.skip("this mujoco wheel ships no MJX test data")
+    tree, params = lx.chains.from_mjcf(path)
+    system, actuation = tree.system(), lx.chains.mjcf_actuation(path)
+    assert len(tree.balls) == 2
+    model = mujoco.MjModel.from_xml_path(str(path))
+    off = mujoco.mjtDisableBit
+    model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    qpos, qvel, qfrc = _random_state(model, rng)
+    ctrl = rng.uniform(-1, 1, size=model.nu)
+    data.qpos[:], data.qvel[:], data.qfrc_applied[:], data.ctrl[:] = qpos, qvel, qfrc, ctrl
+    mujoco.mj_forward(model, data)
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    q, v = lx.chains.from_mujoco_state(qpos, qvel, tree)
+    tau = np.asarray(actuation(ctrl, q, v))
+    np.testing.assert_allclose(tau, data.qfrc_actuator, rtol=0, atol=1e-12)
+    mass, qdd = jax.jit(
+        lambda q, v, f: (system.mass_matrix(q, params), system.forward_dynamics(q, v, params, f))
+    )(q, v, qfrc + tau)
+    np.testing.assert_allclose(mass, m_mj, rtol=0, atol=1e-10 * np.abs(m_mj).max())
+    np.testing.assert_allclose(qdd, data.qacc, rtol=0, atol=1e-10 * np.abs(data.qacc).max())
