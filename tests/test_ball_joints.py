@@ -50,12 +50,39 @@ _CHAIN = """
 CHAIN = _CHAIN.format(damping=0.3, armature=0.05)
 
 
+FREE = """
+<mujoco>
+  <option><flag contact="disable" constraint="disable"/></option>
+  <worldbody>
+    <body name="torso" pos="0.1 -0.2 1.0" quat="0.9 0.1 -0.2 0.3">
+      <freejoint name="root"/>
+      <geom type="box" size="0.15 0.1 0.08" pos="0.02 0.01 -0.01" quat="0.9 0.2 0.1 -0.1"/>
+      <body name="upper" pos="0.12 0.05 -0.05" quat="0.8 0.3 -0.1 0.2">
+        <joint name="shoulder" type="ball" pos="0.01 0.02 0.03" damping="0.2" armature="0.03"/>
+        <geom type="capsule" size="0.03 0.1" pos="0.0 0.02 -0.11" quat="0.95 0.1 0.2 0"/>
+        <body name="lower" pos="0.0 0.03 -0.24">
+          <joint name="elbow" type="hinge" axis="0.2 1 0.1" damping="0.1"/>
+          <geom type="ellipsoid" size="0.04 0.05 0.09" pos="0.01 0 -0.08"/>
+        </body>
+      </body>
+      <body name="tail" pos="-0.15 0 0">
+        <joint name="tailball" type="ball" pos="-0.02 0 0"/>
+        <geom type="box" size="0.05 0.03 0.02" pos="-0.06 0.01 0" quat="0.7 0.1 0.7 0.1"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
 def _random_state(model, rng):
-    """A random MuJoCo `(qpos, qvel, qfrc)`, every ball's quaternion a unit one."""
+    """A random MuJoCo `(qpos, qvel, qfrc)`, every ball's and free joint's quaternion a
+    unit one."""
     qpos = rng.normal(size=model.nq)
     for j in range(model.njnt):
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL:
-            a = model.jnt_qposadr[j]
+        kind = model.jnt_type[j]
+        if kind in (mujoco.mjtJoint.mjJNT_BALL, mujoco.mjtJoint.mjJNT_FREE):
+            a = model.jnt_qposadr[j] + (3 if kind == mujoco.mjtJoint.mjJNT_FREE else 0)
             qpos[a : a + 4] /= np.linalg.norm(qpos[a : a + 4])
     return qpos, rng.normal(size=model.nv), rng.normal(size=model.nv)
 
@@ -127,6 +154,72 @@ def test_chain_of_balls_matches_pinocchio(chain):
     pin.computeRNEADerivatives(model, data, q, v, vdot)
     close(inv.dq, data.dtau_dq)
     close(inv.dqd, data.dtau_dv + np.diag(damping))
+
+
+def test_balls_under_a_free_joint_match_mujoco_and_pinocchio():
+    """A free body carrying a ball-hinge arm (damping and armature on the ball) and a
+    ball-jointed tail: `v̇` against MuJoCo's `qacc` (its free joint's linear part in the
+    world frame, `R (v̇_b + ω_b × v_b)`), `M` against `mj_fullM` (congruent by `R`), the
+    state converted both ways; `M`, `v̇`, `τ` and the ABA derivatives against
+    Pinocchio's free flyer with `JointModelSpherical`; `q̇ = N(q) v` against Pinocchio's
+    `integrate`."""
+    robot, params = lx.chains.from_mjcf(FREE)
+    system = robot.system()
+    assert isinstance(robot, lx.chains.FloatingTree) and robot.tree.balls == (0, 4)
+    model = mujoco.MjModel.from_xml_string(FREE)
+    data = mujoco.MjData(model)
+    qpos, qvel, qfrc = _random_state(model, np.random.default_rng(4))
+    data.qpos[:], data.qvel[:] = qpos, qvel
+    mujoco.mj_forward(model, data)
+    q, v = lx.chains.from_mujoco_state(qpos, qvel, robot)
+    back = lx.chains.to_mujoco_state(q, v, robot)
+    np.testing.assert_allclose(back[0], qpos, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(back[1], qvel, rtol=0, atol=1e-15)
+    dynamics = jax.jit(
+        lambda q, v, tau, vdot: (
+            system.mass_matrix(q, params),
+            system.forward_dynamics(q, v, params, tau),
+            system.inverse_dynamics(q, v, vdot, params),
+        )
+    )
+    mass, vdot, _ = dynamics(q, v, 0 * v, v)
+    rot = np.asarray(data.xmat[1]).reshape(3, 3)
+    qacc = np.asarray(vdot).copy()
+    qacc[:3] = rot @ (qacc[:3] + np.cross(v[3:6], v[:3]))
+    np.testing.assert_allclose(qacc, data.qacc, rtol=0, atol=1e-10 * np.abs(data.qacc).max())
+    m_mj = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, m_mj)
+    t = np.eye(model.nv)
+    t[:3, :3] = rot
+    np.testing.assert_allclose(mass, t.T @ m_mj @ t, rtol=0, atol=1e-10 * np.abs(m_mj).max())
+
+    pin = pytest.importorskip("pinocchio")
+    pmodel = pin.buildModelFromMJCF(_write(FREE))
+    pdata = pmodel.createData()
+    pmodel.gravity.linear[:] = [0.0, 0.0, -9.81]
+    rng = np.random.default_rng(5)
+    q = np.asarray(pin.randomConfiguration(pmodel, -np.ones(pmodel.nq), np.ones(pmodel.nq)))
+    v, tau, vdot = (rng.normal(size=pmodel.nv) for _ in range(3))
+    damping = np.r_[np.zeros(6), np.asarray(params["damping"])]
+
+    def close(ours, theirs):
+        theirs = np.asarray(theirs)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-10 * np.abs(theirs).max())
+
+    m_pin = pin.crba(pmodel, pdata, q)
+    mass, qdd, inverse = dynamics(q, v, tau, vdot)
+    close(mass, np.triu(m_pin) + np.triu(m_pin, 1).T)
+    close(qdd, pin.aba(pmodel, pdata, q, v, tau - damping * v))
+    close(inverse, pin.rnea(pmodel, pdata, q, v, vdot) + damping * v)
+    out = system.forward_dynamics_derivatives(q, v, params, tau)
+    pin.computeABADerivatives(pmodel, pdata, q, v, tau - damping * v)
+    m_inv = np.triu(pdata.Minv) + np.triu(pdata.Minv, 1).T
+    close(out.dq, pdata.ddq_dq)
+    close(out.dqd, pdata.ddq_dv - m_inv * damping[None, :])
+    close(out.dtau, m_inv)
+    h = 1e-6  # q̇ = N(q) v: the central difference of Pinocchio's integrate
+    rate = (pin.integrate(pmodel, q, h * v) - pin.integrate(pmodel, q, -h * v)) / (2 * h)
+    np.testing.assert_allclose(system.configuration_rate(q, v), rate, rtol=0, atol=1e-8)
 
 
 def _write(xml: str) -> str:

@@ -25,7 +25,7 @@ from ..._core.checks import (
     traced,
 )
 from ..._core.custom_types import Params
-from ..._core.errors import MassMatrixError, NonFiniteError, ShapeError
+from ..._core.errors import MassMatrixError, NonFiniteError
 from ..._systems.abstract import AbstractSystem
 from ..._systems.dynamics_derivatives import choose_program
 from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
@@ -105,18 +105,7 @@ class BallTreeSystem(AbstractSystem):
     def configuration_names(self) -> tuple[str, ...]:
         """The configuration's names: a one-angle joint's name, a ball's `<joint>_qx`,
         `_qy`, `_qz`, `_qw` (its first lane's name without the `_x`)."""
-        names = list(self.tree.joint_names)
-        out: list[str] = []
-        i = 0
-        while i < len(names):
-            if i in self.tree.balls:
-                stem = names[i].removesuffix("_x")
-                out += [f"{stem}_q{c}" for c in "xyzw"]
-                i += 3
-            else:
-                out.append(names[i])
-                i += 1
-        return tuple(out)
+        return balls.configuration_names(self.tree)
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, q: Any, q_name: str = "q", **velocities: Any) -> list[Any]:
@@ -249,17 +238,7 @@ class BallTreeSystem(AbstractSystem):
 
     def _check_quaternions(self, q: Any) -> None:
         """`ShapeError` naming the first ball whose quaternion is zero (eagerly)."""
-        norms = np.asarray(balls.quaternion_norms(self.tree, q))
-        quats = balls.layout(self.tree.joint_types, self.tree.balls)[2]
-        for k, lane in enumerate(self.tree.balls):
-            if not norms[k] > 0:
-                name = self.tree.joint_names[lane].removesuffix("_x")
-                slots = quats[k]
-                raise ShapeError(
-                    f"the quaternion of ball joint {name!r}, q[{slots[0]}:{slots[-1] + 1}] = "
-                    f"{np.asarray(q)[slots]}, is zero: a rotation needs a unit quaternion "
-                    "(x, y, z, w), e.g. (0, 0, 0, 1)"
-                )
+        balls.check_quaternions(self.tree, q)
 
     # ------------------------------------------------------------------ derivatives
     def forward_dynamics_derivatives(

@@ -89,6 +89,57 @@ def velocity_product_jacobian(balls: tuple[int, ...], v: Any) -> jnp.ndarray:
     return out
 
 
+def joint_product(tree: Any, v: Any) -> jnp.ndarray:
+    """`P δ` of a floating base's velocity `v = (v_B, joints)`: zero on the base's six
+    entries (`FloatingBaseSystem` with ball joints)."""
+    return jnp.concatenate([jnp.zeros(6, v.dtype), velocity_product(tree.balls, v[6:])])
+
+
+def armature_product(params: Any, product: Any) -> Any:
+    """`A P δ` of a floating base's `P δ` (`joint_product`), zero on the base; `0.0`
+    without armature."""
+    rotor = params.get("armature")
+    if rotor is None:
+        return 0.0
+    rotor = jnp.asarray(rotor, product.dtype)
+    return jnp.concatenate([jnp.zeros(6, product.dtype), rotor * product[6:]])
+
+
+def configuration_names(tree: Any) -> tuple[str, ...]:
+    """The names of a tree's configuration entries: a one-angle joint's name, a ball's
+    `<joint>_qx`, `_qy`, `_qz`, `_qw` (its first lane's name without the `_x`)."""
+    names = list(tree.joint_names)
+    out: list[str] = []
+    i = 0
+    while i < len(names):
+        if i in tree.balls:
+            stem = names[i].removesuffix("_x")
+            out += [f"{stem}_q{c}" for c in "xyzw"]
+            i += 3
+        else:
+            out.append(names[i])
+            i += 1
+    return tuple(out)
+
+
+def check_quaternions(tree: Any, q: Any, offset: int = 0) -> None:
+    """Eagerly, `ShapeError` naming the first ball whose quaternion is zero (`q`: the
+    tree's configuration, at `offset` in the system's)."""
+    from ..._core.errors import ShapeError
+
+    norms = np.asarray(quaternion_norms(tree, q))
+    quats = layout(tree.joint_types, tree.balls)[2]
+    for k, lane in enumerate(tree.balls):
+        if not norms[k] > 0:
+            name = tree.joint_names[lane].removesuffix("_x")
+            first = int(quats[k][0]) + offset
+            raise ShapeError(
+                f"the quaternion of ball joint {name!r}, q[{first}:{first + 4}] = "
+                f"{np.asarray(q)[quats[k]]}, is zero: a rotation needs a unit quaternion "
+                "(x, y, z, w), e.g. (0, 0, 0, 1)"
+            )
+
+
 def configuration_rate(tree: Any, q: Any, v: Any) -> jnp.ndarray:
     """`q̇ = N(q) v`: a one-angle joint's rate is its velocity, a ball's quaternion
     moves as `½ quat ⊗ (ω, 0)`."""

@@ -66,15 +66,21 @@ from ..._systems.sensitivity import (
 from .. import joint_space as js
 from ..algorithms import derivative_recursions as dr
 from ..algorithms import floating_recursions as fr
+from ..articulated import balls
 
 
-def retract(q: Any, delta: Any) -> jnp.ndarray:
+def retract(q: Any, delta: Any, tree: Any = None) -> jnp.ndarray:
     """`q ⊕ δ` to first order in `δ` (see the module docstring): the base origin moved by
     `R δ_v`, the quaternion by `½ quat ⊗ (δ_ω, 0)` (normalized where it is read), the
-    joints by `δ_joints`."""
+    joints by `δ_joints` (a `tree` with ball joints: each ball's quaternion likewise by
+    its `δ`, `balls.retract`)."""
     quat = q[3:7]
     moved = q[:3] + fr.quaternion_rotation(quat) @ delta[:3]
-    return jnp.concatenate([moved, quat + fr.quaternion_rate(quat, delta[3:6]), q[7:] + delta[6:]])
+    if tree is not None and tree.balls:
+        joints = balls.retract(tree, q[7:], delta[6:])
+    else:
+        joints = q[7:] + delta[6:]
+    return jnp.concatenate([moved, quat + fr.quaternion_rate(quat, delta[3:6]), joints])
 
 
 def twist_adjoint(twist: Any) -> jnp.ndarray:
@@ -88,12 +94,13 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
     """`(τ, ∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`: the analytic
     recursion with a free root (`derivative_recursions.free_root_derivatives`), reduced
     to the coordinates for mimic joints, with the joint damping's `∂τ/∂v`; a lone rigid
-    body (no joints) by forward-mode derivatives of its Newton–Euler equations."""
+    body (no joints), or a tree with ball joints, by forward-mode derivatives of its
+    Newton–Euler equations."""
     tree = system.robot.tree
-    if tree.n_bodies == 0:
+    if tree.n_bodies == 0 or tree.balls:
         zero = jnp.zeros(system.n_dof, q.dtype)
         jq, jv = jax.jacfwd(
-            lambda d, w: system._inverse(retract(q, d), w, vdot, params), argnums=(0, 1)
+            lambda d, w: system._inverse(retract(q, d, tree), w, vdot, params), argnums=(0, 1)
         )(zero, v)
         return system._inverse(q, v, vdot, params), jq, jv, system._mass(system._at(q, params))[0]
     fc = system._at(q, params)
@@ -190,7 +197,11 @@ def linearize(
     out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False, names)
     (v,) = system._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
     a_mat, b_mat = state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
-    return a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype))), b_mat
+    a_mat = a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype)))
+    for lane in system.robot.tree.balls:  # a ball's `ξ̇ = ω − ½ ω × ξ + O(ξ²)`
+        k = 6 + lane
+        a_mat = a_mat.at[k : k + 3, k : k + 3].set(-0.5 * fr.skew(v[k : k + 3].astype(a_mat.dtype)))
+    return a_mat, b_mat
 
 
 class FloatingDerivatives(AbstractSystem):

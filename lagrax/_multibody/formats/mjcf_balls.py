@@ -45,20 +45,18 @@ def ball_lanes(model, names, b: int, j: int, bodies: list[TreeBody], frame) -> t
 
 
 def balls_supported(names, bodies: list[TreeBody], base, contact, n_parts: int) -> None:
-    """`MJCFError` naming the first ball joint where lagrax does not model one yet: under
-    a free joint, in a model of several parts, or with `contact=`."""
+    """`MJCFError` naming the first ball joint where lagrax does not model one yet: in a
+    model of several parts, or with `contact=`."""
     ball = next((b for b in bodies if b.ball), None)
     if ball is None:
         return
     where = None
-    if base is not None:
-        where = f"under the free joint of {base.name!r}"
-    elif n_parts > 1:
+    if n_parts > 1:
         where = "in a model of several parts (free bodies)"
     elif contact is not False and contact is not None:
         where = "with contact="
     if where is not None:
         raise MJCFError(
             f"joint {names('joint', ball.joint_id)!r} is a ball joint {where}: lagrax has "
-            "ball joints on a tree fixed to the world only, so far"
+            "ball joints in a model of one robot (fixed or floating) without contact, so far"
         )

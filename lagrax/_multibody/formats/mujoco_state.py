@@ -67,6 +67,10 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
     """
     if getattr(robot, "balls", ()):
         return _ball_quaternions(robot, qpos, qvel, ("qpos", "qvel"), (1, 2, 3, 0))
+    if _floating_balls(robot):  # the balls' quaternions, then the free joint
+        qpos, qvel = _ball_quaternions(robot.tree, qpos, qvel, ("qpos", "qvel"), (1, 2, 3, 0), 7)
+        pos, vel = from_mujoco_state(qpos[..., :7], qvel[..., :6])
+        return qpos.at[..., :7].set(pos), qvel.at[..., :6].set(vel)
     frees = free_joints(robot)
     qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7 * len(frees), 6 * len(frees)))
     for qa, va in frees:
@@ -79,19 +83,28 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
     return qpos, qvel
 
 
-def _ball_quaternions(tree: Any, pos: Any, vel: Any, names: tuple[str, str], order: tuple):
-    """The state of a [`Tree`][lagrax.chains.Tree] with ball joints with every ball's
-    quaternion's entries taken in `order` (MuJoCo's `(w, x, y, z)` from lagrax's
-    `(x, y, z, w)` or back); the velocity is the same in both (`ω` in the child frame)."""
+def _floating_balls(robot: Any) -> bool:
+    """Whether `robot` is a [`FloatingTree`][lagrax.chains.FloatingTree] with ball joints."""
+    return isinstance(robot, FloatingTree) and bool(robot.tree.balls)
+
+
+def _ball_quaternions(
+    tree: Any, pos: Any, vel: Any, names: tuple[str, str], order: tuple, base: int = 0
+):
+    """The state of a [`Tree`][lagrax.chains.Tree] with ball joints (after a floating
+    base's `base = 7` entries) with every ball's quaternion's entries taken in `order`
+    (MuJoCo's `(w, x, y, z)` from lagrax's `(x, y, z, w)` or back); the velocity is the
+    same in both (`ω` in the child frame)."""
     from ..articulated.balls import layout
 
-    pos, vel = _free_joint_state(pos, vel, names, (tree.n_configuration, tree.n))
-    if pos.shape[-1] != tree.n_configuration:
+    sizes = (base + tree.n_configuration, (6 if base else 0) + tree.n)
+    pos, vel = _free_joint_state(pos, vel, names, sizes)
+    if pos.shape[-1] != sizes[0]:
         raise ShapeError(
             f"{names[0]} has {pos.shape[-1]} entries on its last axis, expected "
-            f"{tree.n_configuration} (a ball joint's quaternion takes 4)"
+            f"{sizes[0]} (a ball joint's quaternion takes 4)"
         )
-    quats = layout(tree.joint_types, tree.balls)[2]
+    quats = base + layout(tree.joint_types, tree.balls)[2]
     return pos.at[..., quats].set(pos[..., quats[:, list(order)]]), vel
 
 
@@ -120,6 +133,10 @@ def to_mujoco_state(q: Any, v: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp
     """
     if getattr(robot, "balls", ()):
         return _ball_quaternions(robot, q, v, ("q", "v"), (3, 0, 1, 2))
+    if _floating_balls(robot):
+        q, v = _ball_quaternions(robot.tree, q, v, ("q", "v"), (3, 0, 1, 2), 7)
+        pos, vel = to_mujoco_state(q[..., :7], v[..., :6])
+        return q.at[..., :7].set(pos), v.at[..., :6].set(vel)
     frees = free_joints(robot)
     q, v = _free_joint_state(q, v, ("q", "v"), (7 * len(frees), 6 * len(frees)))
     for qa, va in frees:
