@@ -7,12 +7,15 @@ Checked against independent sources:
 - MuJoCo: ``M`` against ``mj_fullM`` and ``v̇`` against ``mj_forward``'s ``qacc`` with
   contact and constraints disabled, at random states, on a chain of three bodies on ball
   joints with a hinge among them (offset anchors, rotated bodies and inertias, damping and
-  armature on a ball);
-- Pinocchio's MJCF reader (``JointModelSpherical``): ``crba``, ``aba``, ``rnea`` and
-  ``computeABADerivatives`` / ``computeRNEADerivatives`` on the same file;
-- an invariant: an undamped ball pendulum's energy over a ``simulate`` run, with its
+  armature on a ball), on a ball-hinge arm under a free joint, and on a file we did not
+  write (the MJX sensor test model);
+- Pinocchio's MJCF reader (``JointModelSpherical``, fixed and free-flyer): ``crba``,
+  ``aba``, ``rnea``, ``computeABADerivatives`` / ``computeRNEADerivatives`` and
+  ``integrate``; the analytic tangent derivatives also against plain forward-mode
+  autodiff along the exact ``q ⊕ ξ``;
+- an invariant: an undamped ball chain's energy over a ``simulate`` run, with its
   quaternions on the unit sphere;
-- bad input: a zero quaternion, a spring or a limit on a ball, a ball under a free joint.
+- bad input: a zero quaternion, a spring or a limit on a ball.
 """
 
 import jax
@@ -65,10 +68,7 @@ FREE = """
           <geom type="ellipsoid" size="0.04 0.05 0.09" pos="0.01 0 -0.08"/>
         </body>
       </body>
-      <body name="tail" pos="-0.15 0 0">
-        <joint name="tailball" type="ball" pos="-0.02 0 0"/>
-        <geom type="box" size="0.05 0.03 0.02" pos="-0.06 0.01 0" quat="0.7 0.1 0.7 0.1"/>
-      </body>
+      <geom type="box" size="0.05 0.03 0.02" pos="-0.2 0.01 0" quat="0.7 0.1 0.7 0.1"/>
     </body>
   </worldbody>
 </mujoco>
@@ -154,18 +154,37 @@ def test_chain_of_balls_matches_pinocchio(chain):
     pin.computeRNEADerivatives(model, data, q, v, vdot)
     close(inv.dq, data.dtau_dq)
     close(inv.dqd, data.dtau_dv + np.diag(damping))
+    # the analytic tangent terms against plain forward-mode autodiff of the inverse
+    # dynamics along the exact `q ⊕ ξ` (a ball's quaternion times `exp(ξ/2)`)
+    jq = jax.jit(jax.jacfwd(lambda xi: system.inverse_dynamics(_moved(q, xi), v, vdot, params)))
+    close(inv.dq, jq(jnp.zeros(system.n_dof)))
+
+
+def _moved(q, xi):
+    """`q ⊕ ξ` of the chain (balls `ja`, `jb`, a hinge, `jc`): each quaternion
+    `(x, y, z, w)` times `exp(ξ/2) = (sin(|ξ|/2) ξ/|ξ|, cos(|ξ|/2))`, the hinge plus its
+    `ξ`."""
+
+    def times_exp(quat, w):
+        half = 0.5 * jnp.sqrt(w @ w + 1e-300)
+        e = jnp.concatenate([jnp.sin(half) / (2 * half) * w, jnp.cos(half)[None]])
+        vec, s, ev, es = quat[:3], quat[3], e[:3], e[3]
+        return jnp.concatenate([s * ev + es * vec + jnp.cross(vec, ev), (s * es - vec @ ev)[None]])
+
+    parts = [times_exp(q[0:4], xi[0:3]), times_exp(q[4:8], xi[3:6]), (q[8] + xi[6])[None]]
+    return jnp.concatenate([*parts, times_exp(q[9:13], xi[7:10])])
 
 
 def test_balls_under_a_free_joint_match_mujoco_and_pinocchio():
-    """A free body carrying a ball-hinge arm (damping and armature on the ball) and a
-    ball-jointed tail: `v̇` against MuJoCo's `qacc` (its free joint's linear part in the
-    world frame, `R (v̇_b + ω_b × v_b)`), `M` against `mj_fullM` (congruent by `R`), the
-    state converted both ways; `M`, `v̇`, `τ` and the ABA derivatives against
-    Pinocchio's free flyer with `JointModelSpherical`; `q̇ = N(q) v` against Pinocchio's
-    `integrate`."""
+    """A free body carrying a ball-hinge arm (damping and armature on the ball): `v̇`
+    against MuJoCo's `qacc` (its free joint's linear part in the world frame,
+    `R (v̇_b + ω_b × v_b)`), `M` against `mj_fullM` (congruent by `R`), the state
+    converted both ways; `M`, `v̇`, `τ` and the ABA derivatives (analytic) against
+    Pinocchio's free flyer with `JointModelSpherical`; `q̇ = N(q) v` against
+    Pinocchio's `integrate`."""
     robot, params = lx.chains.from_mjcf(FREE)
     system = robot.system()
-    assert isinstance(robot, lx.chains.FloatingTree) and robot.tree.balls == (0, 4)
+    assert isinstance(robot, lx.chains.FloatingTree) and robot.tree.balls == (0,)
     model = mujoco.MjModel.from_xml_string(FREE)
     data = mujoco.MjData(model)
     qpos, qvel, qfrc = _random_state(model, np.random.default_rng(4))

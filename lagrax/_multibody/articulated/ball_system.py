@@ -27,7 +27,7 @@ from ..._core.checks import (
 from ..._core.custom_types import Params
 from ..._core.errors import MassMatrixError, NonFiniteError
 from ..._systems.abstract import AbstractSystem
-from ..._systems.dynamics_derivatives import choose_program
+from ..._systems.dynamics_derivatives import choose_program, state_space
 from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
 from ..._systems.sensitivity import (
     ForwardDynamicsDerivatives,
@@ -37,6 +37,8 @@ from ..._systems.sensitivity import (
 )
 from .. import joint_space as js
 from ..algorithms import recursions as a
+from ..algorithms.derivative_recursions import rnea_derivatives
+from ..algorithms.floating_recursions import skew
 from . import balls
 from .tree_equations import spatial_chain, spatial_energies
 from .tree_fields import joint_damping
@@ -71,7 +73,9 @@ class BallTreeSystem(AbstractSystem):
 
     The derivatives calls take `∂/∂q` on the tangent space, along `q ⊕ ξ` (a ball's
     rotation moved to `R exp([ξ]×)`, the other joints by `ξ`; Pinocchio's `integrate`),
-    by forward-mode differentiation of the recursions.
+    analytically: the lanes' RNEA derivatives (`O(n²)`) plus closed-form tangent terms
+    in the lanes' `J(θ)` (`ω = J θ̇`) and its first and second derivatives at `θ = 0`
+    (`balls.tangent_derivatives`).
 
     Build it with [`Tree.system`][lagrax.chains.AbstractTree.system] of a tree with
     `balls` ([`lagrax.chains.from_mjcf`][] makes one from MJCF ball joints).
@@ -299,6 +303,36 @@ class BallTreeSystem(AbstractSystem):
         out = program(self, t, q, v, vdot, params, wrt_params)
         return finite_derivatives(self, out, q, v, params, None, t, "inverse_dynamics")
 
+    def linearize(
+        self, q_eq: Any, qd_eq: Any, params: Params, tau_eq: Any = None, *, t: Any = 0.0
+    ) -> tuple[jax.Array, jax.Array]:
+        r"""Linearization `δẋ = A δx + B δτ` on the tangent space about
+        `(q_eq, v_eq, τ_eq)`, with the state `x = (ξ, v)` (`q = q_eq ⊕ ξ`):
+
+        $$
+        A = \begin{pmatrix} −½ [ω_{eq}]× ⊕ 0 & I \\ ∂v̇/∂q & ∂v̇/∂v \end{pmatrix},
+        \qquad B = \begin{pmatrix} 0 \\ M⁻¹ \end{pmatrix},
+        $$
+
+        a ball's `ω = J_r(ξ) ξ̇` (`J_r` the right Jacobian of `SO(3)`'s exponential)
+        giving `ξ̇ = ω − ½ ω × ξ + O(ξ²)` on its block (zero for a ball at rest and for
+        the other joints).
+
+        **Arguments:** `q_eq` `(n_configuration,)`, `qd_eq` = `v_eq` `(n_dof,)`,
+        `params`, `tau_eq` (default zero), `t` (unused).
+
+        **Returns:** `(A, B)`, shapes `(2 n_dof, 2 n_dof)` and `(2 n_dof, n_dof)`.
+
+        **Raises:** as [`forward_dynamics`][lagrax.chains.BallTreeSystem.forward_dynamics].
+        """
+        out = self.forward_dynamics_derivatives(q_eq, qd_eq, params, tau_eq, t)
+        (v,) = self._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
+        a_mat, b_mat = state_space(out)
+        for k in self.tree.balls:
+            block = -0.5 * skew(v[k : k + 3].astype(a_mat.dtype))
+            a_mat = a_mat.at[k : k + 3, k : k + 3].set(block)
+        return a_mat, b_mat
+
     def _finite(self, q: Any, v: Any, w: Any, name: str) -> None:
         """Eagerly, `NonFiniteError` for a non-finite input and `ShapeError` for a zero
         quaternion (under `jit`, the results' check catches both)."""
@@ -376,15 +410,18 @@ class BallTreeSystem(AbstractSystem):
 
 
 def _jacobians(system: BallTreeSystem, q, v, vdot, params):
-    """`(τ, ∂τ/∂q along q ⊕ ξ, ∂τ/∂v, M)` by forward-mode differentiation of the
-    recursions."""
-    zero = jnp.zeros_like(v)
-    jq, jv = jax.jacfwd(
-        lambda xi, w: system._inverse(balls.retract(system.tree, q, xi), w, vdot, params),
-        argnums=(0, 1),
-    )(zero, v)
-    mass = system._mass(system._at(q, params)[0], params)
-    return system._inverse(q, v, vdot, params), jq, jv, mass
+    """`(τ, ∂τ/∂q along q ⊕ ξ, ∂τ/∂v, M)`: the lanes' analytic RNEA derivatives
+    (`derivative_recursions.rnea_derivatives`, at `θ̈ = v̇ − P δ`) with the balls'
+    tangent terms (`balls.tangent_derivatives`), the springs' stiffness, the damping's
+    `∂/∂v` and the armature on `M`."""
+    chain, theta = system._at(q, params)
+    links, product = chain.passes.links, balls.velocity_product(system.tree.balls, v)
+    tau, dq, dqd, mass = rnea_derivatives(chain, links(v), links(vdot - product))
+    dq, dqd = balls.tangent_derivatives(system.tree.balls, tau, dq, dqd, mass, v, vdot)
+    stiffness = js.stiffness_matrix(params, v.shape[0], v.dtype)
+    dq = dq if stiffness is None else dq + stiffness
+    dqd = dqd + jax.jacfwd(lambda w: system._damping(params, w))(v)
+    return system._inverse(q, v, vdot, params), dq, dqd, js.with_armature(mass, params)
 
 
 def _forward_body(system: BallTreeSystem, t, q, v, params, tau, wrt_params: bool):

@@ -197,3 +197,44 @@ def ball_entries(
                 "identity rotation"
             )
     return out
+
+
+# `J(θ)` of the lanes, `ω = J(θ) θ̇`: columns `R_zᵀ R_yᵀ e_x`, `R_zᵀ e_y`, `e_z`, i.e.
+# `[[c₂c₃, s₃, 0], [−c₂s₃, c₃, 0], [s₂, 0, 1]]`; its derivatives at `θ = 0`:
+_DJ = np.zeros((3, 3, 3))  # `∂J/∂θ_k`
+_DJ[1, 2, 0] = 1.0
+_DJ[2] = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
+_D2J = np.zeros((3, 3, 3, 3))  # `∂²J/∂θ_k∂θ_j` (only `k = j = y` and `k = j = z`)
+_D2J[1, 1, 0, 0] = -1.0
+_D2J[2, 2] = np.diag([-1.0, -1.0, 0.0])
+
+
+def tangent_derivatives(balls: tuple[int, ...], tau, dq, dqd, mass, v, vdot, offset: int = 0):
+    r"""`(∂τ/∂q, ∂τ/∂v)` along `q ⊕ ξ` at fixed `(ω, ω̇)` from the lanes' analytic
+    `(τ_θ, ∂τ_θ/∂θ, ∂τ_θ/∂θ̇, M)` at `θ = 0`, `θ̇ = ω`, `θ̈ = ω̇ − P δ` (no armature).
+
+    Moving a ball's lanes to `θ` with the motion fixed changes their rates and
+    accelerations, `θ̇ = J⁻¹ ω` and `θ̈ = J⁻¹ (ω̇ − J̇ θ̇)`, and its generalized force is
+    `τ_ω = J⁻ᵀ τ_θ`; with `J(0) = 1` and the constant `∂_k J`, `∂_k ∂_j J` at `0`:
+
+    $$
+    \frac{∂τ}{∂ξ_k} = \frac{∂τ_θ}{∂θ_k} + \frac{∂τ_θ}{∂θ̇} u_k + M a_k − (∂_k J)ᵀ τ_θ,
+    \quad u_k = −∂_k J\,ω, \quad
+    a_k = −∂_k J\,(ω̇ − δ) − \textstyle\sum_j ∂_k ∂_j J\,ω_j\,ω − \frac{∂δ}{∂ω} u_k,
+    $$
+
+    the last term on the ball's rows only; and `∂τ/∂ω = ∂τ_θ/∂θ̇ − M ∂(P δ)/∂ω`. `v`,
+    `vdot`: the joints' (lanes'); the matrices' joint block starts at `offset` (a
+    floating base: 6)."""
+    for s in balls:
+        w, k0 = v[s : s + 3], offset + s
+        lanes_dd = vdot[s : s + 3] - velocity_product((0,), w)
+        ddelta = velocity_product_jacobian((0,), w)
+        cols = []
+        for k in range(3):
+            u = -_DJ[k] @ w
+            acc = -_DJ[k] @ lanes_dd - (_D2J[k] @ w).T @ w - ddelta @ u
+            col = dqd[:, k0 : k0 + 3] @ u + mass[:, k0 : k0 + 3] @ acc
+            cols.append(col.at[k0 : k0 + 3].add(-_DJ[k].T @ tau[k0 : k0 + 3]))
+        dq = dq.at[:, k0 : k0 + 3].add(jnp.stack(cols, axis=1))
+    return dq, dqd.at[:, offset:].add(-mass[:, offset:] @ velocity_product_jacobian(balls, v))

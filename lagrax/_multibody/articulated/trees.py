@@ -420,10 +420,20 @@ class Tree(AbstractTree):
       `springref`; `tendon*` entries, see [`lagrax.chains.from_mjcf`][]): then the
       scene's energies (the definition, `dataclasses.replace(system,
       equations=None)`) include them. The recursions read them in any case.
+    - `balls`: the first bodies of ball joints (default none). A ball joint is three
+      revolute bodies `b, b + 1, b + 2` about `x`, `y`, `z`, each hanging from the one
+      before, the last two with the identity rotation and zero offset (the joint's body
+      last); its coordinates are a unit quaternion `(x, y, z, w)` in `q` and the
+      body's angular velocity in its own frame in `v`
+      ([`n_configuration`][lagrax.chains.AbstractTree.n_configuration] `= n +
+      len(balls)`), and the tree's system is a
+      [`BallTreeSystem`][lagrax.chains.BallTreeSystem]
+      ([`lagrax.chains.from_mjcf`][] builds these from MJCF ball joints).
 
     **Raises:** `ConfigurationError` (a `ValueError`) for an unknown joint type, a
-    parent index that is not an earlier body, lists of the wrong length, or a mimic entry
-    whose body or master is not a body, or whose master is itself a mimic.
+    parent index that is not an earlier body, lists of the wrong length, a mimic entry
+    whose body or master is not a body, or whose master is itself a mimic, or a `balls`
+    entry that is not three such lanes (or beside mimic joints).
 
     **Example:** a torso joint carrying two one-joint arms:
 

@@ -93,11 +93,12 @@ def twist_adjoint(twist: Any) -> jnp.ndarray:
 def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
     """`(τ, ∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`: the analytic
     recursion with a free root (`derivative_recursions.free_root_derivatives`), reduced
-    to the coordinates for mimic joints, with the joint damping's `∂τ/∂v`; a lone rigid
-    body (no joints), or a tree with ball joints, by forward-mode derivatives of its
-    Newton–Euler equations."""
+    to the coordinates for mimic joints, with the joint damping's `∂τ/∂v` (ball joints:
+    the lanes' at `θ̈ = v̇ − P δ`, with the balls' tangent terms,
+    `balls.tangent_derivatives`); a lone rigid body (no joints) by forward-mode
+    derivatives of its Newton–Euler equations."""
     tree = system.robot.tree
-    if tree.n_bodies == 0 or tree.balls:
+    if tree.n_bodies == 0:
         zero = jnp.zeros(system.n_dof, q.dtype)
         jq, jv = jax.jacfwd(
             lambda d, w: system._inverse(retract(q, d, tree), w, vdot, params), argnums=(0, 1)
@@ -111,10 +112,14 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
         fc.s_base,
         fc.inertia_base,
         links(v_all[6:]),
-        links(vdot_all[6:]),
+        links(_lanes(tree, v_all, vdot_all) if tree.balls else vdot_all[6:]),
         v_all[:6],
         vdot_all[:6],
     )
+    if tree.balls:  # along each ball's `R exp([ξ]×)` at fixed `(ω, ω̇)`
+        jq, jv = balls.tangent_derivatives(
+            tree.balls, tau, jq, jv, mass, v_all[6:], vdot_all[6:], offset=6
+        )
     # armature and joint springs, on every body's joint: τ ⊃ a θ̈ + ∂V_s/∂θ, M ⊃ diag(a),
     # ∂τ/∂q ⊃ K_s (`joint_space`)
     tau = tau.at[6:].add(js.joint_inverse(params, fc.theta, vdot_all[6:]))
@@ -127,6 +132,11 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
         tau, jq, jv, mass = j_b.T @ tau, j_b.T @ jq @ j_b, j_b.T @ jv @ j_b, j_b.T @ mass @ j_b
     damping = jax.jacfwd(lambda w: system._damping(params, w))(v)  # constant: `J_Bᵀ b J_B`
     return tau + system._damping(params, v), jq, jv + damping, mass
+
+
+def _lanes(tree: Any, v: Any, vdot: Any) -> jnp.ndarray:
+    """The lanes' accelerations `v̇_joints − P δ` of a tree with ball joints."""
+    return vdot[6:] - balls.velocity_product(tree.balls, v[6:])
 
 
 def _forward_body(system: FloatingDerivatives, t, q, v, params, tau, wrt_params: bool):

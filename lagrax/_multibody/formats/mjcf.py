@@ -125,6 +125,15 @@ def from_mjcf(
     `qpos` and `q̇` its `qvel`**, with the joint's `ref` (`qpos0`) folded into the
     tree's fixed rotation or offset.
 
+    A **ball joint** is Pinocchio's spherical joint: 4 entries of `q`, the unit
+    quaternion `(x, y, z, w)` of the body's rotation in the joint frame (MuJoCo's
+    `qpos` holds it as `(w, x, y, z)`: [`from_mujoco_state`][lagrax.chains.from_mujoco_state]
+    with the tree reorders it), and 3 of `q̇`, the body's angular velocity in its own
+    frame (MuJoCo's `qvel`). The tree gets three revolute lanes for it (`tree.balls`;
+    see [`BallTreeSystem`][lagrax.chains.BallTreeSystem], the tree's system), each with
+    its dof's damping, armature and friction loss. A spring or a limit on a ball is not
+    modelled (refused, or dropped under `ignore_unsupported`).
+
     A **free joint** (`<freejoint/>`, on a body hanging from the world, with every other
     joint below it) makes that body a floating base: the result is a
     [`FloatingTree`][lagrax.chains.FloatingTree], whose state is Pinocchio's free-flyer
@@ -224,7 +233,8 @@ def from_mjcf(
     - `ignore_unsupported`: drop what lagrax does not model (gravity compensation,
       spatial tendons with stiffness or damping, tendon armature or friction loss,
       dead-band or nonlinear springs, fluid forces, damping, armature, friction loss or
-      stiffness on a free joint; an equality on a spatial tendon or a flex drops every
+      stiffness on a free joint, a spring or a limit on a ball joint; an equality on a
+      spatial tendon or a flex drops every
       equality) with one `UserWarning` naming each, instead of refusing the model.
     - `friction_velocity`: the stiction velocity `v_s` of joint friction loss (default
       0.01: rad/s for a hinge, m/s for a slide).
@@ -247,7 +257,8 @@ def from_mjcf(
     system, `scene.spheres` in geom order) and the params plus `"contact_friction"`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
-    message); for a ball joint, naming the joint and its body; for a free body with
+    message); for a ball joint beside several free bodies, with equality constraints or
+    with `contact=`, naming the joint; for a free body with
     other joints, or a massless floating base; for an equality lagrax does not model
     (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
