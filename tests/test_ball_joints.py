@@ -98,7 +98,8 @@ def chain():
 
 def test_chain_of_balls_matches_mujoco(chain):
     """`M` and `v̇` at random states equal MuJoCo's to 1e-10 relative (measured about
-    1e-14), through `from_mujoco_state`, and the state converts back unchanged."""
+    1e-14), through `from_mujoco_state`, and the state converts back unchanged; the
+    bodies' rotations and centres of mass are MuJoCo's `xmat` and `xipos`."""
     tree, params, system, fd, mass = chain
     assert isinstance(system, lx.chains.BallTreeSystem)
     model = mujoco.MjModel.from_xml_string(CHAIN)
@@ -118,6 +119,12 @@ def test_chain_of_balls_matches_mujoco(chain):
         back = lx.chains.to_mujoco_state(q, v, tree)
         np.testing.assert_array_equal(back[0], qpos)
         np.testing.assert_array_equal(back[1], qvel)
+    # the kinematics: each body's rotation and centre of mass (on a ball's last lane)
+    _, rots = tree.frames(q, params)
+    lanes = [2, 5, 6, 9]  # the bodies a, b, h, c
+    np.testing.assert_allclose(rots[np.array(lanes)], data.xmat[1:].reshape(-1, 3, 3), atol=1e-14)
+    coms = tree.com_positions(q, params)[np.array(lanes)]
+    np.testing.assert_allclose(coms, data.xipos[1:], atol=1e-14)
 
 
 def test_chain_of_balls_matches_pinocchio(chain):

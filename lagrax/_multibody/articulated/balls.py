@@ -169,6 +169,19 @@ def quaternion_norms(tree: Any, q: Any) -> jnp.ndarray:
     return jnp.linalg.norm(q[layout(tree.joint_types, tree.balls)[2]], axis=-1)
 
 
+def no_scene(tree: Any) -> None:
+    """`ConfigurationError` for the scene of a tree with ball joints: its energies are
+    not a Lagrangian in `(q, q̇)` (a ball's velocity is not its quaternion's rate)."""
+    if tree.balls:
+        from ..._core.errors import ConfigurationError
+
+        raise ConfigurationError(
+            "a tree with ball joints has no scene of energies in (q, q̇): a ball's velocity "
+            "is its angular velocity, not its quaternion's rate; use tree.system() (a "
+            "BallTreeSystem, with energy and the recursions)"
+        )
+
+
 def ball_entries(
     balls: Any, types: str, parents: tuple[int, ...], axes: Any, rotations: Any, mimic: Any
 ) -> tuple[int, ...]:

@@ -301,8 +301,9 @@ class AbstractTree(AbstractArticulated):
         damping, `½ Σ b_i q̇_i²`).
 
         **Raises:** `ConfigurationError` for a tree with no joints (see
-        [`FloatingTree`][lagrax.chains.FloatingTree])."""
+        [`FloatingTree`][lagrax.chains.FloatingTree]) or with ball joints."""
         self._check_moves()
+        balls_.no_scene(self)
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         terms = self._joint_terms()  # armature and springs (`joint_space`)
         return Scene(
