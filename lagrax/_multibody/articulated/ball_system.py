@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..._core import model_programs
 from ..._core.checks import (
     configuration_size,
     coords,
@@ -171,13 +172,13 @@ class BallTreeSystem(AbstractSystem):
         """`M(q)`, shape `(n_dof, n_dof)`, by the composite-rigid-body algorithm (Pinocchio's
         `crba`, MuJoCo's `mj_fullM`), armature included."""
         (q,) = self._inputs(q)
-        return self._mass(self._at(q, params)[0], params)
+        return model_programs.call(self, _mass_of, self, q, params)
 
     def bias(self, q: Any, v: Any, params: Params) -> jnp.ndarray:
         """`b(q, v)`: Coriolis, centrifugal, gravity and spring terms (Pinocchio's
         `nonLinearEffects`), by recursive Newton–Euler."""
         q, v = self._inputs(q, qd=v)
-        return self._inverse(q, v, None, params)
+        return model_programs.call(self, _inverse_of, self, q, v, None, params)
 
     def inverse_dynamics(
         self, q: Any, qd: Any, qdd: Any, params: Params, t: Any = 0.0
@@ -186,7 +187,7 @@ class BallTreeSystem(AbstractSystem):
         **Arguments:** `q` `(n_configuration,)`, `qd` = `v` and `qdd` = `v̇` `(n_dof,)`,
         `params`."""
         q, v, vdot = self._inputs(q, qd=qd, qdd=qdd)
-        return self._inverse(q, v, vdot, params)
+        return model_programs.call(self, _inverse_of, self, q, v, vdot, params)
 
     def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
         """`v̇` of checked arrays by the articulated-body algorithm over the lanes, never
@@ -224,7 +225,7 @@ class BallTreeSystem(AbstractSystem):
                 if x is not None:
                     finite(x, name)
             self._check_quaternions(q)
-            vdot = self.accelerations(t, q, v, params, tau)
+            vdot = model_programs.call(self, _accelerations_of, self, t, q, v, params, tau)
             if not np.all(np.isfinite(np.asarray(vdot))):
                 raise NonFiniteError(
                     f"forward_dynamics of {self.name} gave non-finite accelerations "
@@ -353,8 +354,7 @@ class BallTreeSystem(AbstractSystem):
     def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
         """The mechanical energy `T + V` (`T = ½ vᵀ M v`)."""
         q, v = self._inputs(q, qd=qd)
-        kinetic, potential = self._energies(q, v, params)
-        return kinetic + potential
+        return model_programs.call(self, _energy_of, self, q, v, params)
 
     def jacobi_integral(self, t: Any, q: Any, qd: Any, params: Params) -> jnp.ndarray:
         """`T + V` (`T` is quadratic in `v`)."""
@@ -439,3 +439,21 @@ def _inverse_body(system: BallTreeSystem, t, q, v, vdot, params, wrt_params: boo
     if wrt_params:
         dparams = jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
     return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
+
+
+# What the eager calls compile, one program per live system (`model_programs.call`)
+def _mass_of(system: BallTreeSystem, q, params):
+    return system._mass(system._at(q, params)[0], params)
+
+
+def _inverse_of(system: BallTreeSystem, q, v, vdot, params):
+    return system._inverse(q, v, vdot, params)
+
+
+def _accelerations_of(system: BallTreeSystem, t, q, v, params, tau):
+    return system.accelerations(t, q, v, params, tau)
+
+
+def _energy_of(system: BallTreeSystem, q, v, params):
+    kinetic, potential = system._energies(q, v, params)
+    return kinetic + potential
