@@ -17,6 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._core import model_programs
+from ..._core.blocking import blocked
 from ..._core.checks import (
     configuration_size,
     coords,
@@ -191,21 +192,9 @@ class BallTreeSystem(AbstractSystem):
 
     def accelerations(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> jnp.ndarray:
         """`v̇` of checked arrays by the articulated-body algorithm over the lanes, never
-        raising (NaN where an articulated inertia is not positive)."""
-        chain, theta = self._at(q, params)
-        links = chain.passes.links
-        product = balls.velocity_product(self.tree.balls, qd)
-        force = -self._damping(params, qd)
-        if tau is not None:
-            force = force + jnp.asarray(tau, qd.dtype)
-        springs = js.spring_force(params, theta)
-        if springs is not None:
-            force = force - springs
-        rotor = js.armature(params, qd.dtype)
-        if rotor is not None:
-            force = force - rotor * product
-        lanes_dd = chain.passes.vector(a.aba(chain, links(qd), links(force)), qd)
-        return lanes_dd + product
+        raising (NaN where an articulated inertia is not positive); vmapped over many
+        states, in blocks (`lagrax._core.blocking`)."""
+        return blocked(_lanes_aba)(self, q, qd, params, tau)
 
     def forward_dynamics(
         self, q: Any, qd: Any, params: Params, tau: Any = None, t: Any = 0.0
@@ -273,7 +262,7 @@ class BallTreeSystem(AbstractSystem):
         self._finite(q, v, tau, "tau")
         program, eager = choose_program(self, _forward_body, q, v, tau, params, t)
         params = float_arrays(params) if eager else params
-        out = program(self, t, q, v, params, tau, wrt_params)
+        out = blocked(program)(self, t, q, v, params, tau, wrt_params)
         return finite_derivatives(self, out, q, v, params, tau, t, "forward_dynamics")
 
     def inverse_dynamics_derivatives(
@@ -301,7 +290,7 @@ class BallTreeSystem(AbstractSystem):
         self._finite(q, v, vdot, "qdd")
         program, eager = choose_program(self, _inverse_body, q, v, vdot, params, t)
         params = float_arrays(params) if eager else params
-        out = program(self, t, q, v, vdot, params, wrt_params)
+        out = blocked(program)(self, t, q, v, vdot, params, wrt_params)
         return finite_derivatives(self, out, q, v, params, None, t, "inverse_dynamics")
 
     def linearize(
@@ -457,3 +446,21 @@ def _accelerations_of(system: BallTreeSystem, t, q, v, params, tau):
 def _energy_of(system: BallTreeSystem, q, v, params):
     kinetic, potential = system._energies(q, v, params)
     return kinetic + potential
+
+
+def _lanes_aba(system: BallTreeSystem, q, qd, params, tau):
+    """`BallTreeSystem.accelerations`: `ABA(q, v, τ − A P δ) + P δ` over the lanes."""
+    chain, theta = system._at(q, params)
+    links = chain.passes.links
+    product = balls.velocity_product(system.tree.balls, qd)
+    force = -system._damping(params, qd)
+    if tau is not None:
+        force = force + jnp.asarray(tau, qd.dtype)
+    springs = js.spring_force(params, theta)
+    if springs is not None:
+        force = force - springs
+    rotor = js.armature(params, qd.dtype)
+    if rotor is not None:
+        force = force - rotor * product
+    lanes_dd = chain.passes.vector(a.aba(chain, links(qd), links(force)), qd)
+    return lanes_dd + product
