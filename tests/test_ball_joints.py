@@ -129,7 +129,9 @@ def test_chain_of_balls_matches_mujoco(chain):
 def test_chain_of_balls_matches_pinocchio(chain):
     """`M`, `v̇`, `τ` and the ABA and RNEA derivatives (on the tangent, Pinocchio's
     `integrate`) equal Pinocchio's on its own reading of the file (`JointModelSpherical`),
-    to 1e-10 relative; Pinocchio has no damping, added to its `τ` here."""
+    to 1e-10 relative (Pinocchio has no damping, added to its `τ` here); the analytic
+    tangent derivatives equal plain autodiff; `linearize`'s `∂ξ̇/∂ξ` equals central
+    differences of Pinocchio's `difference` along its `integrate`."""
     pin = pytest.importorskip("pinocchio")
     tree, params, system, fd, mass = chain
     model = pin.buildModelFromMJCF(_write(CHAIN))
@@ -164,6 +166,20 @@ def test_chain_of_balls_matches_pinocchio(chain):
     # dynamics along the exact `q ⊕ ξ` (a ball's quaternion times `exp(ξ/2)`)
     jq = jax.jit(jax.jacfwd(lambda xi: system.inverse_dynamics(_moved(q, xi), v, vdot, params)))
     close(inv.dq, jq(jnp.zeros(system.n_dof)))
+    # linearize's `∂ξ̇/∂ξ` (a ball's `−½ [ω]×`): central differences of Pinocchio's
+    # `difference` along its `integrate`, and its lower rows the derivatives'
+    a_mat, b_mat = system.linearize(q, v, params, tau)
+    n, h = model.nv, 1e-5
+
+    def xi_rate(xi):
+        moved = pin.integrate(model, q, xi)
+        ahead, back = (pin.integrate(model, moved, s * h * v) for s in (1, -1))
+        return (pin.difference(model, q, ahead) - pin.difference(model, q, back)) / (2 * h)
+
+    rates = [(xi_rate(h * e) - xi_rate(-h * e)) / (2 * h) for e in np.eye(n)]
+    np.testing.assert_allclose(a_mat[:n, :n], np.stack(rates, axis=1), rtol=0, atol=1e-5)
+    close(a_mat[n:], np.hstack([out.dq, out.dqd]))
+    close(b_mat[n:], m_inv)
 
 
 def _moved(q, xi):
