@@ -53,6 +53,7 @@ shared 2-core CPU). Use [`SpatialChain`][lagrax.chains.SpatialChain] for anythin
 plane; [`PlanarChain.to_spatial`][lagrax.chains.PlanarChain.to_spatial] converts for comparison.
 """
 
+from ._multibody.articulated.ball_system import BallTreeSystem as BallTreeSystem
 from ._multibody.articulated.chains import BodyKind as BodyKind
 from ._multibody.articulated.chains import PlanarChain as PlanarChain
 from ._multibody.articulated.chains import SpatialChain as SpatialChain
@@ -83,6 +84,7 @@ __all__ = [
     "spatial_chain",
     "AbstractTree",
     "Tree",
+    "BallTreeSystem",
     "FloatingTree",
     "FloatingBaseSystem",
     "Forest",

@@ -277,9 +277,11 @@ def _xml(body: str, extra: str = "") -> str:
 ARM = '<body name="b1"><joint name="j1" axis="0 1 0"/><geom size="0.1" mass="1"/></body>'
 FREE = '<body name="b0"><freejoint/><geom size="0.1" mass="1"/></body>'
 BAD = {
-    "ball joint": (
-        _xml('<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'),
-        ["ball joint", "'hip'"],
+    "ball joint stiffness": (
+        _xml(
+            '<body name="b"><joint name="hip" type="ball" stiffness="2"/><geom size="0.1"/></body>'
+        ),
+        ["stiffness 2 on the ball joint 'hip'"],
     ),
     "free joint armature": (
         _xml(FREE.replace("<freejoint/>", '<joint name="root" type="free" armature="0.25"/>')),
@@ -348,8 +350,12 @@ def test_ignore_unsupported_drops_with_a_warning():
     with pytest.warns(UserWarning, match="gravity compensation"):
         tree, _ = from_mjcf(text, ignore_unsupported=True)
     assert tree.joint_names == ("j1",)
-    with pytest.raises(lx.MJCFError, match="ball joint"):  # still: not one coordinate
-        from_mjcf(BAD["ball joint"][0], ignore_unsupported=True)
+    ball = '<body name="b"><joint name="hip" type="ball"/><geom size="0.1"/></body>'
+    with pytest.raises(lx.MJCFError, match="ball joint 'hip'"):  # still: not modelled
+        from_mjcf(
+            _xml(ball, '<equality><connect body1="b" body2="world" anchor="0 0 0"/></equality>'),
+            ignore_unsupported=True,
+        )
 
 
 def test_missing_file_and_missing_mujoco(monkeypatch, tmp_path):

@@ -18,8 +18,8 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
   MuJoCo the same way.
 - Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
   Barkour (a free base with armature), a tendon model and ``convex.xml`` (four free
-  bodies) load and match MuJoCo the same way; a tendon with armature, ball joints and
-  friction loss are refused by name.
+  bodies) load and match MuJoCo the same way; a tendon with armature, springs on ball
+  joints and friction loss are refused by name.
 """
 
 import os
@@ -269,7 +269,7 @@ WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
 WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml", "convex.xml"]
 WHEEL_REFUSED = {
     "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
-    "pendula.xml": "is a ball joint",
+    "pendula.xml": "stiffness 0.1 on the ball joint 'joint1'",
     "quadratic_frictionloss.xml": "friction loss",
 }
 

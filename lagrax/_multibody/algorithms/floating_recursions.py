@@ -128,11 +128,14 @@ class FloatingChain:
         return jnp.concatenate([self.rot @ tau[3:] + jnp.cross(self.p, f), f])
 
 
-def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> FloatingChain:
+def floating_chain(
+    tree: Any, q: Any, params: Any, scan: bool | None = None, lanes: Any = None
+) -> FloatingChain:
     """The kinematics of a floating tree (`tree` the joints' `Tree`, `params` with
     `base_m`, `base_com`, `base_inertia`) at `q` of size `7 + n`: every body's joint
     angle `θ = J q_joints + b` (the coordinates themselves without mimic joints), so the
-    chain has `tree.n_bodies` links."""
+    chain has `tree.n_bodies` links. `lanes`: `(θ, A)`, the joint angles and constants
+    `A` in their place (a tree with ball joints: `articulated.balls.lane_state`)."""
     n, dtype = tree.n_bodies, q.dtype
     base = {"base_m": (), "base_com": (3,), "base_inertia": (3, 3)}
     param_shapes(params, base, "a floating base")
@@ -147,8 +150,9 @@ def floating_chain(tree: Any, q: Any, params: Any, scan: bool | None = None) -> 
         s, inertia = [], []
     else:
         js.check(params, n)
-        joints = tree.joint_angles(q[7:])
         big_a, big_b, big_c, slide = tree.joint_constants()
+        joints = tree.joint_angles(q[7:]) if lanes is None else lanes[0]
+        big_a = big_a if lanes is None else lanes[1]
         axes = np.asarray(tree.axes, float)
         rev = revolute_flags(tree.joint_types)
         values = (jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m"))

@@ -139,7 +139,7 @@ def _energy_link(carry, x):
 
 
 def spatial_energies(
-    chain: TreeStructure, q, qd, params: Params
+    chain: TreeStructure, q, qd, params: Params, big_a=None
 ) -> tuple[jnp.ndarray, jnp.ndarray]:
     """`(T, V)` of a spatial chain or tree by one outward pass in link frames:
     `ω_i = J_iᵀ ω_p + a_i q̇_i`, the origin's velocity `v_i = J_iᵀ (v_p + ω_p × d_i +
@@ -151,12 +151,14 @@ def spatial_energies(
     Written as a `lax.scan` of small array operations, not in scalars like the
     recursions: `simulate` evaluates it under `vmap` over the saved states inside its
     one-kernel program, where scalar code for every link would cost about a second of
-    compilation for a 7-link arm.
+    compilation for a 7-link arm. `big_a`: the constants `A` in place of the
+    tree's (a tree with ball joints: `balls.lane_state`).
     """
     n, dtype = chain.n_bodies, q.dtype
     _check(n, q)
     chain._check_params(params)
-    big_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain.joint_constants())
+    constant_a, big_b, big_c, slide = (jnp.asarray(x, dtype) for x in chain.joint_constants())
+    big_a = constant_a if big_a is None else big_a
     axes = jnp.asarray(np.asarray(chain.axes, float), dtype)
     rev = jnp.asarray(revolute_flags(chain.joint_types), dtype)
     values = [jnp.asarray(params[k], dtype) for k in ("offset", "com", "inertia", "m")]
@@ -180,18 +182,23 @@ def spatial_energies(
     return jnp.sum(kinetic), jnp.sum(potential)
 
 
-def spatial_chain(chain: TreeStructure, q, params: Params, scan: bool | None = None) -> a.Chain:
+def spatial_chain(
+    chain: TreeStructure, q, params: Params, scan: bool | None = None, big_a=None
+) -> a.Chain:
     """A spatial chain or tree (a [`Tree`][lagrax.chains.Tree]: body `i` hangs from
     body `parents[i]`, and every pass runs over parents): world joint axes
     `z_i = R_i axis_i` through the joint origins `o_i`, `S_i = (z_i, o_i × z_i)`
     (revolute) or `(0, z_i)` (prismatic), and link inertias at the origin,
-    `R_i Ī_i R_iᵀ` about the centre of mass `o_i + R_i com_i`."""
+    `R_i Ī_i R_iᵀ` about the centre of mass `o_i + R_i com_i`. `big_a`: the joint
+    constants `A` in place of the tree's (a tree with ball joints, whose rotations
+    come from their quaternions: `balls.lane_state`)."""
     n = chain.n_bodies
     _check(n, q)
     chain._check_params(params)
     scan = n > UNROLL_MAX_SPATIAL if scan is None else scan
     passes = a.Passes(n, scan, q.dtype, chain.parents)
-    big_a, big_b, big_c, slide = chain.joint_constants()
+    constant_a, big_b, big_c, slide = chain.joint_constants()
+    big_a = constant_a if big_a is None else big_a
     axes = np.asarray(chain.axes, float)
     rev = revolute_flags(chain.joint_types)
     values = (jnp.asarray(params[k], q.dtype) for k in ("offset", "com", "inertia", "m"))

@@ -27,17 +27,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.checks import param_shapes, physical
+from ..._core.checks import physical
 from ..._core.custom_types import Params, Vector
 from ..._core.errors import ConfigurationError, ShapeError
 from ..._systems.lagrangian import LagrangianSystem
 from .. import joint_space
 from ..algorithms.recursions import Chain
-from ..common import broadcast, float_dtype, rotation_tuple, unit_vector
+from ..common import broadcast, float_dtype
 from ..energies.bodies import Param, SpatialBody
 from ..energies.scene import Scene
 from ..inertia import check_inertia
 from ..joints import joint_constants, parse_joint_types, revolute
+from . import balls as balls_
 from .tree_equations import (
     AbstractArticulated,
     ChainEquations,
@@ -45,57 +46,19 @@ from .tree_equations import (
     spatial_chain,
     spatial_energies,
 )
-from .tree_fields import joint_limits_of, mimic_entries, names_of, positive_bounds
-
-
-def _joint_damping(q, qd, params):
-    """Rayleigh dissipation of viscous joint friction: `D = ½ Σ b_i q̇_i²` (`q̇`: the
-    rates of all joints, mimic ones included)."""
-    param_shapes(
-        params,
-        {"damping": jnp.shape(qd)},
-        f"the joint damping of {jnp.shape(qd)[0]} joints (mimic ones included)",
-        ("damping",),
-    )
-    tendons = joint_space.tendon_dissipation(params, qd)  # fixed tendons' damping, if any
-    friction = joint_space.friction_dissipation(params, qd)  # friction loss, if any
-    return 0.5 * jnp.sum(jnp.asarray(params["damping"]) * qd**2) + tendons + friction
-
-
-class _CoupledDamping(eqx.Module):
-    """The joint damping of a tree with mimic joints: `D = ½ Σ b_i θ̇_i²` over all
-    joints, with `θ̇ = J q̇` (a damped mimic joint brakes its master)."""
-
-    tree: "AbstractTree"
-
-    def __call__(self, q, qd, params):
-        return _joint_damping(q, self.tree.joint_rates(qd), params)
-
+from .tree_fields import (
+    CoupledDamping,
+    joint_damping,
+    joint_limits_of,
+    mimic_entries,
+    names_of,
+    positive_bounds,
+    structure,
+)
 
 # Forward kinematics of a chain longer than this may loop (``lax.scan``) over its joints
 # instead of being written out joint by joint (see `SpatialChain`).
 UNROLL_MAX = 6
-
-
-def structure(
-    joint_types: str, axes: Any, rotations: Any, up: Any
-) -> tuple[tuple[tuple[float, float, float], ...], tuple, tuple[float, float, float]]:
-    """The static joint axes (normalized), fixed rotations and `up` of `n =
-    len(joint_types)` joints (defaults: z axes, identity rotations);
-    `ConfigurationError` for lists of the wrong length or values that are not unit
-    vectors and rotations."""
-    n = len(joint_types)
-    axes = [(0.0, 0.0, 1.0)] * n if axes is None else list(axes)
-    rotations = [np.eye(3)] * n if rotations is None else list(rotations)
-    if len(axes) != n:
-        raise ConfigurationError(f"{n} joints need {n} axes, got {len(axes)}")
-    if len(rotations) != n:
-        raise ConfigurationError(f"{n} joints need {n} fixed rotations, got {len(rotations)}")
-    return (
-        tuple(unit_vector(a, f"axes[{i}]") for i, a in enumerate(axes)),
-        tuple(rotation_tuple(r, f"rotations[{i}]") for i, r in enumerate(rotations)),
-        unit_vector(up, "up"),
-    )
 
 
 class AbstractTree(AbstractArticulated):
@@ -181,6 +144,18 @@ class AbstractTree(AbstractArticulated):
         k, a, _ = self.coupling()
         return qd[k] * jnp.asarray(a, qd.dtype)
 
+    @property
+    def balls(self) -> tuple[int, ...]:
+        """The first lanes of the tree's ball joints (`lagrax._multibody.articulated.balls`;
+        none but a [`Tree`][lagrax.chains.Tree]'s)."""
+        return ()
+
+    @property
+    def n_configuration(self) -> int:
+        """The size of the configuration `q`: [`n`][lagrax.chains.AbstractTree.n] plus
+        one per ball joint (its quaternion's 4 entries against its velocity's 3)."""
+        return self.n + len(self.balls)
+
     def children(self, i: int) -> tuple[int, ...]:
         """The bodies hanging from body `i` (`−1`: from the base)."""
         return tuple(k for k, p in enumerate(self.parents) if p == i)
@@ -247,16 +222,19 @@ class AbstractTree(AbstractArticulated):
         """Origins, rotations and (`with_com`) centres of mass: lists of `n` small
         arrays written out body by body (fused into straight-line code under `vmap`), or
         stacked arrays from a `lax.scan` for a long chain (`kinematics_scan_above`)."""
-        if q.shape != (self.n,):
-            raise ShapeError(f"q has shape {q.shape}, expected ({self.n},) for the {self.label()}")
+        size = self.n_configuration
+        if q.shape != (size,):
+            raise ShapeError(f"q has shape {q.shape}, expected ({size},) for the {self.label()}")
         self._check_params(params)
         offset = jnp.asarray(params["offset"])
         dtype = jnp.result_type(q, offset)
         q, offset = self.joint_angles(q.astype(dtype)), offset.astype(dtype)
         com = jnp.asarray(params["com"]).astype(dtype) if with_com else None
+        a, b, c, slide = (jnp.asarray(x, dtype) for x in self.joint_constants())
+        if self.balls:  # the lanes' angles (zero) and the balls' rotations in `A`
+            q, a = balls_.lane_state(self, q)
         if self.n_bodies > self.kinematics_scan_above:
             return self._kinematics_scan(q, offset, com, dtype)
-        a, b, c, slide = (jnp.asarray(x, dtype) for x in self.joint_constants())
         base = (jnp.eye(3, dtype=dtype), jnp.zeros(3, dtype))
         origins, rots, coms = [], [], []
         for i, kind in enumerate(self.joint_types):
@@ -323,8 +301,9 @@ class AbstractTree(AbstractArticulated):
         damping, `½ Σ b_i q̇_i²`).
 
         **Raises:** `ConfigurationError` for a tree with no joints (see
-        [`FloatingTree`][lagrax.chains.FloatingTree])."""
+        [`FloatingTree`][lagrax.chains.FloatingTree]) or with ball joints."""
         self._check_moves()
+        balls_.no_scene(self)
         body = SpatialBody(Param("m"), Param("inertia"), self._pose, None)
         terms = self._joint_terms()  # armature and springs (`joint_space`)
         return Scene(
@@ -353,6 +332,10 @@ class AbstractTree(AbstractArticulated):
         **Raises:** `ConfigurationError` for a tree with no joints: fixed to the world it
         cannot move (put it on a floating base, [`FloatingTree`][lagrax.chains.FloatingTree])."""
         self._check_moves()
+        if self.balls:
+            from .ball_system import BallTreeSystem
+
+            return BallTreeSystem(self)  # type: ignore[return-value]
         equations = CoupledEquations(self) if self.mimic else ChainEquations(self)
         return dataclasses.replace(
             self.scene().system(),
@@ -438,10 +421,20 @@ class Tree(AbstractTree):
       `springref`; `tendon*` entries, see [`lagrax.chains.from_mjcf`][]): then the
       scene's energies (the definition, `dataclasses.replace(system,
       equations=None)`) include them. The recursions read them in any case.
+    - `balls`: the first bodies of ball joints (default none). A ball joint is three
+      revolute bodies `b, b + 1, b + 2` about `x`, `y`, `z`, each hanging from the one
+      before, the last two with the identity rotation and zero offset (the joint's body
+      last); its coordinates are a unit quaternion `(x, y, z, w)` in `q` and the
+      body's angular velocity in its own frame in `v`
+      ([`n_configuration`][lagrax.chains.AbstractTree.n_configuration] `= n +
+      len(balls)`), and the tree's system is a
+      [`BallTreeSystem`][lagrax.chains.BallTreeSystem]
+      ([`lagrax.chains.from_mjcf`][] builds these from MJCF ball joints).
 
     **Raises:** `ConfigurationError` (a `ValueError`) for an unknown joint type, a
-    parent index that is not an earlier body, lists of the wrong length, or a mimic entry
-    whose body or master is not a body, or whose master is itself a mimic.
+    parent index that is not an earlier body, lists of the wrong length, a mimic entry
+    whose body or master is not a body, or whose master is itself a mimic, or a `balls`
+    entry that is not three such lanes (or beside mimic joints).
 
     **Example:** a torso joint carrying two one-joint arms:
 
@@ -464,6 +457,12 @@ class Tree(AbstractTree):
     effort_limits: tuple[float, ...] = eqx.field(static=True)
     mimic: tuple[tuple[int, int, float, float], ...] = eqx.field(static=True)
     joint_terms: bool = eqx.field(static=True)
+    ball_lanes: tuple[int, ...] = eqx.field(static=True)
+
+    @property
+    def balls(self) -> tuple[int, ...]:
+        """The first lanes of the tree's ball joints (the `balls` argument)."""
+        return self.ball_lanes
 
     def _joint_terms(self) -> bool:
         return self.joint_terms
@@ -483,6 +482,7 @@ class Tree(AbstractTree):
         effort_limits: Any = None,
         mimic: Any = None,
         joint_terms: bool = False,
+        balls: Any = None,
     ):
         types = parse_joint_types(joint_types, aliases={"C": "R"}, empty=True)
         n = len(types)
@@ -505,6 +505,8 @@ class Tree(AbstractTree):
         self.effort_limits = positive_bounds(effort_limits, n, "effort_limits")
         self.mimic = mimic_entries(mimic, n)
         self.joint_terms = bool(joint_terms)
+        args = (types, parents, self.axes, self.rotations, self.mimic)
+        self.ball_lanes = balls_.ball_entries(balls, *args)
 
     def params(
         self,
@@ -576,7 +578,7 @@ class Tree(AbstractTree):
         """Viscous joint damping: the Rayleigh dissipation `½ Σ b_i θ̇_i²` over all
         joints (`θ̇ = q̇` without mimic joints), with fixed tendons' damping and joint
         friction loss where `params` has them (`lagrax._multibody.joint_space`)."""
-        return _CoupledDamping(self) if self.mimic else _joint_damping
+        return CoupledDamping(self) if self.mimic else joint_damping
 
     def label(self) -> str:
         """`"<n>-joint tree"` (with mimic joints: `"<n_bodies>-joint tree (<n>

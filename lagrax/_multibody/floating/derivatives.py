@@ -66,15 +66,21 @@ from ..._systems.sensitivity import (
 from .. import joint_space as js
 from ..algorithms import derivative_recursions as dr
 from ..algorithms import floating_recursions as fr
+from ..articulated import balls
 
 
-def retract(q: Any, delta: Any) -> jnp.ndarray:
+def retract(q: Any, delta: Any, tree: Any = None) -> jnp.ndarray:
     """`q ⊕ δ` to first order in `δ` (see the module docstring): the base origin moved by
     `R δ_v`, the quaternion by `½ quat ⊗ (δ_ω, 0)` (normalized where it is read), the
-    joints by `δ_joints`."""
+    joints by `δ_joints` (a `tree` with ball joints: each ball's quaternion likewise by
+    its `δ`, `balls.retract`)."""
     quat = q[3:7]
     moved = q[:3] + fr.quaternion_rotation(quat) @ delta[:3]
-    return jnp.concatenate([moved, quat + fr.quaternion_rate(quat, delta[3:6]), q[7:] + delta[6:]])
+    if tree is not None and tree.balls:
+        joints = balls.retract(tree, q[7:], delta[6:])
+    else:
+        joints = q[7:] + delta[6:]
+    return jnp.concatenate([moved, quat + fr.quaternion_rate(quat, delta[3:6]), joints])
 
 
 def twist_adjoint(twist: Any) -> jnp.ndarray:
@@ -87,13 +93,15 @@ def twist_adjoint(twist: Any) -> jnp.ndarray:
 def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
     """`(τ, ∂τ/∂q, ∂τ/∂v, M)` at `(q, v, v̇)`, `∂τ/∂q` along `q ⊕ δ`: the analytic
     recursion with a free root (`derivative_recursions.free_root_derivatives`), reduced
-    to the coordinates for mimic joints, with the joint damping's `∂τ/∂v`; a lone rigid
-    body (no joints) by forward-mode derivatives of its Newton–Euler equations."""
+    to the coordinates for mimic joints, with the joint damping's `∂τ/∂v` (ball joints:
+    the lanes' at `θ̈ = v̇ − P δ`, with the balls' tangent terms,
+    `balls.tangent_derivatives`); a lone rigid body (no joints) by forward-mode
+    derivatives of its Newton–Euler equations."""
     tree = system.robot.tree
     if tree.n_bodies == 0:
         zero = jnp.zeros(system.n_dof, q.dtype)
         jq, jv = jax.jacfwd(
-            lambda d, w: system._inverse(retract(q, d), w, vdot, params), argnums=(0, 1)
+            lambda d, w: system._inverse(retract(q, d, tree), w, vdot, params), argnums=(0, 1)
         )(zero, v)
         return system._inverse(q, v, vdot, params), jq, jv, system._mass(system._at(q, params))[0]
     fc = system._at(q, params)
@@ -104,10 +112,14 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
         fc.s_base,
         fc.inertia_base,
         links(v_all[6:]),
-        links(vdot_all[6:]),
+        links(_lanes(tree, v_all, vdot_all) if tree.balls else vdot_all[6:]),
         v_all[:6],
         vdot_all[:6],
     )
+    if tree.balls:  # along each ball's `R exp([ξ]×)` at fixed `(ω, ω̇)`
+        jq, jv = balls.tangent_derivatives(
+            tree.balls, tau, jq, jv, mass, v_all[6:], vdot_all[6:], offset=6
+        )
     # armature and joint springs, on every body's joint: τ ⊃ a θ̈ + ∂V_s/∂θ, M ⊃ diag(a),
     # ∂τ/∂q ⊃ K_s (`joint_space`)
     tau = tau.at[6:].add(js.joint_inverse(params, fc.theta, vdot_all[6:]))
@@ -120,6 +132,11 @@ def _inverse_jacobians(system: FloatingDerivatives, q, v, vdot, params):
         tau, jq, jv, mass = j_b.T @ tau, j_b.T @ jq @ j_b, j_b.T @ jv @ j_b, j_b.T @ mass @ j_b
     damping = jax.jacfwd(lambda w: system._damping(params, w))(v)  # constant: `J_Bᵀ b J_B`
     return tau + system._damping(params, v), jq, jv + damping, mass
+
+
+def _lanes(tree: Any, v: Any, vdot: Any) -> jnp.ndarray:
+    """The lanes' accelerations `v̇_joints − P δ` of a tree with ball joints."""
+    return vdot[6:] - balls.velocity_product(tree.balls, v[6:])
 
 
 def _forward_body(system: FloatingDerivatives, t, q, v, params, tau, wrt_params: bool):
@@ -190,7 +207,11 @@ def linearize(
     out = forward_dynamics_derivatives(system, q_eq, qd_eq, params, tau_eq, t, False, names)
     (v,) = system._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
     a_mat, b_mat = state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
-    return a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype))), b_mat
+    a_mat = a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype)))
+    for lane in system.robot.tree.balls:  # a ball's `ξ̇ = ω − ½ ω × ξ + O(ξ²)`
+        k = 6 + lane
+        a_mat = a_mat.at[k : k + 3, k : k + 3].set(-0.5 * fr.skew(v[k : k + 3].astype(a_mat.dtype)))
+    return a_mat, b_mat
 
 
 class FloatingDerivatives(AbstractSystem):

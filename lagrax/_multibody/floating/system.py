@@ -38,6 +38,7 @@ from ..._core.errors import MassMatrixError, NonFiniteError, ShapeError
 from ..._core.linalg import cholesky_solve
 from .. import joint_space as js
 from ..algorithms import floating_recursions as fr
+from ..articulated import balls
 from ..articulated.trees import Tree
 from ..common import broadcast, float_dtype
 from ..inertia import check_inertia
@@ -135,6 +136,12 @@ class FloatingTree(eqx.Module):
 def _aba(system: Any, q: Any, v: Any, params: Params, force: Any) -> jnp.ndarray:
     """`v̇` by the articulated-body algorithm with a free root (`force`: the generalized
     force, damping included; the joint springs' force is taken off here)."""
+    if system.robot.tree.balls:  # the lanes' `v̇ − P δ`, with the armature's `A P δ`
+        fc = system._at(q, params)
+        product = balls.joint_product(system.robot.tree, v)
+        springs = js.spring_force(params, fc.theta)
+        force = force if springs is None else force.at[6:].add(-springs)
+        return fr.aba(fc, v, force - balls.armature_product(params, product)) + product
     springs = js.spring_force(params, q[7:])
     if springs is not None:
         force = force.at[6:].add(-springs)
@@ -213,8 +220,8 @@ class FloatingBaseSystem(FloatingDerivatives):
 
     @property
     def n_configuration(self) -> int:
-        """The size of `q`, `7 + n`."""
-        return 7 + self.robot.n
+        """The size of `q`, `7 + n` (a ball joint: 4 entries, against its 3 velocities)."""
+        return 7 + self.robot.tree.n_configuration
 
     @property
     def final_maxima(self) -> tuple[str, ...]:
@@ -232,7 +239,10 @@ class FloatingBaseSystem(FloatingDerivatives):
         """The configuration's names: the base position and quaternion
         (`base_x, base_y, base_z, base_qx, base_qy, base_qz, base_qw`), then the joints'
         (the coordinates'). `sweep` labels `q`'s `q_dof` axis with them."""
-        return BASE_POSE_NAMES + self.robot.tree.coordinate_names()
+        tree = self.robot.tree
+        return BASE_POSE_NAMES + (
+            balls.configuration_names(tree) if tree.balls else tree.coordinate_names()
+        )
 
     # ------------------------------------------------------------------ inputs
     def _inputs(self, q: Any, q_name: str = "q", **velocities: Any) -> list[Any]:
@@ -252,7 +262,10 @@ class FloatingBaseSystem(FloatingDerivatives):
         return [None if x is None else x.astype(dtype) for x in out]
 
     def _at(self, q: Any, params: Params) -> fr.FloatingChain:
-        return fr.floating_chain(self.robot.tree, q, params)
+        tree = self.robot.tree
+        if tree.balls:  # the lanes at angle zero, the balls' rotations in `A`
+            return fr.floating_chain(tree, q, params, lanes=balls.lane_state(tree, q[7:]))
+        return fr.floating_chain(tree, q, params)
 
     # ------------------------------------------------------------------ mimic joints
     def _full(self, v: Any) -> Any:
@@ -295,7 +308,11 @@ class FloatingBaseSystem(FloatingDerivatives):
         """`M v̇ + b` (`vdot` `None`: `b`) in the coordinates, armature and joint
         springs included."""
         vdot = self._full(vdot)
-        tau = fr.rnea(fc, self._full(v), vdot)
+        if self.robot.tree.balls:  # the lanes' accelerations `v̇ − P δ`
+            lanes = -balls.joint_product(self.robot.tree, v)
+            tau = fr.rnea(fc, v, lanes if vdot is None else vdot + lanes)
+        else:
+            tau = fr.rnea(fc, self._full(v), vdot)
         if fc.theta is not None:
             joints = js.joint_inverse(fc.params, fc.theta, None if vdot is None else vdot[6:])
             tau = tau.at[6:].add(joints)
@@ -308,20 +325,33 @@ class FloatingBaseSystem(FloatingDerivatives):
         joint rates. Sizes: `q` `7 + n`, `v` `6 + n`, the result `7 + n`."""
         rot = fr.quaternion_rotation(q[3:7])
         quat_rate = fr.quaternion_rate(q[3:7], v[3:6])
+        if self.robot.tree.balls:  # a ball's quaternion moves as the base's does
+            joints = balls.configuration_rate(self.robot.tree, q[7:], v[6:])
+            return jnp.concatenate([rot @ v[:3], quat_rate, joints])
         return jnp.concatenate([rot @ v[:3], quat_rate, v[6:]])
 
     def project_configuration(self, q: Any) -> jnp.ndarray:
         """`q` with its quaternion divided by its norm (back on the unit sphere)."""
         quat = q[3:7]
+        if self.robot.tree.balls:  # and every ball joint's
+            joints = balls.normalized(self.robot.tree, q[7:])
+            return jnp.concatenate([q[:3], quat / jnp.linalg.norm(quat), joints])
         return jnp.concatenate([q[:3], quat / jnp.linalg.norm(quat), q[7:]])
 
     def initial_state(self, q: Any, qd: Any, params: Params) -> tuple[Any, Any, Any]:
         """The initial state with its quaternion normalized (`ok` false for a zero
         quaternion)."""
+        if self.robot.tree.balls:  # and every ball joint's
+            ok = jnp.all(balls.quaternion_norms(self.robot.tree, q[7:]) > 0)
+            return self.project_configuration(q), qd, ok & (jnp.linalg.norm(q[3:7]) > 0)
         return self.project_configuration(q), qd, jnp.linalg.norm(q[3:7]) > 0
 
     def observables(self, t: Any, q: Any, qd: Any, params: Params, tau: Any) -> dict[str, Any]:
         """`constraint_violation`: `|q_quat| − 1`, shape `(1,)` (the norm drift)."""
+        if self.robot.tree.balls:  # and every ball joint's
+            norms = jnp.linalg.norm(q[3:7])[None]
+            norms = jnp.concatenate([norms, balls.quaternion_norms(self.robot.tree, q[7:])])
+            return {"constraint_violation": norms - 1.0}
         return {"constraint_violation": (jnp.linalg.norm(q[3:7]) - 1.0)[None]}
 
     # ------------------------------------------------------------------ dynamics
@@ -429,12 +459,17 @@ class FloatingBaseSystem(FloatingDerivatives):
     def potential_energy(self, q: Any, params: Params) -> jnp.ndarray:
         """`V = m g up·c`: gravity on the whole robot's mass `m` at its centre of mass."""
         (q,) = self._inputs(q)
-        springs = js.spring_energy(params, self.robot.tree.joint_angles(q[7:]))
+        springs = js.spring_energy(params, self._angles(q))
         return _potential(self.robot, fr.crba(self._at(q, params))[1], params, q[:3]) + springs
+
+    def _angles(self, q: Any) -> jnp.ndarray:
+        """Every body's joint angle (a ball's lanes: zero)."""
+        tree = self.robot.tree
+        return balls.lane_state(tree, q[7:])[0] if tree.balls else tree.joint_angles(q[7:])
 
     def _energies(self, q: Any, v: Any, params: Params) -> tuple[jnp.ndarray, jnp.ndarray]:
         mass, total = self._mass(self._at(q, params))
-        springs = js.spring_energy(params, self.robot.tree.joint_angles(q[7:]))
+        springs = js.spring_energy(params, self._angles(q))
         return 0.5 * v @ (mass @ v), _potential(self.robot, total, params, q[:3]) + springs
 
     def energy(self, q: Any, qd: Any, params: Params, *, t: Any = 0.0) -> jnp.ndarray:
@@ -493,6 +528,8 @@ class FloatingBaseSystem(FloatingDerivatives):
                 f"the base quaternion q[3:7] = {np.asarray(q[3:7])} is zero: a rotation "
                 "needs a unit quaternion (x, y, z, w), e.g. (0, 0, 0, 1)"
             )
+        if self.robot.tree.balls:
+            balls.check_quaternions(self.robot.tree, q[7:], offset=7)
         mass = np.asarray(self.mass_matrix(q, params))
         eigs = np.linalg.eigvalsh(0.5 * (mass + mass.T))
         if not (np.all(np.isfinite(eigs)) and eigs[0] > 0):

@@ -26,7 +26,6 @@ import math
 import os
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import jax.numpy as jnp
@@ -40,8 +39,9 @@ from ..joint_space import FRICTION_VELOCITY
 from ..limits import with_limits
 from .collision import check_meshes, mjcf_ground, mjcf_points
 from .contact_scene import contact_friction, contact_scene
+from .mjcf_balls import ball_lanes, balls_supported
 from .mjcf_equality import constrained, equality_rows
-from .mjcf_parts import quat_matrix, split_parts
+from .mjcf_parts import TreeBody, quat_matrix, split_parts
 from .mjcf_support import unsupported
 from .mjcf_tendons import fixed_tendons
 
@@ -64,31 +64,6 @@ def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
     """Rodrigues: the rotation by `angle` about the unit vector `axis`."""
     k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
-
-
-@dataclass
-class _Body:
-    """A body of the tree: one MuJoCo joint, and the inertia of every MuJoCo body it
-    carries (sums about the tree body's origin, in its frame)."""
-
-    name: str
-    joint: str
-    kind: str
-    parent: int
-    rot: np.ndarray
-    offset: np.ndarray
-    axis: np.ndarray
-    damping: float
-    limits: tuple[float, float]
-    effort: float
-    armature: float = 0.0
-    stiffness: float = 0.0
-    springref: float = 0.0
-    joint_id: int = -1
-    frictionloss: float = 0.0
-    mass: float = 0.0
-    moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
 
 
 def _load(mujoco, source: Any):
@@ -149,6 +124,15 @@ def from_mjcf(
     tree and each slide joint a prismatic one, in MuJoCo's order, so **`q` is MuJoCo's
     `qpos` and `q̇` its `qvel`**, with the joint's `ref` (`qpos0`) folded into the
     tree's fixed rotation or offset.
+
+    A **ball joint** is Pinocchio's spherical joint: 4 entries of `q`, the unit
+    quaternion `(x, y, z, w)` of the body's rotation in the joint frame (MuJoCo's
+    `qpos` holds it as `(w, x, y, z)`: [`from_mujoco_state`][lagrax.chains.from_mujoco_state]
+    with the tree reorders it), and 3 of `q̇`, the body's angular velocity in its own
+    frame (MuJoCo's `qvel`). The tree gets three revolute lanes for it (`tree.balls`;
+    see [`BallTreeSystem`][lagrax.chains.BallTreeSystem], the tree's system), each with
+    its dof's damping, armature and friction loss. A spring or a limit on a ball is not
+    modelled (refused, or dropped under `ignore_unsupported`).
 
     A **free joint** (`<freejoint/>`, on a body hanging from the world, with every other
     joint below it) makes that body a floating base: the result is a
@@ -249,7 +233,8 @@ def from_mjcf(
     - `ignore_unsupported`: drop what lagrax does not model (gravity compensation,
       spatial tendons with stiffness or damping, tendon armature or friction loss,
       dead-band or nonlinear springs, fluid forces, damping, armature, friction loss or
-      stiffness on a free joint; an equality on a spatial tendon or a flex drops every
+      stiffness on a free joint, a spring or a limit on a ball joint; an equality on a
+      spatial tendon or a flex drops every
       equality) with one `UserWarning` naming each, instead of refusing the model.
     - `friction_velocity`: the stiction velocity `v_s` of joint friction loss (default
       0.01: rad/s for a hinge, m/s for a slide).
@@ -272,7 +257,8 @@ def from_mjcf(
     system, `scene.spheres` in geom order) and the params plus `"contact_friction"`.
 
     **Raises:** [`lagrax.MJCFError`][] when MuJoCo cannot compile the file (MuJoCo's
-    message); for a ball joint, naming the joint and its body; for a free body with
+    message); for a ball joint beside several free bodies, with equality constraints or
+    with `contact=`, naming the joint; for a free body with
     other joints, or a massless floating base; for an equality lagrax does not model
     (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
@@ -315,6 +301,7 @@ def from_mjcf(
     robots, all_params, places = [], [], {}
     for k, part in enumerate(parts):
         bodies, base, place = _bodies(model, names, part.free, set(part.bodies))
+        balls_supported(names, bodies, base, contact, len(parts))
         tree, params = _tree_and_params(model, bodies, dtype, friction_velocity)
         places.update({b: (k, *place[b]) for b in part.bodies})
         if base is None:
@@ -365,7 +352,7 @@ def _equalities(mujoco, model, names, robot, places: dict, ignore: bool):
     return constrained(model, robot, rows, kept, places, world)
 
 
-def _floating(tree: Tree, params: dict, base: "_Body"):
+def _floating(tree: Tree, params: dict, base: "TreeBody"):
     """The [`FloatingTree`][lagrax.chains.FloatingTree] on `base` (the free body, with
     the bodies welded to it) and its params."""
     from ..floating.loading import on_base
@@ -400,14 +387,14 @@ def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
 
 def _bodies(
     model, names: _Names, free: int | None, keep: set[int]
-) -> tuple[list[_Body], _Body | None, dict]:
+) -> tuple[list[TreeBody], TreeBody | None, dict]:
     """The tree's bodies (of the MuJoCo bodies `keep`), in MuJoCo's joint order, with
     every MuJoCo body's inertia merged into the tree body that carries it; with a free
     body `free`, the floating base (tree body −1: its frame is the free body's, and it
     carries the bodies welded to it), else `None`; and where each MuJoCo body's frame
     is, `(tree body, R, p)` (tree body −1: the base, or the world for a fixed tree;
     `_WORLD`: the world beside a floating base)."""
-    bodies: list[_Body] = []
+    bodies: list[TreeBody] = []
     base = None
     # each MuJoCo body's frame in its tree body's frame (tree body −1: the world, or the
     # floating base; `_WORLD`: the world beside a floating base)
@@ -417,7 +404,7 @@ def _bodies(
             continue
         if b == free:
             place[b] = (-1, np.eye(3), np.zeros(3))
-            base = _Body(
+            base = TreeBody(
                 names("body", b),
                 names("joint", int(model.body_jntadr[b])),
                 "F",
@@ -436,6 +423,9 @@ def _bodies(
         rot = rot @ quat_matrix(model.body_quat[b])
         first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
         for j in range(first, first + count):
+            if int(model.jnt_type[j]) == _BALL:
+                tb, rot, pos = ball_lanes(model, names, b, j, bodies, (tb, rot, pos))
+                continue
             anchor = np.asarray(model.jnt_pos[j], float)
             axis = np.asarray(model.jnt_axis[j], float)
             axis = axis / np.linalg.norm(axis)
@@ -451,7 +441,7 @@ def _bodies(
             last = j == first + count - 1
             body, joint = names("body", b), names("joint", j)
             bodies.append(
-                _Body(
+                TreeBody(
                     body if last else f"{body}/{joint}",
                     joint,
                     "R" if hinge else "P",
@@ -479,7 +469,7 @@ def _bodies(
     return bodies, base, place
 
 
-def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray) -> None:
+def _add_inertia(model, b: int, target: TreeBody, rot: np.ndarray, pos: np.ndarray) -> None:
     """Add MuJoCo body `b`'s inertia to `target` (whose frame holds `b`'s frame at
     `pos`, rotated by `rot`): its mass, first moment and inertia about the origin."""
     mass = float(model.body_mass[b])
@@ -497,7 +487,7 @@ def _add_inertia(model, b: int, target: _Body, rot: np.ndarray, pos: np.ndarray)
     target.inertia_o = target.inertia_o + inertia + steiner(mass, c)
 
 
-def _joint_terms(model, bodies: list[_Body], dtype: Any, friction_velocity: float) -> dict:
+def _joint_terms(model, bodies: list[TreeBody], dtype: Any, friction_velocity: float) -> dict:
     """The tree's joint-space params (`lagrax._multibody.joint_space`): `armature`,
     `stiffness` and `springref` (MuJoCo's `qpos_spring`), `frictionloss` (with
     `friction_velocity`) where any is nonzero, and the fixed tendons' (`mjcf_tendons`)."""
@@ -525,7 +515,7 @@ def _joint_terms(model, bodies: list[_Body], dtype: Any, friction_velocity: floa
 
 
 def _tree_and_params(
-    model, bodies: list[_Body], dtype: Any, friction_velocity: float
+    model, bodies: list[TreeBody], dtype: Any, friction_velocity: float
 ) -> tuple[Tree, dict]:
     """The [`Tree`][lagrax.chains.Tree] and its params from the merged bodies."""
     masses, coms, inertias = about_centres(bodies)
@@ -550,6 +540,7 @@ def _tree_and_params(
         limits=[b.limits for b in bodies],
         effort_limits=[b.effort for b in bodies],
         joint_terms=bool(terms),
+        balls=[i for i, b in enumerate(bodies) if b.ball],
     )
     params = tree.params(
         m=masses,

@@ -96,3 +96,29 @@ def quat_matrix(quat: Any) -> np.ndarray:
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
+
+
+@dataclass
+class TreeBody:
+    """A body of `from_mjcf`'s tree: one MuJoCo joint, and the inertia of every MuJoCo body it
+    carries (sums about the tree body's origin, in its frame)."""
+
+    name: str
+    joint: str
+    kind: str
+    parent: int
+    rot: np.ndarray
+    offset: np.ndarray
+    axis: np.ndarray
+    damping: float
+    limits: tuple[float, float]
+    effort: float
+    armature: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    joint_id: int = -1
+    frictionloss: float = 0.0
+    ball: bool = False  # the first of a ball joint's three lanes
+    mass: float = 0.0
+    moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia_o: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))

@@ -9,17 +9,36 @@ from .mjcf_tendons import tendons_unsupported
 FREE, BALL = 0, 1  # MuJoCo's mjtJoint values of a free and a ball joint
 
 
+def _ball_joints(mujoco, model, names) -> list[str]:
+    """What lagrax does not model on a ball joint (its stiffness, its limit: both act on
+    the quaternion), each a sentence; `MJCFError` for equality constraints beside one
+    (MuJoCo itself refuses a fixed tendon through one)."""
+    balls = [j for j, kind in enumerate(model.jnt_type) if kind == BALL]
+    found: list[str] = []
+    if not balls:
+        return found
+    disabled, off = int(model.opt.disableflags), mujoco.mjtDisableBit
+    for j in balls:
+        who = f"the ball joint {names('joint', j)!r}"
+        if model.jnt_stiffness[j] and not disabled & int(off.mjDSBL_SPRING):
+            found.append(
+                f"stiffness {model.jnt_stiffness[j]:g} on {who} (a spring on its rotation)"
+            )
+        if model.jnt_limited[j]:
+            found.append(f"a limit {model.jnt_range[j][1]:g} on {who} (a cone on its rotation)")
+    if model.neq and not disabled & int(off.mjDSBL_EQUALITY):
+        raise MJCFError(
+            f"the model has equality constraints and the ball joint "
+            f"{names('joint', balls[0])!r}: lagrax does not take equality constraints in a "
+            "model with ball joints yet"
+        )
+    return found
+
+
 def unsupported(mujoco, model, names) -> list[str]:
     """What lagrax does not model in `model`, each a sentence naming it and its value;
-    free and ball joints are refused in any case (they are not one coordinate)."""
-    for j, kind in enumerate(model.jnt_type):
-        where = f"joint {names('joint', j)!r} (body {names('body', model.jnt_bodyid[j])!r})"
-        if kind == BALL:
-            raise MJCFError(
-                f"{where} is a ball joint, which lagrax trees do not have (a quaternion "
-                "coordinate): model it as three hinge joints in one body"
-            )
-    found: list[str] = []
+    equality constraints beside a ball joint are refused in any case (`MJCFError`)."""
+    found: list[str] = _ball_joints(mujoco, model, names)
     disabled = int(model.opt.disableflags)
     off = mujoco.mjtDisableBit
 

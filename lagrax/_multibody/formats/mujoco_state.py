@@ -1,7 +1,8 @@
-"""States between MuJoCo's free joint and lagrax's floating base: MuJoCo's `qpos` holds
-the quaternion scalar first and `qvel` the base's linear velocity in the world frame;
-lagrax's (Pinocchio's) `q` the quaternion scalar last and `v` both velocities in the base
-frame."""
+"""States between MuJoCo's free and ball joints and lagrax's floating base and ball
+joints: MuJoCo's `qpos` holds a quaternion scalar first and `qvel` a free joint's linear
+velocity in the world frame; lagrax's (Pinocchio's) `q` the quaternion scalar last and
+`v` both of a base's velocities in the base frame (a ball's angular velocity is in the
+child frame in both)."""
 
 from typing import Any
 
@@ -64,6 +65,12 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
     **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
     whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
     """
+    if getattr(robot, "balls", ()):
+        return _ball_quaternions(robot, qpos, qvel, ("qpos", "qvel"), (1, 2, 3, 0))
+    if _floating_balls(robot):  # the balls' quaternions, then the free joint
+        qpos, qvel = _ball_quaternions(robot.tree, qpos, qvel, ("qpos", "qvel"), (1, 2, 3, 0), 7)
+        pos, vel = from_mujoco_state(qpos[..., :7], qvel[..., :6])
+        return qpos.at[..., :7].set(pos), qvel.at[..., :6].set(vel)
     frees = free_joints(robot)
     qpos, qvel = _free_joint_state(qpos, qvel, ("qpos", "qvel"), (7 * len(frees), 6 * len(frees)))
     for qa, va in frees:
@@ -74,6 +81,31 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
         qpos = qpos.at[..., qa + 3 : qa + 7].set(quat)
         qvel = qvel.at[..., va : va + 3].set(linear)
     return qpos, qvel
+
+
+def _floating_balls(robot: Any) -> bool:
+    """Whether `robot` is a [`FloatingTree`][lagrax.chains.FloatingTree] with ball joints."""
+    return isinstance(robot, FloatingTree) and bool(robot.tree.balls)
+
+
+def _ball_quaternions(
+    tree: Any, pos: Any, vel: Any, names: tuple[str, str], order: tuple, base: int = 0
+):
+    """The state of a [`Tree`][lagrax.chains.Tree] with ball joints (after a floating
+    base's `base = 7` entries) with every ball's quaternion's entries taken in `order`
+    (MuJoCo's `(w, x, y, z)` from lagrax's `(x, y, z, w)` or back); the velocity is the
+    same in both (`ω` in the child frame)."""
+    from ..articulated.balls import layout
+
+    sizes = (base + tree.n_configuration, (6 if base else 0) + tree.n)
+    pos, vel = _free_joint_state(pos, vel, names, sizes)
+    if pos.shape[-1] != sizes[0]:
+        raise ShapeError(
+            f"{names[0]} has {pos.shape[-1]} entries on its last axis, expected "
+            f"{sizes[0]} (a ball joint's quaternion takes 4)"
+        )
+    quats = base + layout(tree.joint_types, tree.balls)[2]
+    return pos.at[..., quats].set(pos[..., quats[:, list(order)]]), vel
 
 
 def _sizes_at(pos: Any, vel: Any, qa: int, va: int, names: tuple[str, str]) -> None:
@@ -99,6 +131,12 @@ def to_mujoco_state(q: Any, v: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp
     **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
     and `v`.
     """
+    if getattr(robot, "balls", ()):
+        return _ball_quaternions(robot, q, v, ("q", "v"), (3, 0, 1, 2))
+    if _floating_balls(robot):
+        q, v = _ball_quaternions(robot.tree, q, v, ("q", "v"), (3, 0, 1, 2), 7)
+        pos, vel = to_mujoco_state(q[..., :7], v[..., :6])
+        return q.at[..., :7].set(pos), v.at[..., :6].set(vel)
     frees = free_joints(robot)
     q, v = _free_joint_state(q, v, ("q", "v"), (7 * len(frees), 6 * len(frees)))
     for qa, va in frees:
