@@ -131,5 +131,7 @@ def test_blocked_floating_base_matches_slices():
         pieces = [fn(q[k : k + BLOCK], v[k : k + BLOCK]) for k in range(0, batch, BLOCK)]
         plain = jax.tree_util.tree_map(lambda *xs: jnp.concatenate(xs), *pieces)
         pairs = zip(jax.tree_util.tree_leaves(whole), jax.tree_util.tree_leaves(plain), strict=True)
+        # compiled separately, the blocked program and a slice's may round differently:
+        # to a solve's round-off with this floating arm's M (cond(M) up to 5.5e4 here)
         for ours, ref in pairs:
-            np.testing.assert_allclose(ours, ref, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(ours, ref, rtol=1e-10, atol=1e-10)

@@ -490,7 +490,9 @@ def _wrong_way_message(cfg: SearchConfig, inp: SearchInputs, orbit: PeriodicOrbi
     x, projected = _start(cfg, inp)
     if projected or cfg.section.direction == 0:
         return None
-    why = f"the search ended with: {RESULTS[orbit.result]}"
+    # the search's own result, without its advice ("Try increasing `max_steps`."): a
+    # return map run on past an uncounted crossing fails whatever the budget
+    why = f"the search ended with: {str(RESULTS[orbit.result]).split('. ')[0].rstrip('.')}"
     return sections.crossing_message(_first_crossing(cfg, inp, x), cfg.section, why)
 
 
