@@ -144,6 +144,29 @@ def by_solves(
     )
 
 
+def forward_by_inverse_jacobians(
+    accelerations: Callable, jacobians: Callable, params: Params, wrt_params: bool
+) -> ForwardDynamicsDerivatives:
+    """The forward dynamics' derivatives of a system whose inverse dynamics has analytic
+    derivatives: `v̇ = accelerations(params)`, `(τ, ∂τ/∂q, ∂τ/∂v, M) = jacobians(v̇)` at
+    that primal `v̇`, then `by_solves`; `∂v̇/∂params` (with `wrt_params`) by forward mode
+    through `accelerations`."""
+    vdot = accelerations(params)
+    _, jq, jv, mass = jacobians(vdot)
+    dparams = jacobian_wrt_params(accelerations, params) if wrt_params else None
+    return by_solves(vdot, jq, jv, mass, dparams)
+
+
+def inverse_by_jacobians(
+    inverse: Callable, jacobians: Callable, vdot, params: Params, wrt_params: bool
+) -> InverseDynamicsDerivatives:
+    """The inverse dynamics' derivatives from `(τ, ∂τ/∂q, ∂τ/∂v, M) = jacobians(v̇)`;
+    `∂τ/∂params` (with `wrt_params`) by forward mode through `inverse(params)`."""
+    tau, jq, jv, mass = jacobians(vdot)
+    dparams = jacobian_wrt_params(inverse, params) if wrt_params else None
+    return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
+
+
 def inverse(e: d.Energies, scalar: bool | None, t, q, qd, qdd, params: Params, wrt_params: bool):
     """[`InverseDynamicsDerivatives`][lagrax.InverseDynamicsDerivatives] at checked 1-D
     arrays."""

@@ -34,13 +34,12 @@ from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
 from ..._systems.sensitivity import (
     ForwardDynamicsDerivatives,
     InverseDynamicsDerivatives,
-    by_solves,
-    jacobian_wrt_params,
+    forward_by_inverse_jacobians,
+    inverse_by_jacobians,
 )
 from .. import joint_space as js
 from ..algorithms import recursions as a
 from ..algorithms.derivative_recursions import rnea_derivatives
-from ..algorithms.floating_recursions import skew
 from . import balls
 from .tree_equations import spatial_chain, spatial_energies
 from .tree_fields import joint_damping
@@ -210,10 +209,7 @@ class BallTreeSystem(AbstractSystem):
         """
         q, v, tau = self._inputs(q, qd=qd, tau=tau)
         if not traced(self, q, v, tau, params):
-            for name, x in (("q", q), ("qd", v), ("tau", tau)):
-                if x is not None:
-                    finite(x, name)
-            self._check_quaternions(q)
+            self._finite(q, v, tau, "tau")
             vdot = model_programs.call(self, _accelerations_of, self, t, q, v, params, tau)
             if not np.all(np.isfinite(np.asarray(vdot))):
                 raise NonFiniteError(
@@ -318,17 +314,15 @@ class BallTreeSystem(AbstractSystem):
         out = self.forward_dynamics_derivatives(q_eq, qd_eq, params, tau_eq, t)
         (v,) = self._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
         a_mat, b_mat = state_space(out)
-        for k in self.tree.balls:
-            block = -0.5 * skew(v[k : k + 3].astype(a_mat.dtype))
-            a_mat = a_mat.at[k : k + 3, k : k + 3].set(block)
-        return a_mat, b_mat
+        return balls.rotation_blocks(a_mat, self.tree.balls, v), b_mat
 
     def _finite(self, q: Any, v: Any, w: Any, name: str) -> None:
         """Eagerly, `NonFiniteError` for a non-finite input and `ShapeError` for a zero
         quaternion (under `jit`, the results' check catches both)."""
         if not traced(self, q, v, w):
             for key, x in (("q", q), ("qd", v), (name, w)):
-                finite(x, key)
+                if x is not None:
+                    finite(x, key)
             self._check_quaternions(q)
 
     # ------------------------------------------------------------------ energies
@@ -414,20 +408,22 @@ def _jacobians(system: BallTreeSystem, q, v, vdot, params):
 
 
 def _forward_body(system: BallTreeSystem, t, q, v, params, tau, wrt_params: bool):
-    vdot = system.accelerations(t, q, v, params, tau)
-    _, jq, jv, mass = _jacobians(system, q, v, vdot, params)
-    dparams = None
-    if wrt_params:
-        dparams = jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
-    return by_solves(vdot, jq, jv, mass, dparams)
+    return forward_by_inverse_jacobians(
+        lambda p: system.accelerations(t, q, v, p, tau),
+        lambda vdot: _jacobians(system, q, v, vdot, params),
+        params,
+        wrt_params,
+    )
 
 
 def _inverse_body(system: BallTreeSystem, t, q, v, vdot, params, wrt_params: bool):
-    tau, jq, jv, mass = _jacobians(system, q, v, vdot, params)
-    dparams = None
-    if wrt_params:
-        dparams = jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
-    return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
+    return inverse_by_jacobians(
+        lambda p: system._inverse(q, v, vdot, p),
+        lambda w: _jacobians(system, q, v, w, params),
+        vdot,
+        params,
+        wrt_params,
+    )
 
 
 # What the eager calls compile, one program per live system (`model_programs.call`)

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..algorithms.floating_recursions import quaternion_rate, quaternion_rotation
+from ..algorithms.floating_recursions import quaternion_rate, quaternion_rotation, skew
 
 LANE_AXES = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 """The axes of a ball joint's three lanes, in the child frame."""
@@ -251,3 +251,12 @@ def tangent_derivatives(balls: tuple[int, ...], tau, dq, dqd, mass, v, vdot, off
             cols.append(col.at[k0 : k0 + 3].add(-_DJ[k].T @ tau[k0 : k0 + 3]))
         dq = dq.at[:, k0 : k0 + 3].add(jnp.stack(cols, axis=1))
     return dq, dqd.at[:, offset:].add(-mass[:, offset:] @ velocity_product_jacobian(balls, v))
+
+
+def rotation_blocks(a_mat: Any, balls: tuple[int, ...], v: Any, offset: int = 0) -> jnp.ndarray:
+    """`A` of a linearization on the tangent space with every ball's `ξ̇ = ω − ½ ω × ξ +
+    O(ξ²)` block `−½ [ω]×` set (`offset`: where the joints' velocities start in `v`)."""
+    for lane in balls:
+        k = offset + lane
+        a_mat = a_mat.at[k : k + 3, k : k + 3].set(-0.5 * skew(v[k : k + 3].astype(a_mat.dtype)))
+    return a_mat

@@ -60,8 +60,8 @@ from ..._systems.lagrangian_checks import finite_derivatives, float_arrays
 from ..._systems.sensitivity import (
     ForwardDynamicsDerivatives,
     InverseDynamicsDerivatives,
-    by_solves,
-    jacobian_wrt_params,
+    forward_by_inverse_jacobians,
+    inverse_by_jacobians,
 )
 from .. import joint_space as js
 from ..algorithms import derivative_recursions as dr
@@ -140,20 +140,22 @@ def _lanes(tree: Any, v: Any, vdot: Any) -> jnp.ndarray:
 
 
 def _forward_body(system: FloatingDerivatives, t, q, v, params, tau, wrt_params: bool):
-    vdot = system.accelerations(t, q, v, params, tau)
-    _, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
-    dparams = None
-    if wrt_params:
-        dparams = jacobian_wrt_params(lambda p: system.accelerations(t, q, v, p, tau), params)
-    return by_solves(vdot, jq, jv, mass, dparams)
+    return forward_by_inverse_jacobians(
+        lambda p: system.accelerations(t, q, v, p, tau),
+        lambda vdot: _inverse_jacobians(system, q, v, vdot, params),
+        params,
+        wrt_params,
+    )
 
 
 def _inverse_body(system: FloatingDerivatives, t, q, v, vdot, params, wrt_params: bool):
-    tau, jq, jv, mass = _inverse_jacobians(system, q, v, vdot, params)
-    dparams = None
-    if wrt_params:
-        dparams = jacobian_wrt_params(lambda p: system._inverse(q, v, vdot, p), params)
-    return InverseDynamicsDerivatives(tau, jq, jv, mass, dparams)
+    return inverse_by_jacobians(
+        lambda p: system._inverse(q, v, vdot, p),
+        lambda w: _inverse_jacobians(system, q, v, w, params),
+        vdot,
+        params,
+        wrt_params,
+    )
 
 
 def forward_dynamics_derivatives(
@@ -208,10 +210,7 @@ def linearize(
     (v,) = system._inputs(q_eq, "q_eq", qd_eq=qd_eq)[1:]
     a_mat, b_mat = state_space(out)  # a vector space's A, whose ∂δ̇/∂δ is zero
     a_mat = a_mat.at[:6, :6].set(-0.5 * twist_adjoint(v[:6].astype(a_mat.dtype)))
-    for lane in system.robot.tree.balls:  # a ball's `ξ̇ = ω − ½ ω × ξ + O(ξ²)`
-        k = 6 + lane
-        a_mat = a_mat.at[k : k + 3, k : k + 3].set(-0.5 * fr.skew(v[k : k + 3].astype(a_mat.dtype)))
-    return a_mat, b_mat
+    return balls.rotation_blocks(a_mat, system.robot.tree.balls, v, offset=6), b_mat
 
 
 class FloatingDerivatives(AbstractSystem):
