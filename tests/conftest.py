@@ -44,6 +44,15 @@ import lagrax  # noqa: E402
 from lagrax._core import model_programs  # noqa: E402
 from lagrax._solve import compiled  # noqa: E402
 
+# Python's cyclic collector, tuned for a process that traces many programs: the objects
+# alive after the imports are frozen out of its scans, and a young-generation collection
+# runs after 100,000 net allocations instead of 700 (tracing allocates and frees millions
+# of small objects). About 5 % of the CPU of a compile-bound file (`test_periodic.py`:
+# 80.5 → 76.5 s and 76.9 → 72.7 s, two pairs). Each file ends with a full collection
+# (`release_compiled_programs`).
+gc.freeze()
+gc.set_threshold(100_000, 50, 1000)
+
 settings.register_profile(
     "lagrax",
     max_examples=30,
@@ -127,17 +136,24 @@ def _return_freed_memory() -> None:
     trim(0)
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _release_programs_after_module():
-    """After each test file, once its own fixtures are gone: release what it compiled,
-    so that a worker's memory does not grow with every file it runs (programs of robots
-    and models that no later file uses; 8-9.5 GB a worker before)."""
-    yield
-    release_compiled_programs()
-
-
+# a worker past this resident size at the end of a test file releases its compiled programs
+RELEASE_AFTER_FILE_ABOVE_BYTES = 2 * 1024**3
 # a worker past this resident size releases its compiled programs after the test it is on
 RELEASE_ABOVE_BYTES = 3 * 1024**3
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _release_programs_after_module():
+    """After a test file, once its own fixtures are gone, in a worker above 2 GB resident:
+    release what it compiled, so that a worker's memory does not grow with every file it
+    runs (programs of robots and models that no later file uses; 8-9.5 GB a worker
+    before). Below that, the next file keeps the programs it shares (the 2R arm's
+    solves, JAX's single-operation programs), instead of tracing and compiling them
+    again."""
+    yield
+    gc.collect()
+    if _resident_bytes() > RELEASE_AFTER_FILE_ABOVE_BYTES:
+        release_compiled_programs()
 
 
 def _resident_bytes() -> int:
