@@ -137,14 +137,14 @@ def _return_freed_memory() -> None:
 
 
 # a worker past this resident size at the end of a test file releases its compiled programs
-RELEASE_AFTER_FILE_ABOVE_BYTES = 2 * 1024**3
+RELEASE_AFTER_FILE_ABOVE_BYTES = 5 * 1024**3 // 2
 # a worker past this resident size releases its compiled programs after the test it is on
 RELEASE_ABOVE_BYTES = 3 * 1024**3
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _release_programs_after_module():
-    """After a test file, once its own fixtures are gone, in a worker above 2 GB resident:
+    """After a test file, once its own fixtures are gone, in a worker above 2.5 GB resident:
     release what it compiled, so that a worker's memory does not grow with every file it
     runs (programs of robots and models that no later file uses; 8-9.5 GB a worker
     before). Below that, the next file keeps the programs it shares (the 2R arm's
