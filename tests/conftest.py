@@ -41,17 +41,14 @@ import pytest  # noqa: E402
 from hypothesis import HealthCheck, settings  # noqa: E402
 
 import lagrax  # noqa: E402
+from _helpers import GC_THRESHOLD  # noqa: E402  (tests/_helpers.py)
 from lagrax._core import model_programs  # noqa: E402
 from lagrax._solve import compiled  # noqa: E402
 
-# Python's cyclic collector, tuned for a process that traces many programs: the objects
-# alive after the imports are frozen out of its scans, and a young-generation collection
-# runs after 100,000 net allocations instead of 700 (tracing allocates and frees millions
-# of small objects). About 5 % of the CPU of a compile-bound file (`test_periodic.py`:
-# 80.5 → 76.5 s and 76.9 → 72.7 s, two pairs). Each file ends with a full collection
-# (`release_compiled_programs`).
+# the cyclic collector tuned for tracing (`_helpers.GC_THRESHOLD`); each test file ends
+# with a full collection (`_release_programs_after_module`)
 gc.freeze()
-gc.set_threshold(100_000, 50, 1000)
+gc.set_threshold(*GC_THRESHOLD)
 
 settings.register_profile(
     "lagrax",
@@ -151,9 +148,10 @@ def _release_programs_after_module():
     solves, JAX's single-operation programs), instead of tracing and compiling them
     again."""
     yield
-    gc.collect()
     if _resident_bytes() > RELEASE_AFTER_FILE_ABOVE_BYTES:
-        release_compiled_programs()
+        release_compiled_programs()  # a full collection included
+    else:
+        gc.collect()
 
 
 def _resident_bytes() -> int:

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import pytest
 
+from _helpers import GC_THRESHOLD  # tests/_helpers.py
+
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
 CELL_TIMEOUT_S = 300
-# the kernel's Python, tuned as tests/conftest.py tunes the workers' (about 5 % of a
-# compile-bound process's CPU): the imports' objects frozen out of the cyclic collector's
-# scans, a young-generation collection every 100,000 net allocations instead of 700
+# the kernel's Python tuned as the test workers' (`_helpers.GC_THRESHOLD`)
 KERNEL_GC = (
-    "--IPKernelApp.exec_lines=['import gc', 'gc.freeze()', 'gc.set_threshold(100_000, 50, 1000)']"
+    f"--IPKernelApp.exec_lines=['import gc', 'gc.freeze()', 'gc.set_threshold{GC_THRESHOLD}']"
 )
 
 
