@@ -14,8 +14,8 @@ dropped on the floor under joint PD (`solo12_drop`, 1 s; about a minute to compi
 loaded 2-core machine) on docs/contact.md, and the benchmark bicycle's self-stable run at
 5 m/s after a sideways push (`bicycle_run`, 6 s; about half a minute) on docs/viewer.md.
 A check build with `LAGRAX_DOCS_EXECUTE=false` (CI's) leaves them out, as it leaves the
-notebooks unexecuted. Each is split in a simulation and its drawing (`*_view`), so that the test draws a made-up
-motion through the same drawing cheaply.
+notebooks unexecuted. Each is split in a simulation and its drawing (`*_view`), so that
+the test draws a made-up motion through the same drawing cheaply.
 """
 
 from __future__ import annotations

@@ -69,8 +69,19 @@ def private_imports(path: Path, tree: ast.Module, root: Path) -> list[str]:
     return out
 
 
-def _code_lines(source: str, node: ast.AST) -> int:
-    """Lines of `node` that hold code: not blank, not only a comment, not its docstring."""
+def _token_lines(source: str) -> set[int]:
+    """The lines of `source` that hold a token of code (not blank, not only a comment)."""
+    code: set[int] = set()
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT}
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type not in skip:
+            code.update(range(tok.start[0], tok.end[0] + 1))
+    return code
+
+
+def _code_lines(code: set[int], node: ast.AST) -> int:
+    """Lines of `node` that hold code (`code`: the module's, from `_token_lines`): not
+    blank, not only a comment, not its docstring."""
     lines = set(range(node.lineno, node.end_lineno + 1))  # type: ignore[attr-defined]
     body = getattr(node, "body", [])
     if (
@@ -80,20 +91,15 @@ def _code_lines(source: str, node: ast.AST) -> int:
         and isinstance(body[0].value.value, str)
     ):
         lines -= set(range(body[0].lineno, body[0].end_lineno + 1))  # type: ignore[operator]
-    code = set()
-    tokens = tokenize.generate_tokens(io.StringIO(source).readline)
-    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT}
-    for tok in tokens:
-        if tok.type not in skip:
-            code.update(range(tok.start[0], tok.end[0] + 1))
     return len(lines & code)
 
 
 def long_functions(path: Path, tree: ast.Module, source: str) -> list[str]:
     out = []
+    code = _token_lines(source)  # once per module, not once per function
     for node in ast.walk(tree):
         if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
-            n = _code_lines(source, node)
+            n = _code_lines(code, node)
             if n > MAX_FUNCTION_LINES:
                 out.append(
                     f"{path}:{node.lineno}: {node.name} has {n} code lines "
