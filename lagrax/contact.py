@@ -23,6 +23,7 @@ touch each other (billiards, Newton's cradle), with the same law.
 robot's foot), from the tree's own kinematics.
 """
 
+from ._contact.geometry import AbstractSphereSource as AbstractSphereSource
 from ._contact.geometry import Plane as Plane
 from ._contact.geometry import Sphere as Sphere
 from ._contact.shapes import Box as Box
@@ -30,4 +31,12 @@ from ._contact.shapes import Capsule as Capsule
 from ._contact.system import ContactSystem as ContactSystem
 from ._multibody.spheres import body_sphere as body_sphere
 
-__all__ = ["Box", "Capsule", "ContactSystem", "Plane", "Sphere", "body_sphere"]
+__all__ = [
+    "AbstractSphereSource",
+    "Box",
+    "Capsule",
+    "ContactSystem",
+    "Plane",
+    "Sphere",
+    "body_sphere",
+]

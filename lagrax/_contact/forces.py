@@ -8,31 +8,78 @@ as its first argument; the system's methods delegate to them.
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .._core.errors import ShapeError
 from . import laws, pairs
 
 
+def _checked(contact, c):
+    """A sphere's centre `c`, checked: `(d,)` with `d` the scene's dimension."""
+    dim = contact.dim
+    good = c.ndim == 1 and c.shape[0] in (2, 3) and (dim is None or c.shape[0] == dim)
+    if not good:
+        want = f"({dim},)" if dim is not None else "(2,) or (3,)"
+        raise ShapeError(
+            f"a Sphere's position(q, params) of {contact.name} returned shape {c.shape}; "
+            f"it must return {want}"
+        )
+    return c
+
+
+def _placed(contact, q, params, turning):
+    """`(c, R)`: the spheres' centres `(S, d)` and the rotations of the spheres
+    `turning` (indices, in order) `(T, 3, 3)` (`None` with none): the spheres that share a
+    source placed as one batch (one pass of their model's kinematics), each other
+    sphere by its own functions."""
+    spheres = contact.spheres
+    blocks, order, rot_blocks, rot_order = [], [], [], []
+    for group in contact.groups:
+        members = [spheres[i] for i in group]
+        bodies = np.asarray([s.body for s in members], int)
+        offsets = np.asarray([s.offset for s in members], float)
+        c, r = members[0].source.poses(q, params, bodies, offsets)
+        blocks.append(c)
+        order.extend(group)
+        rot_blocks.append(r)
+        rot_order.extend(group)
+    grouped = set(order)
+    alone = [i for i in range(len(spheres)) if i not in grouped]
+    if alone:
+        cs = [_checked(contact, jnp.asarray(spheres[i].position(q, params))) for i in alone]
+        if len({c.shape for c in cs} | {b.shape[1:] for b in blocks}) > 1:
+            raise ShapeError(
+                f"the Spheres of {contact.name} return centres of different sizes "
+                f"{[tuple(b.shape[1:]) for b in blocks] + [c.shape for c in cs]}: all planar "
+                "(2) or all spatial (3)"
+            )
+        blocks.append(jnp.stack(cs))
+        order.extend(alone)
+    dtype = jnp.result_type(q, float)
+    c = _in_order(blocks, order, range(len(spheres)))
+    if not turning:
+        return c.astype(dtype), None
+    lone = [i for i in turning if i not in grouped]
+    if lone:
+        rot_blocks.append(jnp.stack([jnp.asarray(spheres[i].rotation(q, params)) for i in lone]))
+        rot_order.extend(lone)
+    return c.astype(dtype), _in_order(rot_blocks, rot_order, turning).astype(dtype)
+
+
+def _in_order(blocks, order, wanted):
+    """The rows of the concatenated `blocks` (row `k` is item `order[k]`) for the items
+    `wanted`, in their order: a static gather, none where they already are."""
+    x = jnp.concatenate(blocks) if len(blocks) > 1 else blocks[0]
+    wanted = list(wanted)
+    if order == wanted:
+        return x
+    row = {item: k for k, item in enumerate(order)}
+    return x[np.asarray([row[i] for i in wanted], int)]
+
+
 def centres(contact, q, params):
     """The spheres' centres `(S, d)`."""
-    out = []
-    dim = contact.dim
-    for s in contact.spheres:
-        c = jnp.asarray(s.position(q, params))
-        good = c.ndim == 1 and c.shape[0] in (2, 3) and (dim is None or c.shape[0] == dim)
-        if not good:
-            want = f"({dim},)" if dim is not None else "(2,) or (3,)"
-            raise ShapeError(
-                f"a Sphere's position(q, params) of {contact.name} returned shape {c.shape}; "
-                f"it must return {want}"
-            )
-        out.append(c)
-    if len({c.shape for c in out}) > 1:
-        raise ShapeError(
-            f"the Spheres of {contact.name} return centres of different sizes "
-            f"{[c.shape for c in out]}: all planar (2) or all spatial (3)"
-        )
-    return jnp.stack(out).astype(jnp.result_type(q, float))
+    return _placed(contact, q, params, ())[0]
 
 
 def motion(contact, q, v, params):
@@ -41,26 +88,30 @@ def motion(contact, q, v, params):
     orientation or of radius 0); the rates linear in the velocities `v`."""
     rate = contact.system.configuration_rate(q, v)
     # the centres and the spatial bodies' rotations, with their rates, in one pass (the
-    # spheres of one robot then share its kinematics: `body_sphere`)
-    turning = [i for i, s in enumerate(contact.spheres) if s.rotation is not None and s.radius > 0]
-
-    def placed(a):
-        rotations = [jnp.asarray(contact.spheres[i].rotation(a, params)) for i in turning]
-        return centres(contact, a, params), (jnp.stack(rotations) if turning else None)
-
-    (c, rots), (c_dot, rot_dots) = jax.jvp(placed, (q,), (rate,))
+    # spheres that share a source, a robot's, share its kinematics)
+    spheres = contact.spheres
+    turning = tuple(i for i, s in enumerate(spheres) if s.rotation is not None and s.radius > 0)
+    (c, rots), (c_dot, rot_dots) = jax.jvp(
+        lambda a: _placed(contact, a, params, turning), (q,), (rate,)
+    )
     planar = c.shape[1] == 2
-    omegas = []
-    for i, s in enumerate(contact.spheres):
-        w = jnp.zeros(() if planar else (3,), c.dtype)
-        if s.angle is not None and s.radius > 0:
-            _, w = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
-        if i in turning:
-            k = turning.index(i)
-            x = rot_dots[k] @ rots[k].T  # [ω]× in the world frame
-            w = 0.5 * jnp.stack([x[2, 1] - x[1, 2], x[0, 2] - x[2, 0], x[1, 0] - x[0, 1]])
-        omegas.append(jnp.asarray(w, c.dtype))
-    return c, c_dot, jnp.stack(omegas)
+    if planar:
+        omegas = []
+        for s in spheres:
+            w = jnp.zeros((), c.dtype)
+            if s.angle is not None and s.radius > 0:
+                _, w = jax.jvp(lambda a, s=s: jnp.asarray(s.angle(a, params)), (q,), (rate,))
+            omegas.append(jnp.asarray(w, c.dtype))
+        return c, c_dot, jnp.stack(omegas)
+    if not turning:
+        return c, c_dot, jnp.zeros(c.shape, c.dtype)
+    x = jnp.einsum("kij,klj->kil", rot_dots, rots)  # [ω]× in the world frame, (T, 3, 3)
+    w = 0.5 * jnp.stack(
+        [x[:, 2, 1] - x[:, 1, 2], x[:, 0, 2] - x[:, 2, 0], x[:, 1, 0] - x[:, 0, 1]], axis=-1
+    )
+    if len(turning) == len(spheres):
+        return c, c_dot, w
+    return c, c_dot, jnp.zeros(c.shape, c.dtype).at[np.asarray(turning)].set(w)
 
 
 def radii(contact, dtype):

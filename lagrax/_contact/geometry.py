@@ -1,5 +1,6 @@
 """The shapes of contact: a ground `Plane` and the `Sphere`s fixed to a system's bodies."""
 
+import abc
 import math
 from collections.abc import Callable
 from typing import Any
@@ -80,6 +81,31 @@ class Plane(eqx.Module):
         return len(self.normal)
 
 
+class AbstractSphereSource(eqx.Module):
+    r"""What places many spheres at once: the centres and rotations of spheres fixed to
+    the bodies of one model, computed from one pass of its kinematics (a tree's forward
+    kinematics once for all its spheres, not once per sphere).
+
+    A [`ContactSystem`][lagrax.contact.ContactSystem] evaluates the spheres that share a
+    source (equal `key`) as one batch: their centres `(K, 3)`, their rotations
+    `(K, 3, 3)`, their velocities by one JVP and their generalized force `Σ J_iᵀ F_i` by
+    one VJP, so that its program grows with the model's bodies, not with bodies ×
+    spheres. [`body_sphere`][lagrax.contact.body_sphere] gives its spheres a source.
+    """
+
+    @property
+    @abc.abstractmethod
+    def key(self) -> int:
+        """What the poses are computed from (a model, by identity): spheres whose
+        sources have equal keys are placed together, by any one of those sources."""
+
+    @abc.abstractmethod
+    def poses(self, q: Any, params: Any, bodies: np.ndarray, offsets: np.ndarray) -> Any:
+        """`(centres, rotations)`, `(K, 3)` and `(K, 3, 3)` in the world frame, of `K`
+        spheres fixed to the bodies `bodies` `(K,)` at the offsets `offsets` `(K, 3)` in
+        the bodies' frames, at the configuration `q`."""
+
+
 class Sphere(eqx.Module):
     r"""A sphere (a disk in a planar model) fixed to a body of the system.
 
@@ -103,6 +129,10 @@ class Sphere(eqx.Module):
     - `position`: `position(q, params) -> (d,)`, the centre in the world frame (`d` is
       the plane's dimension).
     - `angle`, `rotation`: the body's orientation (at most one of them; see above).
+    - `source`, `body`, `offset`: for spheres placed in batches (see
+      [`AbstractSphereSource`][lagrax.contact.AbstractSphereSource]): the source, the
+      body and the centre's offset in its frame. `position` and `rotation` must then
+      give the same centre and rotation, one sphere at a time.
 
     **Raises:** `ConfigurationError` for a negative or non-finite radius, or both
     `angle` and `rotation`; `ArgumentTypeError` when `position`, `angle` or
@@ -120,6 +150,9 @@ class Sphere(eqx.Module):
     position: PositionFn
     angle: PositionFn | None = None
     rotation: PositionFn | None = None
+    source: AbstractSphereSource | None = None
+    body: int = eqx.field(static=True, default=0)
+    offset: tuple[float, ...] = eqx.field(static=True, default=(0.0, 0.0, 0.0))
 
     def __init__(
         self,
@@ -127,6 +160,10 @@ class Sphere(eqx.Module):
         position: PositionFn,
         angle: PositionFn | None = None,
         rotation: PositionFn | None = None,
+        *,
+        source: AbstractSphereSource | None = None,
+        body: int = 0,
+        offset: Any = (0.0, 0.0, 0.0),
     ):
         r = real_number(radius, "Sphere's radius must be a real number >= 0")
         if not (math.isfinite(r) and r >= 0):
@@ -148,7 +185,30 @@ class Sphere(eqx.Module):
                 "a Sphere takes its body's orientation as angle= (planar) or rotation= "
                 "(spatial), not both"
             )
+        if source is not None and not isinstance(source, AbstractSphereSource):
+            raise ArgumentTypeError(
+                f"Sphere's source must be a lagrax.contact.AbstractSphereSource or None, got "
+                f"{source!r}"
+            )
+        arm = np.asarray(offset, dtype=float)
+        if arm.shape != (3,) or not np.all(np.isfinite(arm)):
+            raise ConfigurationError(
+                f"Sphere's offset must be three finite numbers, got {offset!r}"
+            )
         self.radius = r
         self.position = position
         self.angle = angle
         self.rotation = rotation
+        self.source = source
+        self.body = int(body)
+        self.offset = tuple(float(x) for x in arm)
+
+
+def placement_groups(spheres: tuple[Sphere, ...]) -> tuple[tuple[int, ...], ...]:
+    """The indices of the spheres placed together: those whose sources share a key (a
+    sphere without a source is placed alone, by its own functions)."""
+    keyed: dict[int, list[int]] = {}
+    for i, s in enumerate(spheres):
+        if s.source is not None and s.angle is None:
+            keyed.setdefault(s.source.key, []).append(i)
+    return tuple(tuple(ix) for ix in keyed.values())

@@ -13,7 +13,7 @@ from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
 from . import forces, pairs, scale, stability, start
-from .geometry import Plane, Sphere, real_number
+from .geometry import Plane, Sphere, placement_groups, real_number
 from .pairs import pair_list as pairs_of
 from .shapes import Box, Capsule
 
@@ -193,6 +193,7 @@ class ContactSystem(AbstractSystem):
     name: str = eqx.field(static=True)
     pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     max_penetration: float | None = eqx.field(static=True)
+    groups: tuple[tuple[int, ...], ...] = eqx.field(static=True)
 
     def __init__(
         self,
@@ -227,6 +228,7 @@ class ContactSystem(AbstractSystem):
             )
         self.system = system
         self.spheres = spheres
+        self.groups = placement_groups(spheres)
         self.plane = plane
         self.friction = _coefficient("friction", friction, allow_none=False)
         self.static_friction = _coefficient("static_friction", static_friction, allow_none=True)
@@ -296,6 +298,28 @@ class ContactSystem(AbstractSystem):
         false also where a sphere starts deeper than `max_penetration` allows."""
         q, qd, ok = self.system.initial_state(q, qd, params)
         return q, qd, ok & start.admissible(self, q, params)
+
+    def prepared(self, params, dtype):
+        """The scene with its coefficients computed at `params` (the defaults scaled from
+        the scene once, not at every evaluation), and the wrapped system prepared. Where
+        the defaults cannot be scaled (no weight on the plane), the stiffness is NaN, so
+        the accelerations are NaN and the solve reports it."""
+        system = self.system.prepared(params, dtype)
+        if None in (self.stiffness, self.dissipation, self.stiction_velocity):
+            co = self.coefficients(params, dtype)
+            scaled = (
+                jnp.where(co.ok, co.stiffness, jnp.nan),
+                co.dissipation,
+                co.stiction_velocity,
+            )
+        else:
+            scaled = (self.stiffness, self.dissipation, self.stiction_velocity)
+        return eqx.tree_at(
+            lambda s: (s.system, s.stiffness, s.dissipation, s.stiction_velocity),
+            self,
+            (system, *scaled),
+            is_leaf=lambda x: x is None,
+        )
 
     def mass_matrix(self, q, params, qd=None, *, t=0.0):
         """The wrapped system's mass matrix (the contact adds no inertia)."""

@@ -3,11 +3,12 @@
 import weakref
 from typing import Any
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._contact.geometry import Sphere
+from .._contact.geometry import AbstractSphereSource, Sphere
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from .algorithms.floating_recursions import quaternion_rotation
 from .articulated.trees import AbstractTree, Tree
@@ -51,6 +52,47 @@ def _frames(tree: AbstractTree, q: Any, params: Any, floating: bool):
     out = tree.frames(q[7:] if floating else q, params)
     _LAST[0] = (weakref.ref(tree), q, params, out)
     return out
+
+
+class TreeSpheres(AbstractSphereSource):
+    """The poses of spheres fixed to a tree's bodies: the tree's forward kinematics
+    (`frames`) once, then every sphere's centre and rotation as one gather and one
+    batched product (a floating base's pose applied to all at once)."""
+
+    tree: AbstractTree
+    floating: bool = eqx.field(static=True)
+    identity: int = eqx.field(static=True)
+
+    def __init__(self, tree: AbstractTree, floating: bool):
+        self.tree = tree
+        self.floating = floating
+        self.identity = id(tree)
+
+    @property
+    def key(self) -> int:
+        """The tree's identity when the source was made."""
+        return self.identity
+
+    def poses(self, q, params, bodies, offsets):
+        """`(centres (K, 3), rotations (K, 3, 3))` of the spheres on `bodies` (`−1`: the
+        floating base) at `offsets` in the bodies' frames."""
+        q = jnp.asarray(q)
+        origins, rots = self.tree.frames(q[7:] if self.floating else q, params)
+        dtype = rots.dtype
+        bodies = np.asarray(bodies, int)
+        if np.any(bodies < 0):  # the floating base itself: origin 0, no rotation
+            origins = jnp.concatenate([jnp.zeros((1, 3), dtype), origins])
+            rots = jnp.concatenate([jnp.eye(3, dtype=dtype)[None], rots])
+            bodies = bodies + 1
+        if np.array_equal(bodies, np.arange(rots.shape[0])):
+            o, r = origins, rots
+        else:
+            o, r = origins[bodies], rots[bodies]
+        centres = o + jnp.einsum("kij,kj->ki", r, jnp.asarray(offsets, dtype))
+        if not self.floating:
+            return centres, r
+        base = quaternion_rotation(q[3:7]).astype(dtype)
+        return q[None, :3].astype(dtype) + centres @ base.T, jnp.einsum("ij,kjl->kil", base, r)
 
 
 def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0.0)) -> Sphere:
@@ -120,4 +162,7 @@ def body_sphere(robot: Any, body: Any, radius: float, offset: Any = (0.0, 0.0, 0
         radius,
         lambda q, params: pose(q, params)[0],
         rotation=lambda q, params: pose(q, params)[1],
+        source=TreeSpheres(tree, floating),
+        body=i,
+        offset=arm_t,
     )
