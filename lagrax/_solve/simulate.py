@@ -74,8 +74,16 @@ class SolveInputs(eqx.Module):
 def solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
     """The solve of `simulate`, never raising: the start from
     [`AbstractSystem.initial_state`][lagrax.AbstractSystem.initial_state], then `solve_from`."""
+    config = prepared(config, inputs)
     q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
     return solve_from(config, inputs, (q0, qd0), started)
+
+
+def prepared(config: SolveConfig, inputs: SolveInputs) -> SolveConfig:
+    """`config` with its system [`prepared`][lagrax.AbstractSystem.prepared] at the
+    solve's parameters: what depends on them alone is traced once, before the loop."""
+    system = config.system.prepared(inputs.params, jnp.result_type(inputs.y0[0], float))
+    return eqx.tree_at(lambda c: c.system, config, system)
 
 
 def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solution:
@@ -258,6 +266,7 @@ def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):
 
 @eqx.filter_jit
 def _checked_once(config: SolveConfig, inputs: SolveInputs):
+    config = prepared(config, inputs)
     q0, qd0, started = config.system.initial_state(*inputs.y0, inputs.params)
     sol = solve_from(config, inputs, (q0, qd0), started)
     inputs_ok = _inputs_ok(config, inputs, (q0, qd0), started)

@@ -181,6 +181,17 @@ class AbstractSystem(eqx.Module):
         """
         return q, qd, jnp.asarray(True)
 
+    def prepared(self, params: Params, dtype: Any) -> "AbstractSystem":
+        """This system with what depends on `params` alone computed once, for evaluations
+        at these `params` only (a contact's default coefficients, scaled from the scene).
+
+        `simulate` and `sweep` call it inside their compiled programs, before the loop, so
+        that the vector field, the events and the energies at the saves do not trace
+        that work again at every evaluation. Derivatives with respect to `params` flow
+        through it. The default is the system itself. Never raises.
+        """
+        return self
+
     def observables(
         self, t: Any, q: Vector, qd: Vector, params: Params, tau: Any
     ) -> dict[str, Any]:
