@@ -1,0 +1,131 @@
+"""Program-size budgets: the main programs, counted in lines of their lowered text.
+
+A program's size drives its compile time (and, on a CPU, the time of one unbatched
+call), and it is deterministic for a given JAX: a test can hold it without timing
+anything. The budgets sit about 15 % above the sizes measured when they were set (in the
+comments), so that growth is caught in review; a JAX release that lowers differently may
+move them, and then they are set again, with the new measurements.
+
+Contact is held structurally too: its program grows with the robot's bodies, not with
+its spheres (every sphere of a tree is placed by one pass of its kinematics, their
+velocities by one JVP and `Σ Jᵢᵀ Fᵢ` by one VJP).
+"""
+
+import glob
+import importlib.util
+import os
+import sys
+
+import jax
+import jax.numpy as jnp
+import pytest
+
+import lagrax as lx
+from lagrax.contact import ContactSystem
+
+
+def lines(fn, *args) -> int:
+    """The number of lines of `jax.jit(fn)`'s lowered program (StableHLO text)."""
+    return len(jax.jit(fn).lower(*args).as_text().splitlines())
+
+
+def ant_xml() -> str:
+    """gymnasium's `ant.xml`, found without importing gymnasium."""
+    spec = importlib.util.find_spec("gymnasium")
+    if spec is None or not spec.submodule_search_locations:
+        raise FileNotFoundError("gymnasium is not installed: pip install -e '.[dev]'")
+    root = spec.submodule_search_locations[0]
+    return os.path.join(root, "envs", "mujoco", "assets", "ant.xml")
+
+
+def solo12_urdf() -> str:
+    """solo12's URDF from example-robot-data (its cmeel prefix)."""
+    found = glob.glob(f"{sys.prefix}/**/solo_description/robots/solo12.urdf", recursive=True)
+    if not found:
+        raise FileNotFoundError("example-robot-data's solo12 is not installed")
+    return found[0]
+
+
+@pytest.fixture(scope="module")
+def ant():
+    scene, params = lx.chains.from_mjcf(ant_xml(), contact=True)
+    robot = scene.system
+    q = jnp.zeros(robot.n_configuration).at[2].set(0.75).at[6].set(1.0)
+    return scene, params, q, jnp.zeros(robot.n_dof)
+
+
+def test_contact_grows_with_the_bodies_not_the_spheres(ant):
+    """The ant with 1, 5 and all 25 of its spheres: one program size (measured 8,360,
+    8,368 and 8,367 lines; 7,485, 14,485 and 43,221 when each sphere traced its own
+    kinematics, velocities and Jacobian transpose)."""
+    scene, params, q, v = ant
+    sizes = []
+    for k in (1, 5, len(scene.spheres)):
+        part = ContactSystem(
+            scene.system,
+            scene.spheres[:k],
+            scene.plane,
+            friction=lambda p, k=k: p["contact_friction"][:k],
+        )
+        sizes.append(lines(lambda a, b, s=part: s.forward_dynamics(a, b, params), q, v))
+    assert len(scene.spheres) == 25
+    assert max(sizes) <= 1.02 * min(sizes), sizes
+
+
+def test_the_contact_vector_field_is_a_small_multiple_of_the_robot(ant):
+    """What a solve's loop traces per step: the ant's contact dynamics with its
+    coefficients prepared (`AbstractSystem.prepared`, once per program) against the robot's
+    own accelerations (measured 3,740 against 2,041 lines: 1.8x; 20.9x before)."""
+    scene, params, q, v = ant
+    fixed = ContactSystem(
+        scene.system,
+        scene.spheres,
+        scene.plane,
+        friction=lambda p: p["contact_friction"],
+        stiffness=1e5,
+        dissipation=1.0,
+        stiction_velocity=1e-3,
+    )
+    robot = lines(lambda a, b: scene.system.accelerations(0.0, a, b, params, None), q, v)
+    contact = lines(lambda a, b: fixed.accelerations(0.0, a, b, params, None), q, v)
+    assert contact <= 2.2 * robot, (contact, robot)
+
+
+@pytest.mark.parametrize(
+    "name, budget",
+    [
+        ("arm7 forward_dynamics", 1_450),  # measured 1,252
+        ("solo12 forward_dynamics", 2_350),  # measured 2,027
+        ("ant forward_dynamics", 2_400),  # measured 2,072
+        ("ant scene forward_dynamics", 9_700),  # measured 8,367 (43,209 before)
+        ("2R arm simulate", 3_000),  # measured 2,588
+        ("arm7 simulate", 4_900),  # measured 4,259
+        ("ant scene simulate", 22_500),  # measured 19,529
+    ],
+)
+def test_program_size_budget(ant, name, budget):
+    scene, params, q, v = ant
+    if name.startswith("arm7"):
+        tree, p7 = lx.chains.from_urdf(lx.models.urdf_path("arm7"))
+        arm7 = tree.system()
+        q7, v7 = jnp.full(arm7.n_dof, 0.2), jnp.zeros(arm7.n_dof)
+        if name.endswith("simulate"):
+            size = lines(lambda a, b, p: lx.simulate(arm7, a, b, p, t1=1.0).q, q7, v7, p7)
+        else:
+            size = lines(lambda a, b: arm7.forward_dynamics(a, b, p7), q7, v7)
+    elif name.startswith("solo12"):
+        tree, ps = lx.chains.from_urdf(solo12_urdf(), floating_base=True)
+        solo = tree.system()
+        qs = jnp.zeros(solo.n_configuration).at[6].set(1.0)
+        size = lines(lambda a, b: solo.forward_dynamics(a, b, ps), qs, jnp.zeros(solo.n_dof))
+    elif name.startswith("2R"):
+        arm, p2 = lx.models.planar_2r()
+        q2, v2 = jnp.array([0.3, 0.8]), jnp.zeros(2)
+        size = lines(lambda a, b, p: lx.simulate(arm, a, b, p, t1=1.0).q, q2, v2, p2)
+    elif name == "ant forward_dynamics":
+        size = lines(lambda a, b: scene.system.forward_dynamics(a, b, params), q, v)
+    elif name == "ant scene forward_dynamics":
+        size = lines(lambda a, b: scene.forward_dynamics(a, b, params), q, v)
+    else:
+        size = lines(lambda a, b, p: lx.simulate(scene, a, b, p, t1=1.0).q, q, v, params)
+    assert size <= budget, f"{name}: {size:,} lines, over its budget of {budget:,}"
