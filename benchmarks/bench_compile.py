@@ -23,6 +23,25 @@ small-loop limit, `lagrax._core.xla_flags`) is on in both.
     python benchmarks/bench_compile.py [--processes 3]
 
 About 4 minutes on 2 cores.
+
+**First result** (`--first-result`): the time from before `import lagrax` to the first
+result, in a fresh process with the persistent compilation cache off (load the model,
+trace, compile, run once), and the same call again in that process ("warm"), for the
+2R arm (1 s), the URDF arm7 (1 s), dm_control's `humanoid_CMU.xml` (62 dof, no contact,
+1 s), gymnasium's `ant.xml` with `contact=True` dropped for 1 s, and solo12 on its four
+feet under joint PD for 2 s (the contact guide's scene); MJX (`mujoco-mjx`, the `bench`
+extra) beside the ant where it is installed: a `jax.jit` of a `lax.scan` of `mjx.step`
+over the same second. `--chart PATH` draws the table. About 3 minutes on 2 cores.
+
+    python benchmarks/bench_compile.py --first-result [--processes 1] [--chart PATH]
+
+**Program sizes** (`--sizes`): the lines of the lowered program (StableHLO text) and
+XLA's flop estimate of each part of the ant's contact simulation: the kinematics, the
+spheres' placement, the contact forces with `Σ Jᵢᵀ Fᵢ`, the default coefficients'
+scaling, the recursions, the vector field, the postprocessing at the saves, the
+checks and the whole solve. Nothing is compiled; about 30 s.
+
+    python benchmarks/bench_compile.py --sizes
 """
 
 import argparse
@@ -102,6 +121,212 @@ def child() -> dict:
     return out
 
 
+# ------------------------------------------------------------------ first result
+FIRST_ROWS = ("2R arm, 1 s", "arm7, 1 s", "humanoid_CMU, 1 s", "ant, contact, 1 s",
+              "solo12 on four feet, 2 s", "ant, MJX, 1 s")  # fmt: skip
+
+
+def _asset(package: str, *parts: str) -> str:
+    """A file shipped inside an installed package, found without importing it."""
+    import importlib.util
+
+    spec = importlib.util.find_spec(package)
+    if spec is None or not spec.submodule_search_locations:
+        raise FileNotFoundError(f"{package} is not installed")
+    return os.path.join(spec.submodule_search_locations[0], *parts)
+
+
+def _first_child(row: str) -> dict:
+    """One row of the first-result table, timed from before `import lagrax` (or, for
+    MJX, `import mujoco.mjx`): `{"first": s, "again": s}`."""
+    t0 = time.perf_counter()
+    if row == "ant, MJX, 1 s":
+        import jax
+        import mujoco
+        from mujoco import mjx
+
+        model = mujoco.MjModel.from_xml_path(_asset("gymnasium", "envs/mujoco/assets/ant.xml"))
+        steps = round(1.0 / model.opt.timestep)
+        mx, dx = mjx.put_model(model), mjx.put_data(model, mujoco.MjData(model))
+
+        @jax.jit
+        def second(d):
+            return jax.lax.scan(lambda d, _: (mjx.step(mx, d), None), d, None, length=steps)[0]
+
+        def fn():
+            return second(dx).qpos
+    else:
+        import jax
+        import jax.numpy as jnp
+        import numpy as np
+
+        import lagrax as lx
+
+        fn = _first_scene(row, lx, jnp, np)
+    jax.block_until_ready(fn())
+    first = time.perf_counter() - t0
+    again = []
+    for _ in range(3):
+        t1 = time.perf_counter()
+        jax.block_until_ready(fn())
+        again.append(time.perf_counter() - t1)
+    return {"first": first, "again": min(again)}
+
+
+def _first_scene(row, lx, jnp, np):
+    """`fn() -> array`: the row's load and simulation (the load runs now)."""
+    if row == "2R arm, 1 s":
+        arm, p = lx.models.planar_2r()
+        return lambda: lx.simulate(arm, jnp.array([0.3, 0.8]), jnp.zeros(2), p, t1=1.0).q
+    if row == "arm7, 1 s":
+        tree, p = lx.chains.from_urdf(lx.models.urdf_path("arm7"))
+        arm = tree.system()
+        n = arm.n_dof
+        return lambda: lx.simulate(arm, jnp.full(n, 0.2), jnp.zeros(n), p, t1=1.0).q
+    import mujoco
+
+    if row == "solo12 on four feet, 2 s":
+        return _solo12_standing(lx, jnp, np)
+    if row == "humanoid_CMU, 1 s":
+        path = _asset("dm_control", "suite", "humanoid_CMU.xml")
+        model, p = lx.chains.from_mjcf(path)
+        system = robot = model.system()
+    else:
+        path = _asset("gymnasium", "envs/mujoco/assets/ant.xml")
+        system, p = lx.chains.from_mjcf(path, contact=True)
+        robot = system.system
+    mj = mujoco.MjModel.from_xml_path(path)
+    data = mujoco.MjData(mj)
+    q0, v0 = lx.chains.from_mujoco_state(data.qpos, data.qvel, robot)
+    return lambda: lx.simulate(system, q0, v0, p, t1=1.0).q
+
+
+def _solo12_standing(lx, jnp, np):
+    """solo12 dropped from 0.3 m in its `standing` posture under joint PD, its four
+    feet's coefficients chosen for `tsit5` (the contact guide's scene, 2 s)."""
+    from lagrax.contact import ContactSystem
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from _robots import SOLO12, robots_folder
+
+    feet, p = lx.chains.from_urdf(
+        os.path.join(robots_folder(), SOLO12),
+        floating_base=True,
+        contact=["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"],
+    )
+    weight = 9.81 * float(p["base_m"] + jnp.sum(p["m"]))
+    depth = 5e-4
+    scene = ContactSystem(
+        feet.system, feet.spheres, feet.plane, friction=feet.friction,
+        stiffness=(weight / 4) / depth**1.5, dissipation=4 / 3 * np.sqrt(1.5 / (9.81 * depth)),
+        stiction_velocity=0.01,
+    )  # fmt: skip
+    stance = jnp.asarray([0.1, 0.8, -1.6, -0.1, 0.8, -1.6, 0.1, -0.8, 1.6, -0.1, -0.8, 1.6])
+
+    def pd(t, q, v):
+        return jnp.concatenate([jnp.zeros(6), 10.0 * (stance - q[7:]) - 0.3 * v[6:]])
+
+    q0 = jnp.concatenate([jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]), stance])
+    return lambda: (
+        lx.simulate(scene, q0, jnp.zeros(18), p, t1=2.0, tau=pd, rtol=1e-5, atol=1e-5, n_save=201).q
+    )
+
+
+def first_result(processes: int, chart: str | None) -> None:
+    """Print (and draw) the first-result table: medians over `processes` fresh processes."""
+    env = dict(os.environ, LAGRAX_COMPILATION_CACHE="0")
+    rows = {}
+    for row in FIRST_ROWS:
+        got = []
+        for _ in range(processes):
+            proc = subprocess.run(
+                [sys.executable, __file__, "--first-child", row],
+                env=env, capture_output=True, text=True, check=False,
+            )  # fmt: skip
+            if proc.returncode != 0:
+                print(f"{row}: not measured ({proc.stderr.strip().splitlines()[-1]})")
+                break
+            got.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+        if got:
+            rows[row] = {k: statistics.median(g[k] for g in got) for k in ("first", "again")}
+    print(f"medians of {processes} fresh processes; persistent compilation cache off")
+    print(f"{'model':28s} {'first result (s)':>17s} {'again (ms)':>12s}")
+    for row, r in rows.items():
+        print(f"{row:28s} {r['first']:17.1f} {1e3 * r['again']:12.1f}")
+    if chart:
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(7, 3.2))
+        names = list(rows)
+        ax.barh(names, [rows[n]["first"] for n in names], color="tab:blue")
+        for i, n in enumerate(names):
+            r = rows[n]
+            ax.text(r["first"], i, f" {r['first']:.1f} s  (again {1e3 * r['again']:.0f} ms)",
+                    va="center", fontsize=8)  # fmt: skip
+        ax.invert_yaxis()
+        ax.set_xlabel("from the import to the first result (s), cold, 2-core CPU")
+        ax.set_xlim(0, 1.45 * max(r["first"] for r in rows.values()))
+        fig.tight_layout()
+        fig.savefig(chart, dpi=120)
+        print(f"wrote {chart}")
+
+
+# ------------------------------------------------------------------ program sizes
+def sizes() -> None:
+    """The table of `--sizes`: lines of each part's lowered program and XLA's flops."""
+    import jax
+    import jax.numpy as jnp
+
+    import lagrax as lx
+    from lagrax.contact import ContactSystem
+
+    scene, p = lx.chains.from_mjcf(_asset("gymnasium", "envs/mujoco/assets/ant.xml"), contact=True)
+    robot = scene.system
+    fixed = ContactSystem(
+        robot, scene.spheres, scene.plane, friction=lambda x: x["contact_friction"],
+        stiffness=1e5, dissipation=1.0, stiction_velocity=1e-3,
+    )  # fmt: skip
+    n = 501  # the default saves of a 1 s solve
+    q = jnp.zeros(robot.n_configuration).at[2].set(0.75).at[6].set(1.0)
+    v = jnp.zeros(robot.n_dof)
+    qs, vs, ts = jnp.tile(q, (n, 1)), jnp.tile(v, (n, 1)), jnp.linspace(0.0, 1.0, n)
+
+    def saves(fn):
+        return lambda a, b, c: jax.vmap(fn)(a, b, c)
+
+    parts = {
+        "kinematics (the tree's frames)": (lambda a: robot.robot.tree.frames(a[7:], p), (q,)),
+        "the 25 spheres' centres": (lambda a: scene.centres(a, p), (q,)),
+        "contact forces and Σ Jᵢᵀ Fᵢ": (
+            lambda a, b: fixed.contact_state(a, b, p)["generalized"], (q, v)),
+        "the default coefficients' scaling": (
+            lambda a: scene.coefficients(p, a.dtype).stiffness, (q,)),
+        "the recursions (robot's accelerations)": (
+            lambda a, b: robot.accelerations(0.0, a, b, p, None), (q, v)),
+        "vector field (contact, prepared)": (
+            lambda a, b: fixed.accelerations(0.0, a, b, p, None), (q, v)),
+        "energy at the saves": (
+            saves(lambda t, a, b: fixed.energy_and_magnitude(t, a, b, p)), (ts, qs, vs)),
+        "input power at the saves": (
+            saves(lambda t, a, b: fixed.input_power(t, a, b, p, None)), (ts, qs, vs)),
+        "observables at the saves": (
+            saves(lambda t, a, b: fixed.observables(t, a, b, p, None)), (ts, qs, vs)),
+        "forward_dynamics (checks included)": (
+            lambda a, b: scene.forward_dynamics(a, b, p), (q, v)),
+        "simulate 1 s (the solve)": (
+            lambda a, b: lx.simulate(scene, a, b, p, t1=1.0).q, (q, v)),
+        "simulate 1 s, fixed coefficients": (
+            lambda a, b: lx.simulate(fixed, a, b, p, t1=1.0).q, (q, v)),
+    }  # fmt: skip
+    print("gymnasium's ant with contact=True (25 spheres), lowered, not compiled")
+    print(f"{'part':42s} {'lines':>8s} {'flops':>12s}")
+    for name, (fn, args) in parts.items():
+        lowered = jax.jit(fn).lower(*args)
+        cost = lowered.cost_analysis() or {}
+        flops = cost.get("flops", float("nan")) if isinstance(cost, dict) else float("nan")
+        print(f"{name:42s} {len(lowered.as_text().splitlines()):8,d} {flops:12,.0f}")
+
+
 def run(off: bool) -> dict:
     env = dict(os.environ, LAGRAX_COMPILATION_CACHE="0")
     if off:
@@ -119,9 +344,24 @@ def main(argv=None):
     )
     parser.add_argument("--processes", type=int, default=3, help="fresh processes per setting")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--first-child", default=None, help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--first-result", action="store_true", help="the first-result table (see above)"
+    )
+    parser.add_argument("--chart", default=None, help="--first-result: draw it into this PNG")
+    parser.add_argument("--sizes", action="store_true", help="the program-size table")
     args = parser.parse_args(argv)
     if args.child:
         print(json.dumps(child()))
+        return
+    if args.first_child:
+        print(json.dumps(_first_child(args.first_child)))
+        return
+    if args.first_result:
+        first_result(args.processes if "--processes" in (argv or sys.argv) else 1, args.chart)
+        return
+    if args.sizes:
+        sizes()
         return
     runs = {False: [], True: []}
     for _ in range(args.processes):
