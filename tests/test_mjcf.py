@@ -359,8 +359,12 @@ def test_ignore_unsupported_drops_with_a_warning():
 
 
 def test_missing_file_and_missing_mujoco(monkeypatch, tmp_path):
-    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+    # a lagrax error, and the builtin it refines
+    with pytest.raises(lx.MissingFileError, match="nowhere.xml") as caught:
         from_mjcf(tmp_path / "nowhere.xml")
+    assert isinstance(caught.value, FileNotFoundError)
+    with pytest.raises(lx.MissingFileError, match="nowhere.urdf"):
+        from_urdf(tmp_path / "nowhere.urdf")
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(lx.MJCFError, match="pip install mujoco"):
         from_mjcf(_xml(ARM))

@@ -278,7 +278,8 @@ def show3d(
     **Raises:** `ShapeError` for a solution whose coordinates are not the model's (a
     solution of another model); `ConfigurationError` for a tree or chain without `params`,
     `fps` not positive or an unknown `layout`; `ArgumentTypeError` for a model or
-    geometry it cannot draw.
+    geometry it cannot draw; [`lagrax.MissingDependencyError`][] (an `ImportError`)
+    without meshcat.
 
     **Example:**
 

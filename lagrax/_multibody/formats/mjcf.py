@@ -31,7 +31,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.errors import MJCFError
+from ..._core.errors import MissingFileError, MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..floating.forest import Forest
@@ -75,7 +75,7 @@ def _load(mujoco, source: Any):
     else:
         path = os.fspath(source)
         if not os.path.exists(path):
-            raise FileNotFoundError(f"no MJCF file at {path!r}")
+            raise MissingFileError(f"no MJCF file at {path!r}")
         what, load = f"{path!r}", lambda: mujoco.MjModel.from_xml_path(path)
     try:
         return load()
@@ -263,7 +263,8 @@ def from_mjcf(
     (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
-    the `mujoco` package is not installed. `FileNotFoundError` for a missing file;
+    the `mujoco` package is not installed. [`lagrax.MissingFileError`][] (a
+    `FileNotFoundError`) for a missing file;
     `ConfigurationError` for a bad `limits` or `restitution`.
 
     **Example:**
