@@ -479,7 +479,8 @@ def _add_inertia(model, b: int, target: TreeBody, rot: np.ndarray, pos: np.ndarr
     # MuJoCo's compiler marks an inertial frame within round-off of the body frame
     # (`body_sameframe`: 1 the same frame, 3 the same orientation) and its kinematics
     # then use the body frame itself: so does lagrax (convex meshes: ipos ~1e-9)
-    same = int(model.body_sameframe[b]) if hasattr(model, "body_sameframe") else 0
+    sameframe = getattr(model, "body_sameframe", None)  # None: an older MuJoCo
+    same = 0 if sameframe is None else int(sameframe[b])
     c = pos + (0.0 if same == 1 else rot @ model.body_ipos[b])
     r = rot if same in (1, 3) else rot @ quat_matrix(model.body_iquat[b])
     inertia = r @ np.diag(model.body_inertia[b]) @ r.T
