@@ -16,7 +16,7 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
   MuJoCo the same way.
-- Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
+- Other real MJCF files we did not write, MJX's test models (the ``mujoco-mjx`` package):
   Barkour (a free base with armature), a tendon model and ``convex.xml`` (four free
   bodies) load and match MuJoCo the same way; a tendon with armature, springs on ball
   joints and friction loss are refused by name.
@@ -32,7 +32,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import every_robot, lqr_model, rel_error
+from _helpers import every_robot, lqr_model, mjx_test_data, rel_error
 from lagrax.chains import from_mjcf, from_mujoco_state
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
@@ -264,8 +264,7 @@ def test_fish_without_fluid_matches_mujoco():
     assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
 
 
-# Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
-WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
+# Other real MJCF files we did not write: MJX's test models (the mujoco-mjx package)
 WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml", "convex.xml"]
 WHEEL_REFUSED = {
     "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
@@ -274,18 +273,12 @@ WHEEL_REFUSED = {
 }
 
 
-def _wheel(path: str) -> Path:
-    if not (WHEEL / path).exists():
-        pytest.skip("this mujoco wheel ships no MJX test data")
-    return WHEEL / path
-
-
 @pytest.mark.parametrize("path", WHEEL_LOADS)
 def test_wheel_model_matches_mujoco(path):
     """Barkour (a free base with armature), MJX's tendon test model (tendons with
     limits and actuators only) and its four free bodies (``convex.xml``)."""
-    robot, params = from_mjcf(_wheel(path))
-    model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
+    robot, params = from_mjcf(mjx_test_data(path))
+    model = mujoco.MjModel.from_xml_path(str(mjx_test_data(path)))
     off = mujoco.mjtDisableBit
     model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
     err_m, err_a = _against_mujoco(robot, params, model, seed=11)
@@ -295,4 +288,4 @@ def test_wheel_model_matches_mujoco(path):
 @pytest.mark.parametrize("path", sorted(WHEEL_REFUSED))
 def test_wheel_model_refused_names_the_construct(path):
     with pytest.raises(lx.MJCFError, match=re.escape(WHEEL_REFUSED[path])):
-        from_mjcf(_wheel(path))
+        from_mjcf(mjx_test_data(path))
