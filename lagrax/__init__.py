@@ -42,6 +42,8 @@ from ._core.errors import ConstraintError as ConstraintError  # noqa: E402
 from ._core.errors import ContactError as ContactError  # noqa: E402
 from ._core.errors import LagraxError as LagraxError  # noqa: E402
 from ._core.errors import MassMatrixError as MassMatrixError  # noqa: E402
+from ._core.errors import MissingDependencyError as MissingDependencyError  # noqa: E402
+from ._core.errors import MissingFileError as MissingFileError  # noqa: E402
 from ._core.errors import MJCFError as MJCFError  # noqa: E402
 from ._core.errors import NonFiniteError as NonFiniteError  # noqa: E402
 from ._core.errors import ParameterError as ParameterError  # noqa: E402
@@ -186,5 +188,7 @@ __all__ = [
     "SimulationError",
     "URDFError",
     "MJCFError",
+    "MissingFileError",
+    "MissingDependencyError",
     "URDFWarning",
 ]

@@ -7,7 +7,8 @@ parents are `(−1, 0, 1, …)`: [`SpatialChain`][lagrax.chains.SpatialChain] an
 [`from_urdf`][lagrax.chains.from_urdf], a URDF robot as a tree (fixed joints merged into their
 bodies) with its joint names, limits and damping; [`from_mjcf`][lagrax.chains.from_mjcf], a
 MuJoCo model through MuJoCo's own compiler (a free joint: a floating base, whose state
-[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts; several free bodies: a
+[`from_mujoco_state`][lagrax.chains.from_mujoco_state] converts, and its `qacc`
+[`from_mujoco_acceleration`][lagrax.chains.from_mujoco_acceleration]; several free bodies: a
 [`Forest`][lagrax.chains.Forest]; equality constraints: a
 [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]);
 [`limit_events`][lagrax.chains.limit_events], the events that stop a robot's joints at their
@@ -72,7 +73,11 @@ from ._multibody.formats.mjcf_actuators import mjcf_actuation as mjcf_actuation
 from ._multibody.formats.mjcf_equality import ConstrainedRobot as ConstrainedRobot
 from ._multibody.formats.mjcf_fluid import MJCFFluid as MJCFFluid
 from ._multibody.formats.mjcf_fluid import mjcf_fluid as mjcf_fluid
+from ._multibody.formats.mujoco_state import (
+    from_mujoco_acceleration as from_mujoco_acceleration,
+)
 from ._multibody.formats.mujoco_state import from_mujoco_state as from_mujoco_state
+from ._multibody.formats.mujoco_state import to_mujoco_acceleration as to_mujoco_acceleration
 from ._multibody.formats.mujoco_state import to_mujoco_state as to_mujoco_state
 from ._multibody.formats.urdf import from_urdf as from_urdf
 from ._multibody.limits import limit_events as limit_events
@@ -98,6 +103,8 @@ __all__ = [
     "MJCFFluid",
     "from_mujoco_state",
     "to_mujoco_state",
+    "from_mujoco_acceleration",
+    "to_mujoco_acceleration",
     "limit_events",
     "axis_angle_rotation",
     "BodyKind",

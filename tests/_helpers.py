@@ -1,10 +1,12 @@
 """Helpers shared by the tests: relative comparisons, random rotations, a central
-difference against which gradients are checked, example-robot-data's folder and the
-conservation checks of a free floating motion."""
+difference against which gradients are checked, example-robot-data's folder, MJX's test
+models, a missing reference that fails CI and the conservation checks of a free floating
+motion."""
 
 import os
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 import jax
 import numpy as np
@@ -18,6 +20,42 @@ from _robots import robots_folder  # noqa: E402  (the benchmarks' finder)
 # allocates and frees millions of small objects: about 5 % of the CPU of a compile-bound
 # file (`test_periodic.py`: 80.5 → 76.5 s and 76.9 → 72.7 s, two pairs).
 GC_THRESHOLD = (100_000, 50, 1000)
+
+
+# CI (`.ci/run`, and GitHub Actions) sets CI=true: there a reference the suite relies on
+# that is missing (a file of a declared dependency) fails the test instead of skipping it,
+# so that a dependency's release cannot silently turn coverage off
+IN_CI = os.environ.get("CI", "").lower() not in ("", "0", "false", "no")
+
+
+def missing_reference(what: str) -> NoReturn:
+    """Skip the calling test because the reference `what` (and how to get it) is missing
+    on this machine; under CI (`IN_CI`), fail it instead. Only for references the suite
+    relies on: what is optional by design (the `LAGRAX_ALL_ROBOTS=1` tier, a browser)
+    skips everywhere."""
+    import pytest
+
+    if IN_CI:
+        pytest.fail(f"CI: a reference the suite relies on is missing: {what}", pytrace=False)
+    pytest.skip(what)
+
+
+def mjx_test_data(path: str) -> Path:
+    """A file of MuJoCo MJX's test models (`mujoco/mjx/test_data/<path>`: Barkour, the
+    Shadow hand, the sensor model...), real MJCF files we did not write. MJX ships them:
+    in the `mujoco-mjx` package since MuJoCo 3.17 split it out (a part of the `mujoco`
+    namespace, a dev dependency), in the `mujoco` wheel before. `missing_reference`
+    when neither has the file."""
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("mujoco.mjx")  # imports mujoco, not mujoco.mjx
+    except ModuleNotFoundError:  # no mujoco at all
+        spec = None
+    for folder in (spec.submodule_search_locations or []) if spec is not None else []:
+        if (Path(folder) / "test_data" / path).is_file():
+            return Path(folder) / "test_data" / path
+    missing_reference(f"MJX's test model {path} (pip install mujoco-mjx: the dev extra)")
 
 
 def rel_error(a, b) -> float:

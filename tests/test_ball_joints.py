@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
+from _helpers import mjx_test_data
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -225,8 +226,7 @@ def test_balls_under_a_free_joint_match_mujoco_and_pinocchio():
     )
     mass, vdot, _ = dynamics(q, v, 0 * v, v)
     rot = np.asarray(data.xmat[1]).reshape(3, 3)
-    qacc = np.asarray(vdot).copy()
-    qacc[:3] = rot @ (qacc[:3] + np.cross(v[3:6], v[:3]))
+    qacc = lx.chains.to_mujoco_acceleration(q, v, vdot, robot)
     np.testing.assert_allclose(qacc, data.qacc, rtol=0, atol=1e-10 * np.abs(data.qacc).max())
     m_mj = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, data, m_mj)
@@ -312,15 +312,11 @@ def test_ball_joint_bad_input(chain):
 
 
 def test_real_file_with_ball_joints_matches_mujoco():
-    """A file we did not write, the MJX sensor test model the mujoco wheel ships (two
+    """A file we did not write, MJX's sensor test model (the mujoco-mjx package; two
     ball joints with anchors, hinges and slides, motors): `M` and `v̇` equal MuJoCo's to
     1e-10 relative with contact, constraints and actuation off (measured 2e-16 and
     5e-15), and the motors' `τ` equals `qfrc_actuator` for a random `ctrl`."""
-    from pathlib import Path
-
-    path = Path(mujoco.__file__).parent / "mjx" / "test_data" / "sensor" / "model.xml"
-    if not path.exists():
-        pytest.skip("this mujoco wheel ships no MJX test data")
+    path = mjx_test_data("sensor/model.xml")
     tree, params = lx.chains.from_mjcf(path)
     system, actuation = tree.system(), lx.chains.mjcf_actuation(path)
     assert len(tree.balls) == 2

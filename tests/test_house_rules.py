@@ -71,3 +71,77 @@ def test_long_modules_and_functions_are_breaches(rules, capsys, tmp_path):
     assert f"long has {n + 2} code lines" in out
     assert "short" not in out
     assert f"big.py: {rules.MAX_MODULE_LINES + 1} lines" in out
+
+
+def test_a_builtin_exception_raised_is_a_breach(rules, capsys, tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": (
+                # Python's protocol: a module's __getattr__ raises AttributeError
+                "def __getattr__(name):\n    raise AttributeError(name)\n"
+            ),
+            "bad.py": (
+                "import builtins\n"
+                "def f(kind):\n"
+                "    if kind == 1:\n"
+                "        raise ValueError(kind)\n"
+                "    if kind == 2:\n"
+                "        raise NotImplementedError\n"
+                "    if kind == 3:\n"
+                "        raise builtins.FileNotFoundError('x') from None\n"
+                "    def __getattr__(name):\n"  # the exemption is AttributeError only
+                "        raise KeyError(name)\n"
+                "    raise AttributeError(kind)\n"
+            ),
+            "good.py": (
+                "from typing import assert_never\n"
+                "from lagrax._core.errors import ConfigurationError\n"
+                "class LocalError(Exception):\n    pass\n"
+                "def g(kind, err):\n"
+                "    if kind == 1:\n"
+                "        raise ConfigurationError(f'kind={kind!r}')\n"
+                "    if kind == 2:\n"
+                "        raise err\n"
+                "    if kind == 3:\n"
+                "        raise\n"
+                "    if kind == 4:\n"
+                "        raise LocalError(kind)\n"
+                "    assert_never(kind)\n"
+            ),
+        },
+    )
+    assert rules.main(["house_rules", str(root)]) == 1
+    out = capsys.readouterr().out
+    for line, name in [(4, "ValueError"), (6, "NotImplementedError"), (8, "FileNotFoundError")]:
+        assert f"bad.py:{line}: raises the builtin {name}" in out
+    assert "bad.py:10: raises the builtin KeyError" in out
+    assert "bad.py:11: raises the builtin AttributeError" in out
+    assert "good.py" not in out and "__init__.py" not in out
+    assert "house rules: 5 breach(es)" in out
+
+
+def test_hasattr_is_a_breach(rules, capsys, tmp_path):
+    root = _package(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "view.py": (
+                "def draw(tree):\n"
+                "    if not hasattr(tree, 'body_names'):\n"
+                "        return None\n"
+                "    return [hasattr(b, 'n') for b in tree.bodies]\n"
+            ),
+            # reading another library's optional attribute, and isinstance, are the ways
+            "fine.py": (
+                "def read(model, tree_class, tree):\n"
+                "    values = getattr(model, 'jnt_springyield', None)\n"
+                "    return values, isinstance(tree, tree_class)\n"
+            ),
+        },
+    )
+    assert rules.main(["house_rules", str(root)]) == 1
+    out = capsys.readouterr().out
+    assert "view.py:2: hasattr" in out and "view.py:4: hasattr" in out
+    assert "fine.py" not in out
+    assert "house rules: 2 breach(es)" in out

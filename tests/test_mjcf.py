@@ -4,8 +4,8 @@
   joint anchors off the body origins, rotated bodies, a joint ``ref``, a welded body and
   tilted gravity; a cart-pole of slide and hinge joints in degrees with refs; a branched
   tree with a two-joint body, a slide and bodies welded to the world and to a moving
-  body), a model that ships with the mujoco wheel (the 24-joint Shadow hand of MJX's
-  test data, with its armature) and the project's two URDF robots read by MuJoCo: ``M``
+  body), a model of MJX's test data (the 24-joint Shadow hand, with its armature: the
+  mujoco-mjx package) and the project's two URDF robots read by MuJoCo: ``M``
   against ``mj_fullM`` and ``q̈`` against ``mj_forward``'s ``qacc`` (contacts, limits and
   actuators off, ``qfrc_applied = τ``) at random states, in MuJoCo's own coordinates.
 - A URDF read by MuJoCo equals the same URDF read by ``from_urdf``.
@@ -22,15 +22,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import _helpers
 import lagrax as lx
-from _helpers import rel_error
+from _helpers import mjx_test_data, rel_error
 from lagrax.chains import from_mjcf, from_urdf
 from lagrax.models import urdf_path
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
 
 HERE = Path(__file__).parent / "mjcf"
-WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"  # models shipped with the wheel
 RTOL = 1e-12
 N_STATES = 3
 
@@ -46,9 +46,7 @@ def _model(name):
     if name in ("arm7", "torso_two_arms"):
         return mujoco.MjModel.from_xml_path(str(urdf_path(name)))
     if name == "shadow_hand":
-        path = WHEEL / "shadow_hand" / "right_hand.xml"
-        if not path.exists():
-            pytest.skip("this mujoco wheel ships no MJX test data")
+        path = mjx_test_data("shadow_hand/right_hand.xml")
         return mujoco.MjModel.from_xml_path(str(path))
     return mujoco.MjModel.from_xml_path(str(HERE / f"{name}.xml"))
 
@@ -112,8 +110,7 @@ def _check_floating_against_mujoco(robot, params, model, base: int, seed: int) -
         np.testing.assert_allclose(v[:3], rot.T @ qvel[:3], rtol=0, atol=1e-14)
         tau = np.concatenate([rot.T @ force[:3], force[3:]])  # a force converts like v
         a = np.asarray(system.forward_dynamics(jnp.asarray(q), jnp.asarray(v), params, tau))
-        qacc = np.concatenate([rot @ (a[:3] + np.cross(v[3:6], v[:3])), a[3:]])
-        assert rel_error(qacc, data.qacc) < RTOL
+        assert rel_error(lx.chains.to_mujoco_acceleration(q, v, a), data.qacc) < RTOL
         m_mj = np.zeros((model.nv, model.nv))
         mujoco.mj_fullM(model, data, m_mj)
         t = np.eye(model.nv)
@@ -359,8 +356,24 @@ def test_ignore_unsupported_drops_with_a_warning():
 
 
 def test_missing_file_and_missing_mujoco(monkeypatch, tmp_path):
-    with pytest.raises(FileNotFoundError, match="nowhere.xml"):
+    # a lagrax error, and the builtin it refines
+    with pytest.raises(lx.MissingFileError, match="nowhere.xml") as caught:
         from_mjcf(tmp_path / "nowhere.xml")
+    assert isinstance(caught.value, FileNotFoundError)
+    with pytest.raises(lx.MissingFileError, match="nowhere.urdf"):
+        from_urdf(tmp_path / "nowhere.urdf")
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(lx.MJCFError, match="pip install mujoco"):
         from_mjcf(_xml(ARM))
+
+
+def test_a_missing_reference_file_fails_in_ci_and_skips_elsewhere(monkeypatch):
+    """MJX's test models are found where the mujoco-mjx package puts them; one that is
+    missing fails the test under CI (`CI=true`: `.ci/run`) and skips it elsewhere."""
+    assert mjx_test_data("shadow_hand/right_hand.xml").is_file()
+    monkeypatch.setattr(_helpers, "IN_CI", True)
+    with pytest.raises(pytest.fail.Exception, match="CI: a reference .* missing: MJX's"):
+        mjx_test_data("no_such_model.xml")
+    monkeypatch.setattr(_helpers, "IN_CI", False)
+    with pytest.raises(pytest.skip.Exception, match="pip install mujoco-mjx"):
+        mjx_test_data("no_such_model.xml")

@@ -16,7 +16,7 @@ dm-control`` ships them), read with ``from_mjcf``'s default options and held to 
 - The fish (refused for its fluid forces) with MuJoCo's fluid model switched off in the
   compiled model: a free body with joint springs and a fixed tendon's spring, held to
   MuJoCo the same way.
-- Other real MJCF files we did not write, the MJX test data the mujoco wheel ships:
+- Other real MJCF files we did not write, MJX's test models (the ``mujoco-mjx`` package):
   Barkour (a free base with armature), a tendon model and ``convex.xml`` (four free
   bodies) load and match MuJoCo the same way; a tendon with armature, springs on ball
   joints and friction loss are refused by name.
@@ -32,8 +32,8 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from _helpers import every_robot, lqr_model, rel_error
-from lagrax.chains import from_mjcf, from_mujoco_state
+from _helpers import every_robot, lqr_model, mjx_test_data, rel_error
+from lagrax.chains import from_mjcf, from_mujoco_state, to_mujoco_acceleration
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the reference for MJCF dynamics")
 dm_control = pytest.importorskip("dm_control", reason="dm_control ships the suite's MJCF files")
@@ -109,8 +109,7 @@ def _against_mujoco(robot, params, model, seed: int) -> tuple[float, float]:
     q, v = from_mujoco_state(qpos, qvel)
     rot = data.xmat[model.jnt_bodyid[0]].reshape(3, 3)
     tau = np.concatenate([rot.T @ force[:3], force[3:]])  # a force converts like v
-    a, v = np.asarray(forward(q, v, jnp.asarray(tau))), np.asarray(v)
-    qacc = np.concatenate([rot @ (a[:3] + np.cross(v[3:6], v[:3])), a[3:]])
+    qacc = to_mujoco_acceleration(q, v, forward(q, v, jnp.asarray(tau)))
     t = np.eye(model.nv)
     t[:3, :3] = rot
     return rel_error(mass(q), t.T @ m_mj @ t), rel_error(qacc, data.qacc)
@@ -136,13 +135,11 @@ def _forest_against_mujoco(forest, params, model, rng) -> tuple[float, float]:
     system = forest.system()
     q, v = from_mujoco_state(qpos, qvel, forest)
     _, tau = from_mujoco_state(qpos, force, forest)
-    a = np.asarray(jax.jit(lambda q, v, f: system.forward_dynamics(q, v, params, f))(q, v, tau))
-    v, qacc, t = np.asarray(v), a.copy(), np.eye(model.nv)
+    a = jax.jit(lambda q, v, f: system.forward_dynamics(q, v, params, f))(q, v, tau)
+    qacc, t = to_mujoco_acceleration(q, v, a, forest), np.eye(model.nv)
     for j in np.flatnonzero(model.jnt_type == mujoco.mjtJoint.mjJNT_FREE):
         va = int(model.jnt_dofadr[j])
-        rot = data.xmat[model.jnt_bodyid[j]].reshape(3, 3)
-        qacc[va : va + 3] = rot @ (a[va : va + 3] + np.cross(v[va + 3 : va + 6], v[va : va + 3]))
-        t[va : va + 3, va : va + 3] = rot
+        t[va : va + 3, va : va + 3] = data.xmat[model.jnt_bodyid[j]].reshape(3, 3)
     mass = jax.jit(lambda q: system.mass_matrix(q, params))(q)
     return rel_error(mass, t.T @ m_mj @ t), rel_error(qacc, data.qacc)
 
@@ -264,8 +261,7 @@ def test_fish_without_fluid_matches_mujoco():
     assert err_m < RTOL and err_a < RTOL, (err_m, err_a)
 
 
-# Other real MJCF files we did not write: the MJX test data the mujoco wheel ships
-WHEEL = Path(mujoco.__file__).parent / "mjx" / "test_data"
+# Other real MJCF files we did not write: MJX's test models (the mujoco-mjx package)
 WHEEL_LOADS = ["barkour_v0/assets/barkour_v0_mjx.xml", "tendon/tendon.xml", "convex.xml"]
 WHEEL_REFUSED = {
     "tendon/armature.xml": "armature (inertia added to M along the tendon) 123 on tendon",
@@ -274,18 +270,12 @@ WHEEL_REFUSED = {
 }
 
 
-def _wheel(path: str) -> Path:
-    if not (WHEEL / path).exists():
-        pytest.skip("this mujoco wheel ships no MJX test data")
-    return WHEEL / path
-
-
 @pytest.mark.parametrize("path", WHEEL_LOADS)
 def test_wheel_model_matches_mujoco(path):
     """Barkour (a free base with armature), MJX's tendon test model (tendons with
     limits and actuators only) and its four free bodies (``convex.xml``)."""
-    robot, params = from_mjcf(_wheel(path))
-    model = mujoco.MjModel.from_xml_path(str(WHEEL / path))
+    robot, params = from_mjcf(mjx_test_data(path))
+    model = mujoco.MjModel.from_xml_path(str(mjx_test_data(path)))
     off = mujoco.mjtDisableBit
     model.opt.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_CONSTRAINT | off.mjDSBL_ACTUATION
     err_m, err_a = _against_mujoco(robot, params, model, seed=11)
@@ -295,4 +285,4 @@ def test_wheel_model_matches_mujoco(path):
 @pytest.mark.parametrize("path", sorted(WHEEL_REFUSED))
 def test_wheel_model_refused_names_the_construct(path):
     with pytest.raises(lx.MJCFError, match=re.escape(WHEEL_REFUSED[path])):
-        from_mjcf(_wheel(path))
+        from_mjcf(mjx_test_data(path))

@@ -11,6 +11,21 @@ syntax tree of every module of `lagrax/`:
 - **rooms stay small**: no module over `MAX_MODULE_LINES` lines.
 - **functions stay readable**: no function over `MAX_FUNCTION_LINES` code lines (its
   lines less the docstring, comments and blank lines).
+- **errors are lagrax's**: no `raise` of a builtin exception class (`ValueError`,
+  `TypeError`, `KeyError`, `FileNotFoundError`, `ImportError`, ..., called or not): a
+  user who catches `lagrax.LagraxError` catches everything lagrax raises on purpose, so
+  a reachable error is the `LagraxError` subclass that names the value (each also
+  derives from the builtin it refines), and a branch that cannot be reached is a closed
+  `Literal` set ended by `typing.assert_never`, which the type checker holds.
+  `NotImplementedError` is not an exception: abstract methods are `abc.abstractmethod`
+  or `equinox.AbstractVar`, as in equinox, and the package has none. The one exception
+  is Python's own protocol: `AttributeError` raised by a `__getattr__` (a module's
+  lazy names), which `getattr(obj, name, default)` relies on.
+- **no `hasattr`**: what an object is is decided by `isinstance` on its class (or a
+  method it has by its abstract base), never by probing for an attribute (equinox's
+  pattern: abstract or final, never `hasattr`). An optional attribute of another
+  library's object (a field of a newer MuJoCo, diffrax's private wrapping terms) is
+  read once with `getattr(obj, name, None)` and its value used.
 
 Usage: `python tools/house_rules.py` prints each breach and exits 1 if there is any.
 """
@@ -18,6 +33,7 @@ Usage: `python tools/house_rules.py` prints each breach and exits 1 if there is 
 from __future__ import annotations
 
 import ast
+import builtins
 import io
 import sys
 import tokenize
@@ -108,6 +124,66 @@ def long_functions(path: Path, tree: ast.Module, source: str) -> list[str]:
     return out
 
 
+BUILTIN_EXCEPTIONS = frozenset(
+    name
+    for name, value in vars(builtins).items()
+    if isinstance(value, type) and issubclass(value, BaseException)
+)
+# (function name, exception) pairs that Python's protocols require
+PROTOCOL_RAISES = frozenset({("__getattr__", "AttributeError")})
+
+
+def _raised_name(node: ast.Raise) -> str | None:
+    """The builtin exception class `node` raises (`raise X`, `raise X(...)`,
+    `raise builtins.X(...)`), or None for anything else (a lagrax error, a re-raise)."""
+    exc = node.exc.func if isinstance(node.exc, ast.Call) else node.exc
+    if isinstance(exc, ast.Name):
+        name = exc.id
+    elif (
+        isinstance(exc, ast.Attribute)
+        and isinstance(exc.value, ast.Name)
+        and exc.value.id == "builtins"
+    ):
+        name = exc.attr
+    else:
+        return None
+    return name if name in BUILTIN_EXCEPTIONS else None
+
+
+def builtin_raises(path: Path, tree: ast.Module) -> list[str]:
+    """Each `raise` of a builtin exception class, outside `PROTOCOL_RAISES`."""
+    out = []
+
+    def visit(node: ast.AST, function: str | None) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+                visit(child, child.name)
+                continue
+            if isinstance(child, ast.Raise) and (name := _raised_name(child)):
+                if (function, name) not in PROTOCOL_RAISES:
+                    out.append(
+                        f"{path}:{child.lineno}: raises the builtin {name}: raise the "
+                        "LagraxError subclass that names the value (or end a closed set "
+                        "of cases with typing.assert_never)"
+                    )
+            visit(child, function)
+
+    visit(tree, None)
+    return out
+
+
+def hasattr_calls(path: Path, tree: ast.Module) -> list[str]:
+    """Each call of `hasattr`."""
+    return [
+        f"{path}:{node.lineno}: hasattr: decide what an object is by isinstance (or read "
+        "another library's optional attribute with getattr(obj, name, None))"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id == "hasattr"
+    ]
+
+
 def main(argv: list[str]) -> int:
     root = Path(argv[1]) if len(argv) > 1 else Path(__file__).resolve().parents[1]
     breaches = []
@@ -120,6 +196,8 @@ def main(argv: list[str]) -> int:
             breaches.append(f"{rel}: {n_lines} lines (at most {MAX_MODULE_LINES})")
         breaches += [b.replace(str(path), str(rel)) for b in private_imports(path, tree, root)]
         breaches += [b.replace(str(path), str(rel)) for b in long_functions(path, tree, source)]
+        breaches += [b.replace(str(path), str(rel)) for b in builtin_raises(path, tree)]
+        breaches += [b.replace(str(path), str(rel)) for b in hasattr_calls(path, tree)]
     for line in breaches:
         print(line)
     print(f"house rules: {len(breaches)} breach(es)")

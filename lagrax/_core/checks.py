@@ -61,11 +61,17 @@ def pivot_threshold(dtype: Any) -> float:
 # --------------------------------------------------------------------------- user calls
 
 
+def is_namedtuple(x: Any) -> bool:
+    """Whether `x` is a `NamedTuple` (a tuple whose class lists its `_fields`): the one
+    kind of params with no common base class to `isinstance` against."""
+    return isinstance(x, tuple) and isinstance(getattr(type(x), "_fields", None), tuple)
+
+
 def describe_params(params: Params) -> str:
     if isinstance(params, dict):
         return f"params has keys {sorted(map(str, params))}"
-    if hasattr(params, "_fields"):
-        return f"params has fields {list(params._fields)}"
+    if is_namedtuple(params):
+        return f"params has fields {list(params._fields)}"  # type: ignore[attr-defined]
     return f"params is a {type(params).__name__}"
 
 
@@ -86,7 +92,7 @@ def call_user(fn: Callable, role: str, params: Params, *args: Any) -> Any:
     try:
         return fn(*args, params)
     except TypeError as err:
-        if isinstance(params, (list, tuple)) and not hasattr(params, "_fields"):
+        if isinstance(params, (list, tuple)) and not is_namedtuple(params):
             if "indices must be integers" in str(err):
                 raise ArgumentTypeError(
                     f"the {role} function looks params up by name, but params is a "

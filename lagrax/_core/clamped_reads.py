@@ -15,6 +15,7 @@ from typing import Any
 
 import equinox as eqx
 import jax
+import jax.extend.core as jax_core
 import jax.numpy as jnp
 import numpy as np
 
@@ -45,7 +46,7 @@ def _jaxprs_of(params: dict) -> list[tuple[Any, bool]]:
     for key, value in params.items():
         for v in value if isinstance(value, (tuple, list)) else (value,):
             jaxpr = getattr(v, "jaxpr", v)
-            if hasattr(jaxpr, "eqns") and hasattr(jaxpr, "invars"):
+            if isinstance(jaxpr, jax_core.Jaxpr):
                 out.append((jaxpr, key in ("jaxpr", "call_jaxpr", "fun_jaxpr")))
     return out
 

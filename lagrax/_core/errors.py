@@ -51,6 +51,16 @@ class ArgumentTypeError(ConfigurationError, TypeError):
     a solver that is neither a method name nor a diffrax solver, ...)."""
 
 
+class MissingFileError(LagraxError, FileNotFoundError):
+    """A file or directory lagrax was asked to read is not there (an MJCF file, a saved
+    sweep, a sweep store). The message names the path."""
+
+
+class MissingDependencyError(LagraxError, ImportError):
+    """An optional package a feature needs is not installed (meshcat for
+    `lagrax.plot.show3d`). The message names the feature and the `pip install` command."""
+
+
 class CheckpointError(LagraxError, ValueError):
     """A sweep's checkpoint directory or a saved sweep file cannot be used: it holds
     another sweep's results, was written in an older format, cannot be written, or is

@@ -25,6 +25,7 @@ The springs' generalized force is `∂V_s/∂θ = K_s θ − f_0` with the const
 matrix `K_s = diag(k) + Cᵀ diag(k_t) C`: `∂τ/∂q ⊃ K_s` in the derivatives.
 """
 
+from collections.abc import Mapping
 from typing import Any
 
 import equinox as eqx
@@ -43,7 +44,7 @@ TENDON_KEYS = ("tendon", "tendon_stiffness", "tendon_length", "tendon_damping")
 
 
 def _get(params: Params, key: str, dtype: Any) -> jnp.ndarray | None:
-    if not hasattr(params, "get") or params.get(key) is None:
+    if not isinstance(params, Mapping) or params.get(key) is None:
         return None
     return jnp.asarray(params[key], dtype)
 
@@ -51,7 +52,7 @@ def _get(params: Params, key: str, dtype: Any) -> jnp.ndarray | None:
 def check(params: Params, n_bodies: int) -> None:
     """`ShapeError`/`ParameterError` for a joint-space entry of the wrong shape, or a
     spring or tendon entry without its partners (at trace time)."""
-    if not hasattr(params, "get"):
+    if not isinstance(params, Mapping):
         return
     shapes: dict[str, tuple[int, ...]] = {
         k: (n_bodies,) for k in JOINT_KEYS if params.get(k) is not None

@@ -20,9 +20,11 @@ from typing import Any
 
 import numpy as np
 
+from .._contact.system import ContactSystem
 from .._multibody.common import value
+from .._systems.constrained import ConstrainedSystem
 from ..bodies import PlanarBody, Scene, SpatialBody, principal_axes
-from .drawn3d import Poses, Shape, check_width
+from .drawn3d import Poses, Shape, ShapeKind, check_width
 from .shapes3d import placed
 
 PALETTE = (0x3070C0, 0xE07020, 0x30A060, 0xC03040, 0x8060B0, 0xB09030)
@@ -40,8 +42,8 @@ def scene_of(model: Any) -> Scene | None:
         kinetic = getattr(model, "kinetic", None)
         if isinstance(getattr(kinetic, "__self__", None), Scene):
             model = kinetic.__self__
-        elif hasattr(model, "system") and not callable(model.system):
-            model = model.system  # a ConstrainedSystem (or a ContactSystem) around a system
+        elif isinstance(model, ConstrainedSystem | ContactSystem):
+            model = model.system  # a constrained system (or a contact scene) around a system
         else:
             return None
     return None
@@ -80,7 +82,9 @@ def _in_world(x: np.ndarray) -> np.ndarray:
     return np.stack([zero, zero, x[..., 0]], axis=-1)
 
 
-def spatial_shape(mass: float, inertia: np.ndarray) -> tuple[str, tuple[float, ...], np.ndarray]:
+def spatial_shape(
+    mass: float, inertia: np.ndarray
+) -> tuple[ShapeKind, tuple[float, ...], np.ndarray]:
     """`(kind, size, axes)` of a spatial body's shape: the uniform box of its principal
     moments, or the uniform cylinder about the odd axis when two moments are equal;
     `axes` the shape's frame in the body's (a rotation, its columns principal axes)."""

@@ -4,11 +4,15 @@ and the `Shape`s fixed to them; the viewer's modules build on these."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from .._core.errors import ShapeError
+
+# what a `Shape` can be: the viewer draws each (`scene3d._geometry`), and the type checker
+# holds every `Shape(...)` to the set
+ShapeKind = Literal["box", "sphere", "cylinder", "ellipsoid", "mesh"]
 
 
 @dataclass(frozen=True)
@@ -28,7 +32,7 @@ class Shape:
 
     body: int
     transform: np.ndarray
-    kind: str
+    kind: ShapeKind
     size: tuple[float, ...] = ()
     vertices: np.ndarray | None = None
     faces: np.ndarray | None = None

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._core.errors import MJCFError, ShapeError
-from ..chains import FloatingTree
+from ..chains import AbstractTree, FloatingTree
 from .poses3d import Poses, Shape, check_width, quaternion_matrix
 from .shapes3d import colour_of, placed
 
@@ -60,7 +60,7 @@ def _qpos(model: Any, q: np.ndarray, nq: int) -> np.ndarray:
     if isinstance(model, FloatingTree):
         check_width(model, q, 7 + model.n, "7 base coordinates and the joints")
         q = np.concatenate([q[:, :3], q[:, 6:7], q[:, 3:6], q[:, 7:]], axis=1)
-    elif model is not None and hasattr(model, "n"):
+    elif isinstance(model, AbstractTree):
         check_width(model, q, int(model.n), "its joint coordinates")
     if q.shape[1] != nq:
         raise ShapeError(

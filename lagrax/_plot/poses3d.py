@@ -45,7 +45,9 @@ def trajectories(sol: Any) -> list[tuple[np.ndarray, np.ndarray, str]]:
     `Solution`; one per member for a batched one (`q` of shape `(B, T, n)`: `vmap`ped
     `simulate`) or a sweep's `xarray.Dataset` kept with `keep="trajectory"` (its grid
     flattened in order, labelled by the swept values)."""
-    if hasattr(sol, "data_vars") and "q" in sol.data_vars:
+    import xarray as xr  # loaded already when a sweep made `sol`
+
+    if isinstance(sol, xr.Dataset) and "q" in sol.data_vars:
         return _dataset_members(sol)
     ts, q = np.asarray(sol.ts, dtype=float), np.asarray(sol.q, dtype=float)
     if q.ndim == 2 and ts.ndim == 1 and ts.shape[0] == q.shape[0]:

@@ -16,10 +16,11 @@ import base64
 import html as html_lib
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, assert_never
 
 import numpy as np
 
+from .._core.errors import MissingDependencyError
 from .poses3d import Poses, Shape
 
 INSTALL_HINT = "the 3D viewer needs meshcat: pip install 'lagrax[viz]'"
@@ -43,7 +44,7 @@ def meshcat_modules() -> Any:
             import meshcat.geometry
             import umsgpack
     except ImportError as err:  # pragma: no cover - exercised without the extra
-        raise ImportError(INSTALL_HINT) from err
+        raise MissingDependencyError(INSTALL_HINT) from err
     return meshcat, umsgpack
 
 
@@ -173,7 +174,7 @@ def _geometry(g: Any, shape: Shape) -> tuple[Any, np.ndarray]:
         return g.Cylinder(shape.size[1], shape.size[0]), shape.transform @ _Y_ONTO_Z
     if shape.kind == "mesh":
         return _compact_mesh(g, shape.vertices, shape.faces), shape.transform
-    raise ValueError(f"unknown shape kind {shape.kind!r}")
+    assert_never(shape.kind)
 
 
 def _skeleton(t: _Track, p: Poses) -> None:

@@ -62,7 +62,7 @@ def _read(path: str, mtime: float) -> tuple[tuple[np.ndarray, np.ndarray, int | 
         loaded = trimesh.load(path)
     except Exception as err:  # noqa: BLE001 - any reader's failure is an unreadable file
         raise MeshReadError(f"{type(err).__name__}: {err}") from None
-    parts = loaded.dump(concatenate=False) if hasattr(loaded, "dump") else [loaded]
+    parts = loaded.dump(concatenate=False) if isinstance(loaded, trimesh.Scene) else [loaded]
     by_colour: dict[int | None, list[Any]] = {}
     for part in parts:
         if getattr(part, "faces", None) is not None and len(part.faces):

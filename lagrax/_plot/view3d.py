@@ -17,7 +17,7 @@ import numpy as np
 from .._contact.system import ContactSystem
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._solve.solution import Solution
-from ..chains import FloatingTree
+from ..chains import FloatingTree, Tree
 from .contact3d import contact_poses
 from .mjcf3d import compiled, is_mjcf, mjcf_poses
 from .poses3d import Poses, model_poses, resampled, trajectories
@@ -69,7 +69,7 @@ def _geometry_of(model: Any, geometry: Any, package_dirs: Any) -> Any:
             f"path, MJCF text or an MjModel); got {geometry!r}"
         )
     tree = model.tree if isinstance(model, FloatingTree) else model
-    if not hasattr(tree, "body_names"):
+    if not isinstance(tree, Tree):
         raise ArgumentTypeError(
             "a URDF's visuals are drawn on the tree loaded from it: pass the Tree or "
             f"FloatingTree of lagrax.chains.from_urdf as the model, got {type(model).__name__}"
@@ -278,7 +278,8 @@ def show3d(
     **Raises:** `ShapeError` for a solution whose coordinates are not the model's (a
     solution of another model); `ConfigurationError` for a tree or chain without `params`,
     `fps` not positive or an unknown `layout`; `ArgumentTypeError` for a model or
-    geometry it cannot draw.
+    geometry it cannot draw; [`lagrax.MissingDependencyError`][] (an `ImportError`)
+    without meshcat.
 
     **Example:**
 

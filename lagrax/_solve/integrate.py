@@ -34,6 +34,7 @@ import numpy as np
 
 from .._core.results import RESULTS, code_of
 from .._systems.abstract import AbstractSystem
+from .._systems.vector_field import LagrangianVectorField, unwrapped_term
 from ..integrators import Variational
 
 _DEFAULT_PROJECTION = AbstractSystem.project_configuration
@@ -214,10 +215,8 @@ def advance(term, solver, controller, state: StepState, args, t1, max_steps: int
 def system_of(term):
     """The system whose vector field `term` holds, through diffrax's wrapping terms, or
     `None` for a term that is not a system's vector field."""
-    field = term
-    while hasattr(field, "term"):  # diffrax.WrapTerm and friends
-        field = field.term
-    return getattr(getattr(field, "vector_field", None), "system", None)
+    field = getattr(unwrapped_term(term), "vector_field", None)
+    return field.system if isinstance(field, LagrangianVectorField) else None
 
 
 STABILITY_BOUND = 2.0  # h λ: an explicit method's fixed step on a stiff mode of rate λ

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 import numpy as np
 
+from .._core.checks import is_namedtuple
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import as_events, check_events
 from .._solve.methods import configure
@@ -556,7 +557,7 @@ def dof_labels(names: tuple[str, ...] | None, n: int) -> np.ndarray:
 
 def _is_state(x: Any) -> bool:
     """Whether `x` reads as an array of numbers (an initial state), not a parameter set."""
-    if isinstance(x, Grid | Mapping) or hasattr(x, "_fields"):
+    if isinstance(x, Grid | Mapping) or is_namedtuple(x):
         return False
     try:
         return np.asarray(x).dtype.kind in "biuf"

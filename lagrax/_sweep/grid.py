@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import jax.tree_util as jtu
 import numpy as np
 
+from .._core.checks import is_namedtuple
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .options import batch_size
 
@@ -45,7 +46,7 @@ class Grid:
     ):
         if base is None:
             base = {}
-        if not (isinstance(base, Mapping) or hasattr(base, "_replace")):
+        if not (isinstance(base, Mapping) or is_namedtuple(base)):
             raise ArgumentTypeError(
                 "grid/samples need the fixed parameters as a dict or a NamedTuple (got "
                 f"{type(base).__name__}); for other pytrees pass sweep() params whose "

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.errors import CheckpointError, ConfigurationError
+from .._core.errors import CheckpointError, ConfigurationError, MissingFileError
 from .checkpoint import atomic_write, checksum
 
 
@@ -60,10 +60,10 @@ def load_sweep(path: str | os.PathLike):
     it (the same dimensions, labels and checks), then loaded; to keep a store larger
     than memory on disk and read only what a computation needs, use `open_sweep`.
 
-    **Raises:** `FileNotFoundError` for a missing file; `CheckpointError` (naming the
-    path and what is wrong) for a file that is truncated, damaged, fails its checksum,
-    or is not a sweep result, and for a sweep store that is not complete or of a newer
-    format; `ConfigurationError` for an unknown suffix.
+    **Raises:** [`lagrax.MissingFileError`][] (a `FileNotFoundError`) for a missing file;
+    `CheckpointError` (naming the path and what is wrong) for a file that is truncated,
+    damaged, fails its checksum, or is not a sweep result, and for a sweep store that is
+    not complete or of a newer format; `ConfigurationError` for an unknown suffix.
     """
     import xarray as xr
 
@@ -72,7 +72,7 @@ def load_sweep(path: str | os.PathLike):
     if suffix not in (".npz", ".zarr", ".nc", ".nc4", ".netcdf"):
         raise ConfigurationError(f"unknown format {suffix!r} of {path}: use .nc, .zarr or .npz")
     if not path.exists():
-        raise FileNotFoundError(f"no sweep result at {path}")
+        raise MissingFileError(f"no sweep result at {path}")
     if suffix == ".npz":
         return _load_npz(xr, path)
     if suffix == ".zarr" and path.is_dir():

@@ -10,7 +10,7 @@ value and the fix. The checks shared with `simulate` (times, tolerances, steps) 
 import dataclasses
 import difflib
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sized
 from typing import Any
 
 import diffrax as dfx
@@ -146,7 +146,7 @@ def devices_option(devices: Any) -> None:
                 "sees), a list of devices, or None for all of them"
             )
         return
-    if isinstance(devices, (str, bytes, float)) or not hasattr(devices, "__len__"):
+    if isinstance(devices, (str, bytes, float)) or not isinstance(devices, Sized):
         raise ArgumentTypeError(
             f"devices must be None, a count or a list of JAX devices; got {_kind(devices)}"
         )

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .._core.errors import CheckpointError, CheckpointWarning
+from .._core.errors import CheckpointError, CheckpointWarning, MissingFileError
 from .._core.results import messages
 from .checkpoint import checksum, probe_writable
 from .dataset import attrs_of, labels, statuses, variables
@@ -350,9 +350,9 @@ def open_sweep(path: str | os.PathLike):
     **Returns:** the `xarray.Dataset`, dask-backed, with the same dimensions,
     coordinates, variables and attrs as the in-memory result of the same sweep.
 
-    **Raises:** `FileNotFoundError` for a missing path; `CheckpointError` for a path
-    that is not a lagrax sweep store, one of a newer format, or one whose sweep has not
-    finished (run the same `sweep` call again to resume it).
+    **Raises:** [`lagrax.MissingFileError`][] (a `FileNotFoundError`) for a missing path;
+    `CheckpointError` for a path that is not a lagrax sweep store, one of a newer format, or
+    one whose sweep has not finished (run the same `sweep` call again to resume it).
 
     **Example:**
 
@@ -366,7 +366,7 @@ def open_sweep(path: str | os.PathLike):
 
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"no sweep store at {path}")
+        raise MissingFileError(f"no sweep store at {path}")
     if path.is_dir() and not is_sweep_store(path) and _saved_result(path):
         return _open_saved(xr, path)
     meta = _meta(path)

@@ -71,11 +71,17 @@ def _evaluate(field: LagrangianVectorField, t, y, args):
     return system.configuration_rate(q, qd), qdd
 
 
+def unwrapped_term(term: Any) -> Any:
+    """The term inside diffrax's wrapping terms (`WrapTerm`, `AdjointTerm`: private
+    classes, each holding the term it wraps as its `term` field), or `term` itself."""
+    while (inner := getattr(term, "term", None)) is not None:
+        term = inner
+    return term
+
+
 def lagrangian_field_of(terms) -> LagrangianVectorField:
     """Find the `LagrangianVectorField` inside (possibly wrapped) diffrax terms."""
-    term = terms
-    while hasattr(term, "term"):  # diffrax.WrapTerm and friends
-        term = term.term
+    term = unwrapped_term(terms)
     field = getattr(term, "vector_field", None)
     if not isinstance(field, LagrangianVectorField):
         raise ArgumentTypeError(

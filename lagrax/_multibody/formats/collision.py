@@ -25,7 +25,7 @@ import os
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, assert_never
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from .urdf_elements import rpy_matrix
 
 MESHES = ("bounding_sphere", "vertices")
 RIM_POINTS = 8  # points on each end of a cylinder
+# the primitives `shape_points` turns into spheres: the readers pass only these (a mesh
+# and an ellipsoid become bounding spheres before), so the type checker holds the set
+Primitive = Literal["sphere", "box", "capsule", "cylinder"]
 
 
 @dataclass(frozen=True)
@@ -68,7 +71,7 @@ def placed(
     ]
 
 
-def shape_points(kind: str, size: Sequence[float]) -> tuple[np.ndarray, float]:
+def shape_points(kind: Primitive, size: Sequence[float]) -> tuple[np.ndarray, float]:
     """`(centres (k, 3), radius)`: a primitive's spheres in its own frame (the shape's
     axis along `z`). `size`: sphere `(r,)`, box the half-sizes `(a, b, c)`, capsule and
     cylinder `(r, half-length)`."""
@@ -84,7 +87,7 @@ def shape_points(kind: str, size: Sequence[float]) -> tuple[np.ndarray, float]:
         ring = np.stack([size[0] * np.cos(angles), size[0] * np.sin(angles)], axis=1)
         ends = [np.column_stack([ring, np.full(RIM_POINTS, z)]) for z in (-size[1], size[1])]
         return np.concatenate(ends), 0.0
-    raise ValueError(kind)
+    assert_never(kind)
 
 
 def check_meshes(meshes: str) -> None:
@@ -183,7 +186,8 @@ def _geometry(geometry: ET.Element, where: str, mesh_info: tuple):
         return shape_points("box", [0.5 * s for s in floats("size", 3)])
     if shape.tag in ("capsule", "cylinder"):
         radius, length = floats("radius", 1)[0], floats("length", 1)[0]
-        return shape_points(shape.tag, (radius, 0.5 * length))
+        kind: Primitive = "capsule" if shape.tag == "capsule" else "cylinder"
+        return shape_points(kind, (radius, 0.5 * length))
     if shape.tag == "mesh":
         base_dir, package_dirs, meshes = mesh_info
         scale = np.asarray(floats("scale", 3, [1.0, 1.0, 1.0]))

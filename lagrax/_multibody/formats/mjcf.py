@@ -31,7 +31,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.errors import MJCFError
+from ..._core.errors import MissingFileError, MJCFError
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..floating.forest import Forest
@@ -75,7 +75,7 @@ def _load(mujoco, source: Any):
     else:
         path = os.fspath(source)
         if not os.path.exists(path):
-            raise FileNotFoundError(f"no MJCF file at {path!r}")
+            raise MissingFileError(f"no MJCF file at {path!r}")
         what, load = f"{path!r}", lambda: mujoco.MjModel.from_xml_path(path)
     try:
         return load()
@@ -263,7 +263,8 @@ def from_mjcf(
     (on a spatial tendon, a flex); for a model with no hinge, slide or free joint;
     and, unless `ignore_unsupported`, for what it does not model (the list under
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
-    the `mujoco` package is not installed. `FileNotFoundError` for a missing file;
+    the `mujoco` package is not installed. [`lagrax.MissingFileError`][] (a
+    `FileNotFoundError`) for a missing file;
     `ConfigurationError` for a bad `limits` or `restitution`.
 
     **Example:**
@@ -478,7 +479,8 @@ def _add_inertia(model, b: int, target: TreeBody, rot: np.ndarray, pos: np.ndarr
     # MuJoCo's compiler marks an inertial frame within round-off of the body frame
     # (`body_sameframe`: 1 the same frame, 3 the same orientation) and its kinematics
     # then use the body frame itself: so does lagrax (convex meshes: ipos ~1e-9)
-    same = int(model.body_sameframe[b]) if hasattr(model, "body_sameframe") else 0
+    sameframe = getattr(model, "body_sameframe", None)  # None: an older MuJoCo
+    same = 0 if sameframe is None else int(sameframe[b])
     c = pos + (0.0 if same == 1 else rot @ model.body_ipos[b])
     r = rot if same in (1, 3) else rot @ quat_matrix(model.body_iquat[b])
     inertia = r @ np.diag(model.body_inertia[b]) @ r.T

@@ -73,14 +73,14 @@ def unsupported(mujoco, model, names) -> list[str]:
                 )
         if model.jnt_stiffness[j] and not disabled & int(off.mjDSBL_SPRING):
             found.append(f"stiffness on the free joint {names('joint', j)!r}")
-    if hasattr(model, "jnt_springyield"):
-        first_nonzero(model.jnt_springyield, "joint spring yield (plasticity)", "joint")
-    if hasattr(model, "jnt_stiffnesspoly"):
-        first_nonzero(
-            model.jnt_stiffnesspoly, "nonlinear joint stiffness", "joint", off.mjDSBL_SPRING
-        )
-    if hasattr(model, "dof_dampingpoly"):
-        first_nonzero(model.dof_dampingpoly, "nonlinear joint damping", "dof", off.mjDSBL_DAMPER)
+    # fields of newer MuJoCo releases (None in an older one, which has no such construct)
+    for field, what, kind, flag in (
+        ("jnt_springyield", "joint spring yield (plasticity)", "joint", None),
+        ("jnt_stiffnesspoly", "nonlinear joint stiffness", "joint", off.mjDSBL_SPRING),
+        ("dof_dampingpoly", "nonlinear joint damping", "dof", off.mjDSBL_DAMPER),
+    ):
+        if (values := getattr(model, field, None)) is not None:
+            first_nonzero(values, what, kind, flag)
     first_nonzero(model.body_gravcomp, "gravity compensation", "body")
     found += tendons_unsupported(mujoco, model, names)
     if model.opt.density > 0 or model.opt.viscosity > 0:

@@ -67,9 +67,11 @@ def tendons_unsupported(mujoco, model, names) -> list[str]:
             ("tendon_springyield", "spring yield (plasticity)"),
         ]
         for field, what in checks:
-            if not hasattr(model, field) or (field == "tendon_frictionloss" and friction_off):
+            # a field an older MuJoCo lacks is read as None (its construct cannot be there)
+            values = getattr(model, field, None)
+            if values is None or (field == "tendon_frictionloss" and friction_off):
                 continue
-            value = np.asarray(getattr(model, field)[t], float)
+            value = np.asarray(values[t], float)
             if np.any(value):
                 shown = f"{float(value.flat[0]):g}" if value.size == 1 else str(value.tolist())
                 found.append(f"{what} {shown} on {who}")

@@ -1,8 +1,9 @@
-"""States between MuJoCo's free and ball joints and lagrax's floating base and ball
-joints: MuJoCo's `qpos` holds a quaternion scalar first and `qvel` a free joint's linear
-velocity in the world frame; lagrax's (Pinocchio's) `q` the quaternion scalar last and
-`v` both of a base's velocities in the base frame (a ball's angular velocity is in the
-child frame in both)."""
+"""States and accelerations between MuJoCo's free and ball joints and lagrax's floating
+base and ball joints: MuJoCo's `qpos` holds a quaternion scalar first and `qvel` a free
+joint's linear velocity in the world frame (`qacc` its time derivative); lagrax's
+(Pinocchio's) `q` the quaternion scalar last and `v` both of a base's velocities in the
+base frame (`a` their time derivatives); a ball's angular velocity is in the child frame
+in both."""
 
 from typing import Any
 
@@ -48,7 +49,9 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
     [`FloatingTree`][lagrax.chains.FloatingTree]) has `q = (x, y, z, q_x, q_y, q_z,
     q_w)` and `v = (R^T v_O, ω_b)`, both velocities in the base frame. The joints
     follow unchanged. A generalized force converts like the velocity (`R^T f` for the
-    linear part), and MuJoCo's `qacc` is `(R (v̇_b + ω_b × v_b), ω̇_b, q̈)`.
+    linear part); an acceleration does not (the base frame turns):
+    [`from_mujoco_acceleration`][lagrax.chains.from_mujoco_acceleration] converts
+    MuJoCo's `qacc`.
 
     With `robot` ([`from_mjcf`][lagrax.chains.from_mjcf]'s result: a
     [`Forest`][lagrax.chains.Forest] of several free bodies, a
@@ -147,6 +150,121 @@ def to_mujoco_state(q: Any, v: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp
         q = q.at[..., qa + 3 : qa + 7].set(quat)
         v = v.at[..., va : va + 3].set(linear)
     return q, v
+
+
+def to_mujoco_acceleration(q: Any, v: Any, a: Any, robot: Any = None) -> jnp.ndarray:
+    r"""lagrax's floating-base acceleration `a = v̇` at the state `(q, v)` as MuJoCo's
+    `qacc` (what `mj_forward` writes): with `robot`, every free joint of a model with
+    several free bodies, as [`to_mujoco_state`][lagrax.chains.to_mujoco_state] does.
+
+    lagrax's (Pinocchio's) base velocity is the twist `(v_b, ω_b)` in the base frame and
+    `a` its derivative `(v̇_b, ω̇_b)` in that frame; MuJoCo's free joint has `qvel =
+    (v_O, ω_b)`, the body origin's velocity in the **world** frame `v_O = R v_b` (`R`:
+    the base's rotation, base to world), and `qacc` its time derivative. The base
+    frame turns at `ω_b`, so `v̇_O = Ṙ v_b + R v̇_b` with `Ṙ = R [ω_b]_×`:
+
+        qacc_lin = R (v̇_b + ω_b × v_b),    qacc_ang = ω̇_b
+
+    and the joints' entries are the same in both. A ball joint's entries are too (its
+    angular velocity is in the child frame in both, and `qacc` its derivative there).
+    Unlike a velocity or a force, the linear part depends on the velocity `v`: `a` of
+    a state converts only with that state.
+
+    **Arguments:** `q` `(..., 7 + n)`, `v` and `a` `(..., 6 + n)` (leading batch axes
+    allowed; `a` of `v`'s shape); `robot` as for
+    [`to_mujoco_state`][lagrax.chains.to_mujoco_state] (default `None`: one free
+    joint, first).
+
+    **Returns:** `qacc`, of `a`'s shape.
+
+    **Raises:** `ShapeError` for a `q`, `v` or `a` without the free joint's entries, or
+    whose joints or batch axes do not match (each named); `ArgumentTypeError` for
+    non-numeric input.
+
+    **Example:**
+
+    ```python
+    robot, params = lagrax.chains.from_mjcf("humanoid.xml")
+    q, v = lagrax.chains.from_mujoco_state(data.qpos, data.qvel, robot)
+    a = robot.system().forward_dynamics(q, v, params)
+    qacc = lagrax.chains.to_mujoco_acceleration(q, v, a, robot)   # ≈ data.qacc
+    ```
+    """
+    return _accelerations(q, v, a, robot, ("q", "v", "a"), to_mujoco=True)
+
+
+def from_mujoco_acceleration(qpos: Any, qvel: Any, qacc: Any, robot: Any = None) -> jnp.ndarray:
+    r"""MuJoCo's `qacc` at the state `(qpos, qvel)` as lagrax's acceleration `a = v̇`:
+    the inverse of [`to_mujoco_acceleration`][lagrax.chains.to_mujoco_acceleration]
+    (with `robot`, every free joint where it is).
+
+    With `R` the base's rotation (from `qpos`'s quaternion), `ω_b` the angular part of
+    `qvel` and `v_b = R^T v_O` the base-frame linear velocity:
+
+        v̇_b = R^T qacc_lin − ω_b × v_b,    ω̇_b = qacc_ang
+
+    and the joints' (and ball joints') entries unchanged.
+
+    **Arguments:** `qpos` `(..., 7 + n)`, `qvel` and `qacc` `(..., 6 + n)` (leading
+    batch axes allowed; `qacc` of `qvel`'s shape); `robot` as for
+    [`from_mujoco_state`][lagrax.chains.from_mujoco_state] (default `None`: one free
+    joint, first).
+
+    **Returns:** `a`, of `qacc`'s shape.
+
+    **Raises:** as [`to_mujoco_acceleration`][lagrax.chains.to_mujoco_acceleration],
+    naming `qpos`, `qvel` and `qacc`.
+    """
+    return _accelerations(qpos, qvel, qacc, robot, ("qpos", "qvel", "qacc"), to_mujoco=False)
+
+
+def _accelerations(pos: Any, vel: Any, acc: Any, robot: Any, names: tuple, to_mujoco: bool):
+    """`acc` with each free joint's linear part converted (see `to_mujoco_acceleration`
+    and `from_mujoco_acceleration`); `pos`'s quaternions lagrax's `(x, y, z, w)` when
+    `to_mujoco`, MuJoCo's `(w, x, y, z)` otherwise."""
+    order = (3, 0, 1, 2) if to_mujoco else (1, 2, 3, 0)
+    if getattr(robot, "balls", ()):  # a fixed tree with balls: the same in both
+        _, vel = _ball_quaternions(robot, pos, vel, names[:2], order)
+        return _acceleration_like(acc, vel, names[1:])
+    if _floating_balls(robot):  # the free joint first, then the balls' lanes
+        pos, vel = _ball_quaternions(robot.tree, pos, vel, names[:2], order, 7)
+        frees = [(0, 0)]
+    else:
+        frees = free_joints(robot)
+        pos, vel = _free_joint_state(pos, vel, names[:2], (7 * len(frees), 6 * len(frees)))
+    acc = _acceleration_like(acc, vel, names[1:])
+    for qa, va in frees:
+        _sizes_at(pos, vel, qa, va, names[:2])
+        quat = pos[..., qa + 3 : qa + 7]
+        if not to_mujoco:  # (w, x, y, z) -> (x, y, z, w)
+            quat = jnp.concatenate([quat[..., 1:], quat[..., :1]], axis=-1)
+        rot = jnp.vectorize(_rotation, signature="(4)->(3,3)")(quat)
+        omega, linear = vel[..., va + 3 : va + 6], vel[..., va : va + 3]
+        if to_mujoco:  # R (v̇_b + ω_b × v_b)
+            out = jnp.einsum("...ij,...j->...i", rot, acc[..., va : va + 3])
+            out = out + jnp.einsum("...ij,...j->...i", rot, jnp.cross(omega, linear))
+        else:  # R^T qacc_lin − ω_b × R^T v_O
+            body = jnp.einsum("...ji,...j->...i", rot, linear)
+            out = jnp.einsum("...ji,...j->...i", rot, acc[..., va : va + 3])
+            out = out - jnp.cross(omega, body)
+        acc = acc.at[..., va : va + 3].set(out)
+    return acc
+
+
+def _acceleration_like(acc: Any, vel: jnp.ndarray, names: tuple[str, str]) -> jnp.ndarray:
+    """`acc` as an array of `vel`'s shape, or an error naming both."""
+    try:
+        acc = jnp.asarray(acc)
+    except (TypeError, ValueError) as err:
+        raise ArgumentTypeError(
+            f"{names[1]} must be an array of real numbers, got {type(acc).__name__}: {err}"
+        ) from None
+    if acc.shape != vel.shape:
+        raise ShapeError(
+            f"{names[1]} has shape {acc.shape} but {names[0]} has shape {vel.shape}: an "
+            f"acceleration has one entry per velocity (and the same batch axes)"
+        )
+    return acc
 
 
 def _free_joint_state(pos: Any, vel: Any, names: tuple[str, str], sizes: tuple[int, int]):

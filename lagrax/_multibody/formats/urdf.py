@@ -17,7 +17,7 @@ from typing import Any
 import jax.numpy as jnp
 import numpy as np
 
-from ..._core.errors import URDFError, URDFWarning
+from ..._core.errors import MissingFileError, URDFError, URDFWarning
 from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
@@ -184,19 +184,19 @@ def from_urdf(
     `scene.spheres` in the order the links and their `<collision>` elements appear) and
     the params plus `"contact_friction"`.
 
-    **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a
-    xacro file (macros, not a robot) or a `<robot>` without links, an incomplete
-    `<inertial>`, a negative mass, an inertia that is not positive-semidefinite (or,
-    with `strict_inertia`, violates the triangle inequality), a joint that moves no
-    mass (a singular mass matrix), a link with two parents, a loop, several roots
-    without `root=`, an unknown joint type, a locked planar joint, several
-    floating joints or one that is not the root's only joint with an identity origin, a
-    mimic joint whose master is missing, fixed, dropped by `tip` or part of a mimic
-    loop, a `locked` name that is not a moving joint (or is a mimic joint) or a value
-    that is not finite, a robot with no moving joint below `root` on a fixed base (a
-    single rigid body needs `floating_base=True`). `FileNotFoundError`
-    for a missing file. Warns [`lagrax.URDFWarning`][] for an inertia that violates the
-    triangle inequality (unless `strict_inertia`).
+    **Raises:** [`lagrax.URDFError`][] naming the link or joint for: malformed XML, a xacro
+    file (macros, not a robot) or a `<robot>` without links, an incomplete `<inertial>`, a
+    negative mass, an inertia that is not positive-semidefinite (or, with `strict_inertia`,
+    violates the triangle inequality), a joint that moves no mass (a singular mass matrix),
+    a link with two parents, a loop, several roots without `root=`, an unknown joint type, a
+    locked planar joint, several floating joints or one that is not the root's only joint
+    with an identity origin, a mimic joint whose master is missing, fixed, dropped by `tip`
+    or part of a mimic loop, a `locked` name that is not a moving joint (or is a mimic
+    joint) or a value that is not finite, a robot with no moving joint below `root` on a
+    fixed base (a single rigid body needs `floating_base=True`).
+    [`lagrax.MissingFileError`][] (a `FileNotFoundError`) for a missing file. Warns
+    [`lagrax.URDFWarning`][] for an inertia that violates the triangle inequality (unless
+    `strict_inertia`).
 
     **Example:**
 
@@ -248,6 +248,8 @@ def _read(source: str | os.PathLike) -> str:
     """The URDF text: `source` itself if it starts with `<`, else the file it names."""
     text = os.fspath(source)
     if not text.lstrip().startswith("<"):
+        if not os.path.exists(text):
+            raise MissingFileError(f"no URDF file at {text!r}")
         with open(text, encoding="utf-8") as f:
             text = f.read()
     return text
