@@ -125,10 +125,8 @@ def test_sweep_reports_the_same_balance_as_simulate(msd):
     assert np.abs(change).min() > 0.05  # the modulation pumps energy: not conserved
     ref = lx.simulate(timed, [1.0], [0.0], {**TIMED, "k": 5.0}, n_save=101, **kw)
     np.testing.assert_allclose(change[-1], ref.energy_change[-1], rtol=1e-8)
-    # the same saves, the same quadrature (−1.04e-9 both): Ṗ and P̈ are central
-    # differences along the flow, whose round-off (~1e-10 of the work here) differs
-    # between the batched and the single program; measured 7.9e-11 apart
-    np.testing.assert_allclose(err[-1], ref.energy_error[-1], rtol=0, atol=2e-10)
+    # the same saves, the same quadrature: measured equal (−1.04e-9 both)
+    np.testing.assert_allclose(err[-1], ref.energy_error[-1], rtol=0, atol=1e-12)
     assert abs(float(ref.energy_error[-1])) < 1e-8
 
     system, params = msd
