@@ -34,6 +34,7 @@ extra) beside the ant where it is installed: a `jax.jit` of a `lax.scan` of `mjx
 over the same second. `--chart PATH` draws the table. About 3 minutes on 2 cores.
 
     python benchmarks/bench_compile.py --first-result [--processes 1] [--chart PATH]
+        [--json PATH] [--baseline PATH]
 
 **Program sizes** (`--sizes`): the lines of the lowered program (StableHLO text) and
 XLA's flop estimate of each part of the ant's contact simulation: the kinematics, the
@@ -232,8 +233,9 @@ def _solo12_standing(lx, jnp, np):
     )
 
 
-def first_result(processes: int, chart: str | None) -> None:
-    """Print (and draw) the first-result table: medians over `processes` fresh processes."""
+def first_result(processes: int, chart: str | None, save=None, baseline=None) -> None:
+    """Print (and draw) the first-result table: medians over `processes` fresh processes
+    (`save`: also into this JSON file; `baseline`: a JSON file so saved, drawn beside)."""
     env = dict(os.environ, LAGRAX_COMPILATION_CACHE="0")
     rows = {}
     for row in FIRST_ROWS:
@@ -253,22 +255,48 @@ def first_result(processes: int, chart: str | None) -> None:
     print(f"{'model':28s} {'first result (s)':>17s} {'again (ms)':>12s}")
     for row, r in rows.items():
         print(f"{row:28s} {r['first']:17.1f} {1e3 * r['again']:12.1f}")
+    if save:
+        with open(save, "w") as f:
+            json.dump(rows, f, indent=1)
     if chart:
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(7, 3.2))
-        names = list(rows)
-        ax.barh(names, [rows[n]["first"] for n in names], color="tab:blue")
-        for i, n in enumerate(names):
-            r = rows[n]
-            ax.text(r["first"], i, f" {r['first']:.1f} s  (again {1e3 * r['again']:.0f} ms)",
-                    va="center", fontsize=8)  # fmt: skip
-        ax.invert_yaxis()
-        ax.set_xlabel("from the import to the first result (s), cold, 2-core CPU")
-        ax.set_xlim(0, 1.45 * max(r["first"] for r in rows.values()))
-        fig.tight_layout()
-        fig.savefig(chart, dpi=120)
+        before = None
+        if baseline:
+            with open(baseline) as f:
+                before = json.load(f)
+        draw(rows, before, chart)
         print(f"wrote {chart}")
+
+
+def draw(rows: dict, before: dict | None, path: str) -> None:
+    """The first-result chart: a bar per row (`before`'s beside it, in grey, where given)."""
+    import matplotlib.pyplot as plt
+
+    names = list(rows)
+    fig, ax = plt.subplots(figsize=(7.5, 0.55 * len(names) + 1.2))
+    y = list(range(len(names)))
+    if before:
+        ax.barh([i + 0.2 for i in y], [before.get(n, {}).get("first", 0) for n in names],
+                height=0.4, color="0.75", label="before")  # fmt: skip
+    width = 0.4 if before else 0.8
+    shift = -0.2 if before else 0.0
+    ax.barh([i + shift for i in y], [rows[n]["first"] for n in names], height=width,
+            color="tab:blue", label="now")  # fmt: skip
+    for i, n in enumerate(names):
+        r = rows[n]
+        ax.text(r["first"], i + shift, f" {r['first']:.1f} s (again {1e3 * r['again']:.0f} ms)",
+                va="center", fontsize=8)  # fmt: skip
+        if before and n in before:
+            b = before[n]
+            ax.text(b["first"], i + 0.2, f" {b['first']:.1f} s", va="center", fontsize=8)
+    ax.set_yticks(y, names)
+    ax.invert_yaxis()
+    ax.set_xlabel("from the import to the first result (s), cold, 2-core CPU")
+    top = max([r["first"] for r in rows.values()] + [b["first"] for b in (before or {}).values()])
+    ax.set_xlim(0, 1.3 * top)
+    if before:
+        ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
 
 
 # ------------------------------------------------------------------ program sizes
@@ -349,6 +377,10 @@ def main(argv=None):
         "--first-result", action="store_true", help="the first-result table (see above)"
     )
     parser.add_argument("--chart", default=None, help="--first-result: draw it into this PNG")
+    parser.add_argument("--json", default=None, help="--first-result: save it into this file")
+    parser.add_argument(
+        "--baseline", default=None, help="--first-result: a --json file to draw beside"
+    )
     parser.add_argument("--sizes", action="store_true", help="the program-size table")
     args = parser.parse_args(argv)
     if args.child:
@@ -358,7 +390,8 @@ def main(argv=None):
         print(json.dumps(_first_child(args.first_child)))
         return
     if args.first_result:
-        first_result(args.processes if "--processes" in (argv or sys.argv) else 1, args.chart)
+        processes = args.processes if "--processes" in (argv or sys.argv) else 1
+        first_result(processes, args.chart, args.json, args.baseline)
         return
     if args.sizes:
         sizes()
