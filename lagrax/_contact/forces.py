@@ -33,16 +33,16 @@ def _placed(contact, q, params, turning):
     source placed as one batch (one pass of their model's kinematics), each other
     sphere by its own functions."""
     spheres = contact.spheres
-    blocks, order, rot_blocks, rot_order = [], [], [], []
+    blocks, order, rot_blocks = [], [], []
     for group in contact.groups:
         members = [spheres[i] for i in group]
         bodies = np.asarray([s.body for s in members], int)
         offsets = np.asarray([s.offset for s in members], float)
         c, r = members[0].source.poses(q, params, bodies, offsets)
         blocks.append(c)
-        order.extend(group)
         rot_blocks.append(r)
-        rot_order.extend(group)
+        order.extend(group)
+    rot_order = list(order)  # the groups' rotations come in the groups' order
     grouped = set(order)
     alone = [i for i in range(len(spheres)) if i not in grouped]
     if alone:

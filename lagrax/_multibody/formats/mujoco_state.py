@@ -251,14 +251,19 @@ def _accelerations(pos: Any, vel: Any, acc: Any, robot: Any, names: tuple, to_mu
     return acc
 
 
-def _acceleration_like(acc: Any, vel: jnp.ndarray, names: tuple[str, str]) -> jnp.ndarray:
-    """`acc` as an array of `vel`'s shape, or an error naming both."""
+def _real_array(x: Any, name: str) -> jnp.ndarray:
+    """`x` as an array, or an `ArgumentTypeError` naming the argument `name`."""
     try:
-        acc = jnp.asarray(acc)
+        return jnp.asarray(x)
     except (TypeError, ValueError) as err:
         raise ArgumentTypeError(
-            f"{names[1]} must be an array of real numbers, got {type(acc).__name__}: {err}"
+            f"{name} must be an array of real numbers, got {type(x).__name__}: {err}"
         ) from None
+
+
+def _acceleration_like(acc: Any, vel: jnp.ndarray, names: tuple[str, str]) -> jnp.ndarray:
+    """`acc` as an array of `vel`'s shape, or an error naming both."""
+    acc = _real_array(acc, names[1])
     if acc.shape != vel.shape:
         raise ShapeError(
             f"{names[1]} has shape {acc.shape} but {names[0]} has shape {vel.shape}: an "
@@ -274,12 +279,7 @@ def _free_joint_state(pos: Any, vel: Any, names: tuple[str, str], sizes: tuple[i
     and the same batch axes."""
     out = []
     for name, x, size in zip(names, (pos, vel), sizes, strict=True):
-        try:
-            x = jnp.asarray(x)
-        except (TypeError, ValueError) as err:
-            raise ArgumentTypeError(
-                f"{name} must be an array of real numbers, got {type(x).__name__}: {err}"
-            ) from None
+        x = _real_array(x, name)
         if x.ndim == 0 or x.shape[-1] < size:
             raise ShapeError(
                 f"{name} must have {size} + n entries on its last axis (the free joint's "
