@@ -43,13 +43,22 @@ def reference(oscillator, batch):
 
 
 @pytest.fixture(scope="module")
-def client():
+def cluster_client():
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
     )
     with distributed.Client(cluster) as c:
         yield c
     cluster.close()
+
+
+@pytest.fixture
+def client(cluster_client):
+    """The cluster with both workers in: a test that killed one leaves its nanny
+    restarting it, and a sweep started before it is back sees one thread, not two (the
+    `threads` its dataset records; CI once ran the next test in that window)."""
+    cluster_client.wait_for_workers(2, timeout=120)
+    return cluster_client
 
 
 def _compiled_chunk_programs() -> int:
