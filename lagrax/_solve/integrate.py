@@ -36,6 +36,7 @@ from .._core.results import RESULTS, code_of
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, unwrapped_term
 from ..integrators import Variational
+from .postprocess import WithWork
 
 _DEFAULT_PROJECTION = AbstractSystem.project_configuration
 _DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
@@ -135,9 +136,27 @@ def _promote(result):
 
 
 def _primal_part(term, y):
-    """`y`, or its primal part for the augmented system of forward sensitivities
-    (`sensitivities.Sensitivities`: the state `(y, s)`)."""
+    """`y`, or its primal part for an augmented system: the forward sensitivities
+    (`sensitivities.Sensitivities`: the state `(y, s)`) or the work carried as state
+    (`postprocess.WithWork`: `(y, W)`)."""
     return y[0] if getattr(getattr(term, "vector_field", None), "augmented", False) else y
+
+
+class _PrimalNorm(eqx.Module):
+    """A step-size controller's error norm of an augmented state's primal part."""
+
+    norm: Any
+
+    def __call__(self, error):
+        return self.norm(error[0])
+
+
+def primal_controller(controller):
+    """`controller` with its error norm taken over the primal part of an augmented
+    state `(y, extra)` (a constant step: unchanged)."""
+    if isinstance(controller, dfx.PIDController):
+        return eqx.tree_at(lambda c: c.norm, controller, _PrimalNorm(controller.norm))
+    return controller
 
 
 def all_finite(y) -> jax.Array:
@@ -216,7 +235,14 @@ def system_of(term):
     """The system whose vector field `term` holds, through diffrax's wrapping terms, or
     `None` for a term that is not a system's vector field."""
     field = getattr(unwrapped_term(term), "vector_field", None)
+    if isinstance(field, WithWork):  # the work carried as state: the field inside
+        field = field.field
     return field.system if isinstance(field, LagrangianVectorField) else None
+
+
+def carries_work(term) -> bool:
+    """Whether `term` carries the work as state (`postprocess.WithWork`)."""
+    return isinstance(getattr(unwrapped_term(term), "vector_field", None), WithWork)
 
 
 STABILITY_BOUND = 2.0  # h λ: an explicit method's fixed step on a stiff mode of rate λ
@@ -244,7 +270,7 @@ def stability_check(term, solver, controller, step, keep, y, args, result):
     system = stiff_system(term, solver, controller)
     if system is None:
         return result
-    q, v = y
+    q, v = y[0] if carries_work(term) else y
     h = step[1] - step[0]
     lam = system.stiff_rate(q, v, args[0])
     past = keep & (h * lam > STABILITY_BOUND) & (result == RESULTS.successful)
@@ -260,6 +286,9 @@ def project(term, y):
     system = system_of(term)
     if system is None or type(system).project_configuration is _DEFAULT_PROJECTION:
         return y
+    if carries_work(term):
+        (q, qd), w = y
+        return (system.project_configuration(q), qd), w
     q, qd = y
     return system.project_configuration(q), qd
 
@@ -275,7 +304,45 @@ def save_due(keep, i, tnext, ts):
     return keep & (i < n_save) & (ts[jnp.minimum(i, n_save - 1)] <= tnext)
 
 
-def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None, kind="checkpointed"):
+# Gauss–Legendre nodes and weights on [−1, 1] for the work at the saves (`work_at`):
+# eighth order in the distance from the step's start
+_GAUSS = tuple(np.polynomial.legendre.leggauss(4))
+
+
+def work_at(term, solver, dense, ta, tb, t, start):
+    """The work `W(t)` carried as state (`postprocess.WithWork`) at `t` inside the
+    attempted step `[ta, tb]`: `W(ta) + ∫_{ta}^{t} P(s, y(s)) ds`, by four-point
+    Gauss–Legendre on the step's dense output `y(s)`, where `start = (W(ta), args)`.
+
+    The dense output of `W` itself is only as good as the method's interpolant of a
+    quantity whose rate `P` may vary much faster than the state (a support driven at
+    high frequency: its work off by 3e-6 between the steps, where the quadrature on the
+    state's interpolant is at the steps' accuracy)."""
+    w_a, args = start
+    x, weights = (jnp.asarray(v, ta.dtype) for v in _GAUSS)
+    nodes = ta + 0.5 * (t - ta) * (x + 1.0)
+
+    def power(s):
+        (q, v), _ = interpolate(solver, dense, ta, tb, s)
+        return unwrapped_term(term).vector_field.power(s, q, v, args)
+
+    return w_a + 0.5 * (t - ta) * jnp.sum(weights * jax.vmap(power)(nodes))
+
+
+def save_dense(
+    solver,
+    dense,
+    ta,
+    tb,
+    t_end,
+    keep,
+    ts,
+    index,
+    ys,
+    rows=None,
+    kind="checkpointed",
+    work=None,
+):
     """Write the dense output of the attempted step `[ta, tb]` at the save times it
     reached: the one save loop of the three schedulers.
 
@@ -297,6 +364,10 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None, kin
       front, and `ys` holds every member's saves, leaves `(M, S, ...)`, written at
       `ys[rows[l], index[l]]`.
 
+    - `work`: `None`, or for a term that carries the work as state, `(term, start)`
+      with `start = (W(ta), args)` (per lane for the lane queue): the work at the saves
+      is then `work_at`'s quadrature, not the interpolant's.
+
     **Returns:** `(index, ys)`, with `index` past the times written.
 
     One trajectory loops with `equinox.internal.while_loop(kind=kind)`, so that reverse
@@ -312,6 +383,8 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None, kin
         def body(carry):
             i, out = carry
             y_t = interpolate(solver, dense, ta, tb, ts[i])
+            if work is not None:
+                y_t = (y_t[0], work_at(work[0], solver, dense, ta, tb, ts[i], work[1]))
             return i + 1, jtu.tree_map(lambda v, o: o.at[i].set(v), y_t, out)
 
         return eqxi.while_loop(
@@ -332,6 +405,9 @@ def save_dense(solver, dense, ta, tb, t_end, keep, ts, index, ys, rows=None, kin
         go = pending(carry)
         ic = jnp.minimum(i, n_save - 1)
         y_t = jax.vmap(functools.partial(interpolate, solver))(dense, ta, tb, ts[ic])
+        if work is not None:
+            at = functools.partial(work_at, work[0], solver)
+            y_t = (y_t[0], jax.vmap(at)(dense, ta, tb, ts[ic], work[1]))
         r = jnp.where(go, rows, n_rows)  # n_rows: dropped by the scatter
         out = jtu.tree_map(lambda o, v: o.at[r, ic].set(v, mode="drop"), out, y_t)
         return out, jnp.where(go, i + 1, i)
@@ -364,8 +440,9 @@ def integrate(
     def body(carry):
         s, ys = carry
         new, keep, dense = advance(term, solver, controller, s, args, t1, max_steps)
+        work = (term, (s.y[1], args)) if carries_work(term) else None
         save_i, ys = save_dense(
-            solver, dense, s.t, s.tnext, s.tnext, keep, ts, s.save_index, ys, kind=kind
+            solver, dense, s.t, s.tnext, s.tnext, keep, ts, s.save_index, ys, kind=kind, work=work
         )
         return eqx.tree_at(lambda x: x.save_index, new, save_i), ys
 

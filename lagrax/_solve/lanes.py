@@ -63,6 +63,10 @@ class LaneOutput(eqx.Module):
     lane_steps: jax.Array  # () lane-steps in all (busy + idle)
     event_count: Any = None  # (M, E) with events (lock-step schedule only)
     event_first: Any = None  # (M, E) the first crossing time of each event (inf: none)
+    # with the work carried as state (`postprocess.WithWork`): `W` from `t0` at the
+    # saves, (M, S) (inf where not reached), and at the end, (M,); else None
+    work: Any = None
+    work_end: Any = None
 
 
 class _Queue(eqx.Module):
@@ -155,6 +159,16 @@ class _Schedule:
             (member, self.extra_args),
         )
 
+    def _work(self, lanes: integrate.StepState, members):
+        """`save_dense`'s `work` for lanes that carry the work as state, else `None`:
+        each lane's `(W(ta), args)`."""
+        if not integrate.carries_work(self.term):
+            return None
+        extra = jtu.tree_map(
+            lambda x: jnp.broadcast_to(x, (lanes.t.shape[0], *jnp.shape(x))), self.extra_args
+        )
+        return self.term, (lanes.y[1], (members, extra))
+
     def advance_lane(self, state, member):
         return integrate.advance(
             self.term,
@@ -246,6 +260,7 @@ class _Schedule:
             new.save_index,
             out.ys,
             rows,
+            work=self._work(old, q.member),
         )
         new = eqx.tree_at(lambda x: x.save_index, new, save_i)
         lane = integrate.tree_where(active, new, old)  # idle lanes stay as they are

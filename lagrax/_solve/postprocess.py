@@ -32,7 +32,9 @@ from .solution import Solution
 # --------------------------------------------------------------------------- one solve
 
 
-def finish(system, field, args, saves, end, result, stats, started, events=None) -> Solution:
+def finish(
+    system, field, args, saves, end, result, stats, started, events=None, work=None
+) -> Solution:
     """The [`Solution`][lagrax.Solution] of one solve (the tail of `simulate`'s solve).
 
     The Jacobi integral `h` and `|T| + |V|` at the saves
@@ -52,6 +54,8 @@ def finish(system, field, args, saves, end, result, stats, started, events=None)
     - `started`: whether the initial state could be formed
       ([`AbstractSystem.initial_state`][lagrax.AbstractSystem.initial_state]).
     - `events`: the event records, or `None`.
+    - `work`: the work at the saves where the loop carried it as state (`WithWork`),
+      or `None` (then `work_along` forms it from the saves).
 
     **Returns:** the `Solution`.
     """
@@ -68,10 +72,14 @@ def finish(system, field, args, saves, end, result, stats, started, events=None)
         finite | (result != RESULTS.successful), result, RESULTS.non_finite_state
     )
     result = RESULTS.where(started, result, RESULTS.constraint_projection_failed)
-    return solution(system, field, args, saves, (energy, magnitude), end, result, stats, events)
+    return solution(
+        system, field, args, saves, (energy, magnitude), end, result, stats, events, work
+    )
 
 
-def solution(system, field, args, saves, energies, end, result, stats, events=None) -> Solution:
+def solution(
+    system, field, args, saves, energies, end, result, stats, events=None, work=None
+) -> Solution:
     """The [`Solution`][lagrax.Solution] of one solve from its saves, their energies and its
     end: the system's `observables`, the work `W` (`work_along`) and the
     `energy_scale` added.
@@ -86,7 +94,8 @@ def solution(system, field, args, saves, energies, end, result, stats, events=No
     energy, magnitude = energies
     t_end, q_end, qd_end = end
     extras = observables(system, field, params, tau_const, ts, q, qd)
-    work = work_along(system, field, params, tau_const, ts, q, qd)
+    if work is None:
+        work = work_along(system, field, params, tau_const, ts, q, qd)
     scale = energy_scale(ts, energy, magnitude)
     return Solution(
         ts,
@@ -129,7 +138,50 @@ def power_of(system, field, params, tau_const, t, q, qd):
     return explicit if inputs is None else explicit + inputs
 
 
-def _no_power(system, field, params, tau_const, t, q, qd) -> bool:
+class WithWork(eqx.Module):
+    r"""The vector field with the work `W = ∫ P dt` as one more state,
+
+    $$
+    \frac{d}{dt}\begin{pmatrix} y \\ W \end{pmatrix}
+    = \begin{pmatrix} f(t, y, a) \\ P(t, q, v, a) \end{pmatrix},
+    \qquad W(t_0) = 0,
+    $$
+
+    with `P` the power of `power_of`. A Runge–Kutta step of this system is the step of
+    `y` plus the method's own quadrature of `P` along it (nothing of `W` feeds back), so
+    `W` is as accurate as the state, and the saves' dense output gives it where they
+    fall. The step-size controller sees `y` only (`primal_controller`): the steps are
+    those of `y` alone. This is how `simulate`'s plain loop gets its work: the vector
+    field is traced once in the program, in the stages, where the Hermite rule of
+    `work_along` traced it a second time at the saves (with the power's JVP), for as
+    much as a third of a contact scene's compile."""
+
+    field: Any  # the system's LagrangianVectorField
+
+    # `integrate` checks the primal part for non-finite values, projects it and checks
+    # its stability (see `integrate.primal_part`)
+    augmented = True
+
+    def power(self, t, q, v, args):
+        """`P` at one state (`power_of`), of `q`'s dtype."""
+        params, tau_const = args
+        power = power_of(self.field.system, self.field, params, tau_const, t, q, v)
+        return jnp.asarray(power, q.dtype)
+
+    def __call__(self, t, ys, args):
+        (q, v), _ = ys
+        return self.field(t, (q, v), args), self.power(t, q, v, args)
+
+
+def relative_work(ts, w):
+    """`W(t_k) − W(t_first)` at the saves (from the first reached one, as `work_along`
+    gives it; `inf` where not reached), from the integrated work `w` there."""
+    reached = jnp.isfinite(ts) & jnp.isfinite(w)
+    first = jnp.argmax(reached)
+    return jnp.where(reached, w - w[first], jnp.inf)
+
+
+def no_power(system, field, params, tau_const, t, q, qd) -> bool:
     """Whether nothing changes the Jacobi integral (`power_of` is `None`), found from
     its shape alone (traced aside: nothing of it enters the program)."""
     return jax.eval_shape(lambda: power_of(system, field, params, tau_const, t, q, qd)) is None
@@ -166,7 +218,7 @@ def work_along(system, field, params, tau_const, ts, q, qd):
     """
     if ts.shape[0] == 0:
         return None
-    if _no_power(system, field, params, tau_const, ts[0], q[0], qd[0]):
+    if no_power(system, field, params, tau_const, ts[0], q[0], qd[0]):
         return None
     reached = jnp.isfinite(ts) & jnp.all(jnp.isfinite(q), axis=1)
     reached = reached & jnp.all(jnp.isfinite(qd), axis=1)
@@ -263,7 +315,7 @@ class Summary(eqx.Module):
     final_maxima: dict[str, Array]
 
 
-def summary(system, field, members, tau_const, times, y0s, saves, end) -> Summary:
+def summary(system, field, members, tau_const, times, y0s, saves, end, work_end=None) -> Summary:
     """The energies, the energy balance and the final maxima of a batch of solves.
 
     **Arguments:**
@@ -275,6 +327,8 @@ def summary(system, field, members, tau_const, times, y0s, saves, end) -> Summar
     - `y0s`: `(q0, q̇0)`, the initial states the solves started from, `(M, n)` each.
     - `saves`: `(q, q̇)` at `ts`, `(M, T, n)` each, `inf` where not reached.
     - `end`: `(t_end, q_end, q̇_end)`, where each solve ended.
+    - `work_end`: the work `W` from `t0` to the end, `(M,)`, where the solves carried
+      it as state (`WithWork`), or `None` (then `work_along` forms it from the saves).
 
     **Returns:** a `Summary`.
     """
@@ -304,6 +358,7 @@ def summary(system, field, members, tau_const, times, y0s, saves, end) -> Summar
         (e, mag),
         (q0, qd0, e0, m0),
         (e_end, m_end),
+        work_end,
     )
     # the system's observables at the end state, and the largest magnitude of those it
     # reports so (a constrained system: max |φ(q)| and max |A(q) q̇| there)
@@ -314,21 +369,24 @@ def summary(system, field, members, tau_const, times, y0s, saves, end) -> Summar
     return Summary(e, mag, e0, e_end, balance, scale, maxima)
 
 
-def energy_balance(system, field, members, tau_const, t0, ts, q, qd, saved, start, end):
+def energy_balance(
+    system, field, members, tau_const, t0, ts, q, qd, saved, start, end, work_end=None
+):
     """Per member: the energy balance residual and its scale, as `Solution.energy_error`
     computes them (its numerator and denominator).
 
     Without inputs, dissipation or time dependence the residual is `h(t_end) − h(t0)`.
-    With them it is `h − h₀ − W` over the saves (the first to the last reached one),
-    `W` the work integrated along them (`sweep` saves internally for that when
-    `keep="final"`); NaN when there are no saves. The scale is
+    With them it is `h(t_end) − h(t0) − W(t_end)` where the solves carried the work as
+    state (`work_end`), else `h − h₀ − W` over the saves (the first to the last reached
+    one), `W` the work integrated along them (`sweep` saves internally for that when
+    `keep="final"`; NaN when there are no saves). The scale is
     `max(|h(t0)|, |T| + |V|)` over the start, the saves and the end (`h` and
     `|T| + |V|` given there: `saved`, `start`, `end`)."""
     e, mag = saved
     q0, qd0, e0, m0 = start
     e_end, m_end = end
     first = jtu.tree_map(lambda x: x[0], members)
-    has_power = power_of(system, field, first, tau_const, t0, q0[0], qd0[0]) is not None
+    has_power = not no_power(system, field, first, tau_const, t0, q0[0], qd0[0])
     scale = jnp.maximum(jnp.abs(e0), m0)
     scale = jnp.maximum(scale, jnp.where(jnp.isfinite(m_end), m_end, 0.0))
     if ts.shape[0]:
@@ -337,6 +395,8 @@ def energy_balance(system, field, members, tau_const, t0, ts, q, qd, saved, star
         scale = jnp.maximum(scale, jax.vmap(energy_scale)(member_ts, e, mag))
     if not has_power:
         return e_end - e0, scale
+    if work_end is not None:
+        return e_end - e0 - work_end, scale
     if not ts.shape[0]:
         return jnp.full_like(e0, jnp.nan), scale
     work = jax.vmap(lambda p, s, a, b: work_along(system, field, p, tau_const, s, a, b))(

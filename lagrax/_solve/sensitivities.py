@@ -84,21 +84,6 @@ class Sensitivities(eqx.Module):
         return jax.vmap(one, out_axes=(None, 0))(*directions)
 
 
-class _PrimalNorm(eqx.Module):
-    """A step-size controller's error norm of the augmented state's primal part."""
-
-    norm: Any
-
-    def __call__(self, error):
-        return self.norm(error[0])
-
-
-def _primal_controller(controller):
-    if isinstance(controller, dfx.PIDController):
-        return eqx.tree_at(lambda c: c.norm, controller, _PrimalNorm(controller.norm))
-    return controller  # a constant step: no norm
-
-
 def _field_of(term):
     """The vector field inside `term` (`None` if it is not an `ODETerm`)."""
     return term.vector_field if isinstance(term, dfx.ODETerm) else None
@@ -194,7 +179,7 @@ def _augmented_solve(loop, y0, s0, args, dargs, tangents: bool):
     (ys, d_ys), state = _integrate.integrate(
         aug,
         solver,
-        _primal_controller(controller),
+        _integrate.primal_controller(controller),
         (y0, s0),
         (args, dargs),
         t0,

@@ -35,7 +35,7 @@ from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
 from .events import Event
 from .methods import stepping
-from .postprocess import finish
+from .postprocess import WithWork, finish, no_power, relative_work
 from .solution import Solution
 
 
@@ -103,11 +103,11 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
     field = LagrangianVectorField(system, config.tau_fn)
     term = dfx.ODETerm(field)
     args = (params, inputs.tau_const)
-    records = None
+    records = work = None
     forward = isinstance(config.adjoint, dfx.ForwardMode)
     if (config.adjoint is None or forward) and own_saveat and integrate.is_lean(controller):
         # the lean loop: the same steps as diffeqsolve, without its per-step machinery
-        ts, q, qd, t_end, q_end, qd_end, result, stats, records = _lean(
+        ts, q, qd, t_end, q_end, qd_end, result, stats, (records, work) = _lean(
             config, inputs, term, controller, y0, args, ts, field
         )
     else:
@@ -138,6 +138,7 @@ def solve_from(config: SolveConfig, inputs: SolveInputs, y0, started) -> Solutio
         stats,
         started,
         records,
+        work,
     )
 
 
@@ -158,9 +159,10 @@ def _save_times(config: SolveConfig, inputs: SolveInputs):
 
 def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, ts, field):
     """The solve on lagrax's own loop: `(ts, q, qd, t_end, q_end, qd_end, result,
-    stats, records)`, the saves past the end `inf` (`records`: `None` without
-    events)."""
-    solver, max_steps, records = config.solver, config.max_steps, None
+    stats, (records, work))`, the saves past the end `inf` (`records`: `None` without
+    events; `work`: the work at the saves where the loop carried it as state, else
+    `None`)."""
+    solver, max_steps, records, work = config.solver, config.max_steps, None, None
     t0, t1, dt0 = inputs.t0, inputs.t1, inputs.dt0
     kind = "checkpointed"
     if isinstance(config.adjoint, dfx.ForwardMode):
@@ -172,6 +174,23 @@ def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, 
         (q, qd), end = sensitivities.integrate(
             term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
         )
+    elif config.events is None and work_as_state(solver, field, args, t0, y0):
+        # the work integrated with the state: the field traced once, in the stages
+        carried = dfx.ODETerm(WithWork(field))
+        ((q, qd), work), end = integrate.integrate(
+            carried,
+            solver,
+            integrate.primal_controller(controller),
+            (y0, jnp.zeros((), y0[0].dtype)),
+            args,
+            t0,
+            t1,
+            dt0,
+            ts,
+            max_steps,
+            kind,
+        )
+        end = eqx.tree_at(lambda e: e.y, end, end.y[0])
     elif config.events is None:
         (q, qd), end = integrate.integrate(
             term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
@@ -201,7 +220,18 @@ def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, 
         num_rejected_steps=steps - accepted,
         max_steps=max_steps,
     )
-    return ts, q, qd, t_end, q_end, qd_end, result, stats, records
+    if work is not None:
+        work = relative_work(ts, work)
+    return ts, q, qd, t_end, q_end, qd_end, result, stats, (records, work)
+
+
+def work_as_state(solver, field, args, t0, y0) -> bool:
+    """Whether the plain loop carries the work as state (`postprocess.WithWork`): a
+    Runge–Kutta method (lagrax's variational integrators step `(q, v)` as such) and a
+    system with a power to integrate."""
+    if not isinstance(solver, dfx.AbstractRungeKutta):
+        return False
+    return not no_power(field.system, field, args[0], args[1], t0, *y0)
 
 
 def _diffrax_saves(sol: dfx.Solution, requested_ts):

@@ -49,9 +49,11 @@ class Solution(eqx.Module):
       `τ`, the applied force `F` and the dissipation `D` (its share is negative),
       so that `h(t) − h(t_0) = W(t)` on the exact motion. `None` for an autonomous
       system without any of them (then `h` is conserved). Constraint forces do no
-      work and are not included. Integrated from the saved states by a sixth-order
-      (Hermite) two-point rule, so the saves must resolve the time dependence and the
-      inputs (see [`energy_error`][lagrax.Solution.energy_error]).
+      work and are not included. With a Runge–Kutta method and no events, integrated
+      with the state on the solve's own steps (read at the saves by quadrature along the
+      step's dense output); otherwise from the saved states by a sixth-order (Hermite)
+      two-point rule, so the saves must resolve the time dependence and the inputs (see
+      [`energy_error`][lagrax.Solution.energy_error]).
     - `velocity_constraint_violation`: for a `ConstrainedSystem` with velocity
       constraints, `A(q) q̇` at `ts`, shape `(T, m₂)`; `None` otherwise.
     - `energy_scale`: the scale of [`energy_error`][lagrax.Solution.energy_error],
@@ -139,7 +141,8 @@ class Solution(eqx.Module):
         relative to its kinetic and potential energies, not `inf`; for a system whose
         `T` and `V` never exceed `|h(t_0)|` it is the familiar relative change.
         It vanishes on the exact motion; otherwise it measures the integrator's error,
-        plus the quadrature error of `W` (sixth order in the save spacing).
+        plus the quadrature error of `W` (where it is formed from the saves: sixth
+        order in the save spacing).
         [`energy_balance`][lagrax.Solution.energy_balance] is the same residual in energy units,
         [`energy_change`][lagrax.Solution.energy_change] the change of `h` itself.
         """

@@ -21,9 +21,10 @@ import numpy as np
 
 from .._core.checks import pivot_threshold
 from .._core.results import RESULTS, code_of, from_code
+from .._solve.integrate import primal_controller
 from .._solve.lanes import LaneOutput, run_lanes
-from .._solve.postprocess import Summary, solution, summary
-from .._solve.simulate import SolveConfig, SolveInputs, solve_from
+from .._solve.postprocess import Summary, WithWork, relative_work, solution, summary
+from .._solve.simulate import SolveConfig, SolveInputs, solve_from, work_as_state
 from .._systems.vector_field import LagrangianVectorField
 from .devices import to_device, to_host
 from .observed import observe
@@ -96,11 +97,17 @@ def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
         out = _lockstep(setup, members, y0s, tau_const, t0, t1, dt0, ts)
     else:
         c = setup.config
-        term = dfx.ODETerm(LagrangianVectorField(c.system, c.tau_fn))
+        field = LagrangianVectorField(c.system, c.tau_fn)
+        term, controller = dfx.ODETerm(field), c.stepsize_controller
+        first = jtu.tree_map(lambda x: x[0], (members, y0s))
+        carried = work_as_state(c.solver, field, (first[0], tau_const), t0, first[1])
+        if carried:  # the work integrated with the state, as simulate's loop does
+            term, controller = dfx.ODETerm(WithWork(field)), primal_controller(controller)
+            y0s = (y0s, jnp.zeros(jtu.tree_leaves(y0s)[0].shape[:1], t0.dtype))
         out = run_lanes(
             term,
             c.solver,
-            c.stepsize_controller,
+            controller,
             members,
             y0s,
             tau_const,
@@ -113,6 +120,14 @@ def _per_device(setup: Setup, members, y0s, tau_const, t0, t1, dt0, ts):
             refill=setup.refill,
             tail_lanes=setup.tail_lanes,
         )
+        if carried:
+            (ys, work), (y_end, work_end) = out.ys, out.y_end
+            out = eqx.tree_at(
+                lambda o: (o.ys, o.y_end, o.work, o.work_end),
+                out,
+                (ys, y_end, work, work_end),
+                is_leaf=lambda x: x is None,
+            )
     # scalars become (1,) so that shards concatenate
     return eqx.tree_at(
         lambda o: (o.busy_lane_steps, o.lane_steps),
@@ -141,7 +156,9 @@ def _run_chunk(setup: Setup, mesh, members, y0s, tau_const, t0, t1, dt0, ts) -> 
     system = setup.config.system
     field = LagrangianVectorField(system, setup.config.tau_fn)
     end = (out.t_end, *out.y_end)
-    measured = summary(system, field, members, tau_const, (t0, t1, ts), y0s, out.ys, end)
+    measured = summary(
+        system, field, members, tau_const, (t0, t1, ts), y0s, out.ys, end, out.work_end
+    )
     reduced = None
     if setup.reduce is not None:
         reduced = _reduce(setup, field, members, tau_const, ts, out, measured)
@@ -179,7 +196,7 @@ def _reduce(setup: Setup, field, members, tau_const, ts, out: LaneOutput, measur
     named by the leaf's path (`jax.tree_util.keystr`)."""
     system = setup.config.system
 
-    def one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej):
+    def one(p, i_q, i_qd, i_e, i_m, res, t_end, qe, qde, st, acc, rej, w):
         stats = dict(
             num_steps=st,
             num_accepted_steps=acc,
@@ -189,7 +206,10 @@ def _reduce(setup: Setup, field, members, tau_const, ts, out: LaneOutput, measur
         reached = jnp.all(jnp.isfinite(i_q), axis=1)
         i_ts = jnp.where(reached, ts, jnp.inf)
         saves, end = (i_ts, i_q, i_qd), (t_end, qe, qde)
-        sol = solution(system, field, (p, tau_const), saves, (i_e, i_m), end, from_code(res), stats)
+        work = None if w is None else relative_work(i_ts, w)
+        sol = solution(
+            system, field, (p, tau_const), saves, (i_e, i_m), end, from_code(res), stats, None, work
+        )
         return setup.reduce(sol)
 
     (q, qd), (q_end, qd_end) = out.ys, out.y_end
@@ -206,6 +226,7 @@ def _reduce(setup: Setup, field, members, tau_const, ts, out: LaneOutput, measur
         out.num_steps,
         out.num_accepted_steps,
         out.num_rejected_steps,
+        out.work,
     )
     leaves, _ = jtu.tree_flatten_with_path(reduced)
     return NamedArrays(tuple(jtu.keystr(p) for p, _ in leaves), tuple(x for _, x in leaves))
