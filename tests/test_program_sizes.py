@@ -11,6 +11,7 @@ its spheres (every sphere of a tree is placed by one pass of its kinematics, the
 velocities by one JVP and `Σ Jᵢᵀ Fᵢ` by one VJP).
 """
 
+import contextlib
 import glob
 import importlib.util
 import os
@@ -21,6 +22,7 @@ import jax.numpy as jnp
 import pytest
 
 import lagrax as lx
+from lagrax._core.one_shot import one_shot
 from lagrax.contact import ContactSystem
 
 
@@ -112,6 +114,9 @@ def test_the_contact_vector_field_is_a_small_multiple_of_the_robot(ant):
         ("arm7 simulate", 3_300),  # measured 2,867
         ("ant scene simulate", 19_800),  # measured 17,234
         ("humanoid_CMU simulate", 18_500),  # measured 16,090
+        # as simulate traces it on concrete inputs: its recursions as one scan over the
+        # bodies, not in its five phases of lanes
+        ("humanoid_CMU simulate, one shot", 8_000),  # measured 6,958
     ],
 )
 def test_program_size_budget(ant, name, budget):
@@ -128,9 +133,10 @@ def test_program_size_budget(ant, name, budget):
         model, ph = lx.chains.from_mjcf(dm_control_suite_xml("humanoid_CMU.xml"))
         body = model.system()
         qh = jnp.zeros(body.n_configuration).at[2].set(1.0).at[3].set(1.0)
-        size = lines(
-            lambda a, b, p: lx.simulate(body, a, b, p, t1=1.0).q, qh, jnp.zeros(body.n_dof), ph
-        )
+        with one_shot() if name.endswith("one shot") else contextlib.nullcontext():
+            size = lines(
+                lambda a, b, p: lx.simulate(body, a, b, p, t1=1.0).q, qh, jnp.zeros(body.n_dof), ph
+            )
     elif name.startswith("solo12"):
         tree, ps = lx.chains.from_urdf(solo12_urdf(), floating_base=True)
         solo = tree.system()
@@ -147,3 +153,45 @@ def test_program_size_budget(ant, name, budget):
     else:
         size = lines(lambda a, b, p: lx.simulate(scene, a, b, p, t1=1.0).q, q, v, params)
     assert size <= budget, f"{name}: {size:,} lines, over its budget of {budget:,}"
+
+
+def test_one_shot_programs_take_the_compile_lean_form():
+    """A tree of three phases (a body with two branches, one of which branches again):
+    traced within `one_shot` (as `simulate` on concrete inputs traces its program) its
+    recursions run as one scan over the bodies, a smaller program than the lanes, with
+    the same accelerations to round-off; `simulate`'s eager result (the one-shot program)
+    equals its result under `jax.jit` (the lanes)."""
+    import numpy as np
+
+    tree = lx.chains.Tree(
+        "RRRRRR",
+        parents=(-1, 0, 0, 1, 1, 3),
+        axes=[(0, 0, 1), (0, 1, 0), (1, 0, 0), (0, 1, 0), (1, 0, 0), (0, 1, 0)],
+    )
+    offsets = [
+        (0, 0, 0.3),
+        (0, 0.2, 0.4),
+        (0, -0.2, 0.4),
+        (0.1, 0, 0.3),
+        (0, 0.1, 0.3),
+        (0, 0, 0.2),
+    ]
+    params = tree.params(offset=offsets, com=[(0.05, 0.02, 0.1)] * 6)
+    system = tree.system()
+    rng = np.random.default_rng(3)
+    q, v = jnp.asarray(rng.normal(size=6)), jnp.asarray(rng.normal(size=6))
+
+    def accel(a, b):
+        return system.accelerations(0.0, a, b, params, None)
+
+    lanes, lanes_value = lines(accel, q, v), jax.jit(accel)(q, v)
+    with one_shot():
+        lean = lines(lambda a, b: accel(a, b), q, v)
+        lean_value = jax.jit(lambda a, b: accel(a, b))(q, v)
+    assert lean < 0.8 * lanes, (lean, lanes)
+    np.testing.assert_allclose(lean_value, lanes_value, rtol=1e-12, atol=1e-12)
+
+    kw = dict(t1=0.5, rtol=1e-10, atol=1e-10)
+    eager = lx.simulate(system, q, v, params, **kw)
+    traced = jax.jit(lambda a, b, p: lx.simulate(system, a, b, p, **kw).q)(q, v, params)
+    np.testing.assert_allclose(eager.q, traced, rtol=0, atol=1e-8)

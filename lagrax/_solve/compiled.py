@@ -33,6 +33,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from .._core.one_shot import one_shot
+
 Program = Callable[[Any, tuple], Any]  # program(config, fields) -> a pytree of outputs
 
 
@@ -40,9 +42,12 @@ def run_once(program: Program, config: Any, fields: tuple) -> Any:
     """`program(config, fields)`, inside a `lax.while_loop` that runs once.
 
     Only for concrete inputs (a while loop is not reverse-differentiable), where it makes
-    XLA:CPU compile the whole program into one kernel.
+    XLA:CPU compile the whole program into one kernel. The program is traced under
+    `one_shot`: it runs one trajectory once, so large trees take the form of
+    their recursions that compiles fastest.
     """
-    shapes = eqx.filter_eval_shape(program, config, fields)  # traced once; reused
+    with one_shot():
+        shapes = eqx.filter_eval_shape(program, config, fields)  # traced once; reused
     init = (
         jnp.asarray(False),
         jax.tree_util.tree_map(
@@ -52,7 +57,8 @@ def run_once(program: Program, config: Any, fields: tuple) -> Any:
     )
 
     def once(_):
-        return program(config, fields)
+        with one_shot():
+            return program(config, fields)
 
     _, out = jax.lax.while_loop(lambda c: ~c[0], lambda c: (jnp.asarray(True), once(None)), init)
     return out

@@ -25,6 +25,7 @@ from jaxtyping import Array, Float
 from .._core import checks, closures
 from .._core.custom_types import Coordinates, Params, Velocities
 from .._core.errors import ConfigurationError, SimulationError
+from .._core.one_shot import one_shot_on
 from .._core.results import RESULTS, code_of, messages
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
@@ -254,7 +255,15 @@ def _diffrax_saves(sol: dfx.Solution, requested_ts):
     return ts, q, qd, t_end, q_end, qd_end
 
 
-_solve = eqx.filter_jit(solve)  # under a user's jit (traced inputs)
+@eqx.filter_jit
+def _solve_keyed(config: SolveConfig, inputs: SolveInputs, one_shot: bool) -> Solution:
+    return solve(config, inputs)
+
+
+def _solve(config: SolveConfig, inputs: SolveInputs) -> Solution:
+    """`solve` under a user's jit (traced inputs), its trace cached per configuration
+    and per form of the recursions (`one_shot_on()`, a static argument)."""
+    return _solve_keyed(config, inputs, one_shot_on())
 
 
 def _solve_pair(pair) -> Solution:
@@ -262,10 +271,14 @@ def _solve_pair(pair) -> Solution:
 
 
 @eqx.filter_jit
+def _transposed_keyed(config: SolveConfig, inputs: SolveInputs, one_shot: bool) -> Solution:
+    return transposed.call(_solve_pair, (config, inputs))
+
+
 def _solve_transposed(config: SolveConfig, inputs: SolveInputs) -> Solution:
     """`solve` for `jax.grad` with few differentiated scalars: the loop in forward
     mode, its Jacobian contracted in the backward pass (`transposed`)."""
-    return transposed.call(_solve_pair, (config, inputs))
+    return _transposed_keyed(config, inputs, one_shot_on())
 
 
 def _inputs_ok(config: SolveConfig, inputs: SolveInputs, y0, started):

@@ -12,6 +12,7 @@ from jaxtyping import Array
 
 from .._core.checks import coords, finite, force_value, same_shape
 from .._core.errors import ArgumentTypeError
+from .._core.one_shot import one_shot_on
 from .abstract import AbstractSystem
 
 TauFn = Callable[[Any, Array, Array], Array]
@@ -38,7 +39,8 @@ class LagrangianVectorField(eqx.Module):
         # A solver evaluates the field in several places (its first stage, the stages of
         # a step, lagrax's input check): through a nested jit it is traced once, and the
         # others reuse the cached trace (XLA inlines the call, so it costs nothing to run).
-        return _evaluate(self, t, y, args)
+        # (whether the recursions take their one-shot form is part of the cache key)
+        return _evaluate(self, t, y, args, one_shot_on())
 
 
 def split_tau(system: AbstractSystem, tau: Any, q: Array, *, host: bool = False):
@@ -63,7 +65,7 @@ def split_tau(system: AbstractSystem, tau: Any, q: Array, *, host: bool = False)
 
 
 @eqx.filter_jit
-def _evaluate(field: LagrangianVectorField, t, y, args):
+def _evaluate(field: LagrangianVectorField, t, y, args, one_shot: bool):
     q, qd = y
     params, tau_const = args
     system = field.system

@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..._core.one_shot import one_shot_on
 from .lanes import MAX_PHASES, Lanes, as_arrays, lane_scan, scalars
 
 Vec = tuple[Any, ...]
@@ -182,6 +183,15 @@ def spatial_inertia(m: Any, inertia_w: Mat, c: Vec) -> Mat:
 
 
 # ------------------------------------------------------------------ the recursions
+ONE_SHOT_MAX_PHASES = 1
+"""The most phases of a tree's [`Lanes`][] in a one-shot program (`one_shot_on()`): a tree
+of more (a humanoid's arms after its legs and torso) runs its passes as one scan over its
+bodies. That form compiles in about half the time (dm_control's humanoid_CMU, five phases:
+its accelerations 8,417 → 3,288 lines, `simulate`'s first result from the import about
+23 → 13 s) and runs several times slower per state (11 → 93 µs): the trade a program
+that runs once wants, and a batch (`vmap`, `sweep`) does not."""
+
+
 class Passes:
     """How a recursion runs over the `n` bodies of a chain or a tree: written out body
     by body (`scan=False`: straight-line code, structural zeros skipped, fastest to run
@@ -212,7 +222,8 @@ class Passes:
         self.parents = None if parents is None else tuple(int(p) for p in parents)
         chain = tuple(range(-1, n - 1))
         self.lanes = Lanes(chain if self.parents is None else self.parents) if scan else None
-        if self.lanes is not None and sum(map(len, self.lanes.phases)) > MAX_PHASES:
+        limit = ONE_SHOT_MAX_PHASES if one_shot_on() else MAX_PHASES
+        if self.lanes is not None and sum(map(len, self.lanes.phases)) > limit:
             self.lanes = None  # compile time grows with the phases: one scan, buffers
 
     def ancestors(self) -> np.ndarray:
