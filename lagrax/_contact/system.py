@@ -13,7 +13,9 @@ from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
 from . import forces, pairs, scale, stability, start
+from . import limits as joint_limits
 from .geometry import Plane, Sphere, placement_groups, real_number
+from .limits import JointLimit
 from .pairs import pair_list as pairs_of
 from .shapes import Box, Capsule
 
@@ -22,8 +24,9 @@ Coefficient = float | Callable[[Any], Any] | None
 
 class Coefficients(NamedTuple):
     """The contact's coefficients at one `params`: stiffness `k`, dissipation `c`,
-    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, and `ok`: all
-    valid (and, for defaults, the scene has a weight to scale them by)."""
+    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, `ok`: all valid
+    (and, for defaults, the scene has a weight to scale them by), and the joint limits'
+    stiffness and dissipation, one per limit `(J,)`."""
 
     stiffness: Any
     dissipation: Any
@@ -31,6 +34,8 @@ class Coefficients(NamedTuple):
     static_friction: Any
     stiction_velocity: Any
     ok: Any
+    limit_stiffness: Any = None
+    limit_dissipation: Any = None
 
 
 def _coefficient(name: str, value: Coefficient, *, allow_none: bool) -> Coefficient:
@@ -80,6 +85,20 @@ def _spheres(spheres: Any, plane: Any) -> tuple[Sphere, ...]:
             "2-D: give angle= instead"
         )
     return out
+
+
+def _limit_coefficient(name: str, value: Any) -> Coefficient:
+    """A joint limits' coefficient: `None`, a function of `params`, or a number or one
+    per limit (checked now: finite, `>= 0`)."""
+    if value is None or callable(value):
+        return value
+    arr = np.asarray(value, float) if not isinstance(value, (bool, np.bool_)) else None
+    if arr is None or arr.ndim > 1 or not (np.all(np.isfinite(arr)) and np.all(arr >= 0)):
+        raise ConfigurationError(
+            f"ContactSystem's {name} must be finite numbers >= 0 (one, or one per limit) or "
+            f"a function of params, got {name}={value!r}"
+        )
+    return float(arr) if arr.ndim == 0 else tuple(arr.tolist())
 
 
 def _max_penetration(value: Any) -> float | None:
@@ -152,6 +171,16 @@ class ContactSystem(AbstractSystem):
       `0.01`. A deeper start is a `ContactError` (see `check_state`); a shallower one is
       pushed out by the contact spring, its stored energy part of the energy balance.
       `None`: no limit.
+    - `limits`: joint limits enforced as compliant stops, a sequence of
+      [`JointLimit`][lagrax.contact.JointLimit] (default none): each finite bound of
+      joint `i` is a contact of the same normal law and exponent whose gap is
+      `q_i − lo` (or `hi − q_i`) and whose force `±f_n` acts on joint `i` alone; its
+      elastic energy is part of `energy` and its dissipation of `input_power`, as the
+      ground's. The loaders' `limits="contact"` fills it from the robot's file.
+    - `limit_stiffness`, `limit_dissipation`: the stops' `k` (torque per rad^p, or
+      force per m^p) and `c` (time per radian, or per metre), a number, one per limit
+      or a function of `params`; default (`None`) scaled from the scene per joint, as
+      critically damped stops as fast as the ground contact (see the contact guide).
     - `name`: a label for messages.
 
     Each coefficient is a number or a function `f(params)`: a function reads it from
@@ -194,6 +223,9 @@ class ContactSystem(AbstractSystem):
     pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     max_penetration: float | None = eqx.field(static=True)
     groups: tuple[tuple[int, ...], ...] = eqx.field(static=True)
+    limits: tuple[JointLimit, ...] = eqx.field(static=True)
+    limit_stiffness: Coefficient
+    limit_dissipation: Coefficient
 
     def __init__(
         self,
@@ -210,6 +242,9 @@ class ContactSystem(AbstractSystem):
         exponent: float = 1.5,
         reference: Any = None,
         max_penetration: float | None = 0.01,
+        limits: Sequence[JointLimit] | None = None,
+        limit_stiffness: Coefficient = None,
+        limit_dissipation: Coefficient = None,
         name: str | None = None,
     ):
         if not isinstance(system, AbstractSystem):
@@ -258,6 +293,9 @@ class ContactSystem(AbstractSystem):
         self.reference = None if reference is None else tuple(float(x) for x in np.ravel(reference))
         self.name = f"{system.name} (contact)" if name is None else name
         self.max_penetration = _max_penetration(max_penetration)
+        self.limits = joint_limits.checked(limits)
+        self.limit_stiffness = _limit_coefficient("limit_stiffness", limit_stiffness)
+        self.limit_dissipation = _limit_coefficient("limit_dissipation", limit_dissipation)
 
     # ------------------------------------------------------------ shared with the system
     @property
@@ -305,17 +343,33 @@ class ContactSystem(AbstractSystem):
         the defaults cannot be scaled (no weight on the plane), the stiffness is NaN, so
         the accelerations are NaN and the solve reports it."""
         system = self.system.prepared(params, dtype)
-        if None in (self.stiffness, self.dissipation, self.stiction_velocity):
+        own = (
+            self.stiffness,
+            self.dissipation,
+            self.stiction_velocity,
+            self.limit_stiffness,
+            self.limit_dissipation,
+        )
+        if None in own[:3] or (self.limits and None in own[3:]):
             co = self.coefficients(params, dtype)
             scaled = (
                 jnp.where(co.ok, co.stiffness, jnp.nan),
                 co.dissipation,
                 co.stiction_velocity,
+                co.limit_stiffness,
+                co.limit_dissipation,
             )
         else:
-            scaled = (self.stiffness, self.dissipation, self.stiction_velocity)
+            scaled = own
         return eqx.tree_at(
-            lambda s: (s.system, s.stiffness, s.dissipation, s.stiction_velocity),
+            lambda s: (
+                s.system,
+                s.stiffness,
+                s.dissipation,
+                s.stiction_velocity,
+                s.limit_stiffness,
+                s.limit_dissipation,
+            ),
             self,
             (system, *scaled),
             is_leaf=lambda x: x is None,
@@ -386,18 +440,23 @@ class ContactSystem(AbstractSystem):
         stiction = self.stiction_velocity
         if stiction is None and self.friction == 0.0 and self.static_friction in (None, 0.0):
             stiction = 1.0  # frictionless: v_s plays no part
-        if None in (self.stiffness, self.dissipation, stiction):
-            k0, c0, v0, ok = scale.scene_scale(self, params, dtype)
+        own = (self.stiffness, self.dissipation, stiction)
+        limited = (self.limit_stiffness, self.limit_dissipation) if self.limits else (0.0, 0.0)
+        if None in own + limited:
+            k0, c0, v0, kj0, cj0, ok = scale.scene_scale(self, params, dtype)
         k = k0 if self.stiffness is None else value(self.stiffness)
         c = c0 if self.dissipation is None else value(self.dissipation)
         vs = v0 if stiction is None else value(stiction)
         mu = value(self.friction)
         mus = mu if self.static_friction is None else value(self.static_friction)
-        good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
-        good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
+        n_lim = (len(self.limits),)
+        kj = kj0 if limited[0] is None else jnp.broadcast_to(value(limited[0]), n_lim)
+        cj = cj0 if limited[1] is None else jnp.broadcast_to(value(limited[1]), n_lim)
+        good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus, kj, cj)]
+        good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu, kj > 0, cj >= 0]
         # (a friction read from params may be one coefficient per sphere, `(S,)`)
         valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
-        return Coefficients(k, c, mu, mus, vs, ok & valid)
+        return Coefficients(k, c, mu, mus, vs, ok & valid, kj, cj)
 
     # ------------------------------------------------------------ forces
     def contact_state(self, q, v, params):
@@ -476,6 +535,17 @@ class ContactSystem(AbstractSystem):
             ("static_friction", co.static_friction, ">= friction"),
             ("stiction_velocity", co.stiction_velocity, "> 0"),
         )
+        for label, value, rule in (
+            ("limit_stiffness", co.limit_stiffness, "> 0"),
+            ("limit_dissipation", co.limit_dissipation, ">= 0"),
+        ):
+            for j, x in enumerate(np.asarray(value, float).tolist()):
+                if not math.isfinite(x) or x < 0 or (rule == "> 0" and x == 0):
+                    raise ConfigurationError(
+                        f"the contact of {self.name} has {label}={x!r} on the limit of "
+                        f"joint {self.limits[j].name or self.limits[j].index!r}; it must be "
+                        f"finite and {rule}"
+                    )
         for label, value, rule in named:
             # (a friction read from params may be one coefficient per sphere, `(S,)`)
             values = np.broadcast_to(np.asarray(value, float), (len(self.spheres),))
@@ -537,12 +607,13 @@ class ContactSystem(AbstractSystem):
         """The wrapped system's observables, and `contact_gap` `(S,)` and
         `contact_force` `(S, d)` (on each contact point, in the world frame; with a
         plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
-        `(i, j)`; with pairs)."""
+        `(i, j)`; with pairs), `limit_gap` `(K,)` and `limit_force` `(K,)` (each joint
+        limit's stop: its gap, and its generalized force on its joint; with limits)."""
         out = dict(self.system.observables(t, q, qd, params, tau))
         contact = self.contact_state(q, qd, params)
         for key, _ in _OUTPUTS:
             if key in contact:
-                out[key if key.startswith("pair_") else f"contact_{key}"] = contact[key]
+                out[key if key.startswith(("pair_", "limit_")) else f"contact_{key}"] = contact[key]
         return out
 
     def observable_dims(self):
@@ -555,16 +626,20 @@ class ContactSystem(AbstractSystem):
             "contact_force": ("contact", "axis"),
             "pair_gap": ("pair",),
             "pair_force": ("pair", "axis"),
+            "limit_gap": ("stop",),
+            "limit_force": ("stop",),
         }
 
     # ------------------------------------------------------------ events
     def events(self, max_events: int = 100) -> tuple[Event, ...]:
         """One [`Event`][lagrax.Event] per sphere on its gap to the plane, then one per
-        pair on its gap, for `simulate(..., events=)`: each contact's onset and release
+        pair on its gap, then one per joint limit's stop (each finite bound, lower
+        before upper, in the order of `limits`) on its gap, for `simulate(..., events=)`: each contact's onset and release
         is located on the dense output and the step is cut there (an identity reset), so
         the adaptive steps keep their order across the switch. `Solution.events[i]`
         records sphere `i`'s crossings (with a plane), then pair `k`'s at
-        `Solution.events[S + k]` (`S`: the number of spheres; `k` without a plane).
+        `Solution.events[S + k]` (`S`: the number of spheres; `k` without a plane), then
+        the stops'.
 
         **Arguments:** `max_events`: the most crossings recorded per contact (a solve
         with more ends with `RESULTS.event_cascade`).
@@ -579,6 +654,10 @@ class ContactSystem(AbstractSystem):
         if self.plane is not None:
             conditions += [gap_of(i, 0) for i in range(len(self.spheres))]
         conditions += [gap_of(k, 1) for k in range(len(self.pairs))]
+        stops = joint_limits.stops(self.limits)
+        conditions += [
+            (lambda t, q, qd, p, k=k: joint_limits.gaps(self, q)[k]) for k in range(len(stops.q))
+        ]
         return tuple(
             Event(c, reset=lambda t, q, qd, p: (q, qd), max_events=max_events) for c in conditions
         )
@@ -589,4 +668,6 @@ _OUTPUTS = (
     ("force", "forces"),
     ("pair_gap", "pair gaps"),
     ("pair_force", "pair forces"),
+    ("limit_gap", "joint limits' gaps"),
+    ("limit_force", "joint limits' forces"),
 )

@@ -38,7 +38,7 @@ from ..floating.forest import Forest
 from ..joint_space import FRICTION_VELOCITY
 from ..limits import with_limits
 from .collision import check_meshes, mjcf_ground, mjcf_points
-from .contact_scene import contact_friction, contact_scene
+from .contact_scene import contact_friction, contact_scene, limits_need_contact
 from .mjcf_balls import ball_lanes, balls_supported
 from .mjcf_equality import constrained, equality_rows
 from .mjcf_parts import TreeBody, quat_matrix, split_parts
@@ -227,7 +227,11 @@ def from_mjcf(
       enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
       restitution `restitution`, as for [`lagrax.chains.from_urdf`][] (the params gain
       `"restitution"`; pass [`lagrax.chains.limit_events`][]`(tree)` to
-      [`lagrax.simulate`][]).
+      [`lagrax.simulate`][]); `"contact"` (with `contact=`): each finite limit is a
+      compliant stop of the contact scene, the ground contact's normal law in joint
+      space (a [`JointLimit`][lagrax.contact.JointLimit]; its energy and dissipation in
+      the scene's energy balance, its coefficients scaled from the scene), as MuJoCo
+      enforces its limits by soft constraints.
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
     - `ignore_unsupported`: drop what lagrax does not model (gravity compensation,
@@ -265,7 +269,8 @@ def from_mjcf(
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
     the `mujoco` package is not installed. [`lagrax.MissingFileError`][] (a
     `FileNotFoundError`) for a missing file;
-    `ConfigurationError` for a bad `limits` or `restitution`.
+    `ConfigurationError` for a bad `limits` or `restitution`, or `limits="contact"`
+    without `contact=`.
 
     **Example:**
 
@@ -277,6 +282,7 @@ def from_mjcf(
     """
     mujoco = _mujoco()
     check_meshes(meshes)
+    limits_need_contact(limits, contact)
     model = _load(mujoco, source)
     names = _Names(mujoco, model)
     found = unsupported(mujoco, model, names)
@@ -328,7 +334,9 @@ def from_mjcf(
             + (" and equality constraints" if robot is not robots[-1] else "")
         )
     points = mjcf_points(model, names, place, contact, meshes, base is not None)
-    return contact_scene(robot, params, points, mjcf_ground(model), contact_friction(friction))
+    return contact_scene(
+        robot, params, points, mjcf_ground(model), contact_friction(friction), limits
+    )
 
 
 def _equalities(mujoco, model, names, robot, places: dict, ignore: bool):
