@@ -163,3 +163,13 @@ def test_limits_contact_needs_a_contact_scene():
             limits=[JointLimit(0, 0.0, 0.5)],
             limit_stiffness=-1.0,
         )
+
+
+def test_a_joint_started_past_its_limit_starts_at_it(rod):
+    scene, params, _ = rod
+    q, v, ok = scene.initial_state(np.array([UPPER + 0.3]), np.array([0.7]), params)
+    assert float(q[0]) == UPPER and float(v[0]) == 0.7 and bool(ok)
+    q, _, _ = scene.initial_state(np.array([-2.0]), np.array([0.0]), params)
+    assert float(q[0]) == -math.pi / 2
+    q, _, _ = scene.initial_state(np.array([0.2]), np.array([0.0]), params)
+    assert float(q[0]) == 0.2  # inside: unchanged

@@ -64,8 +64,11 @@ def checked(limits) -> tuple[JointLimit, ...]:
                 f"ContactSystem's limits= takes lagrax.contact.JointLimit entries, got {x!r}"
             )
         lo, hi = float(x.lower), float(x.upper)
-        if not (lo < hi) or math.isnan(lo) or math.isnan(hi) or not (
-            math.isfinite(lo) or math.isfinite(hi)
+        if (
+            not (lo < hi)
+            or math.isnan(lo)
+            or math.isnan(hi)
+            or not (math.isfinite(lo) or math.isfinite(hi))
         ):
             raise ConfigurationError(
                 f"the JointLimit of joint {x.name or x.index!r} has lower={x.lower!r}, "

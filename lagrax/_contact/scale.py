@@ -41,6 +41,8 @@ a critically damped stop whose rate `√(p g_n λ_j/(ℓ δ_j λ_j))` is the gro
 `√(p g_n/δ_ref)`: the limits make the equations no stiffer than the ground does.
 """
 
+from typing import Any, NamedTuple
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -125,3 +127,49 @@ def _limit_scale(contact, mass, g_n, size, dtype):
     stiffness = load / delta**p
     dissipation = 4.0 / 3.0 * DAMPING_RATIO * jnp.sqrt(p * inertia / (load * delta))
     return stiffness, dissipation
+
+
+class Coefficients(NamedTuple):
+    """The contact's coefficients at one `params`: stiffness `k`, dissipation `c`,
+    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, `ok`: all valid
+    (and, for defaults, the scene has a weight to scale them by), and the joint limits'
+    stiffness and dissipation, one per limit `(J,)`."""
+
+    stiffness: Any
+    dissipation: Any
+    friction: Any
+    static_friction: Any
+    stiction_velocity: Any
+    ok: Any
+    limit_stiffness: Any = None
+    limit_dissipation: Any = None
+
+
+def coefficients(contact, params, dtype) -> Coefficients:
+    """`ContactSystem.coefficients`: the contact's coefficients at `params` (functions of
+    `params` evaluated, defaults scaled from the scene), and whether they are valid."""
+
+    def value(c):
+        return jnp.asarray(c(params) if callable(c) else c, dtype)
+
+    ok = jnp.asarray(True)
+    stiction = contact.stiction_velocity
+    if stiction is None and contact.friction == 0.0 and contact.static_friction in (None, 0.0):
+        stiction = 1.0  # frictionless: v_s plays no part
+    own = (contact.stiffness, contact.dissipation, stiction)
+    limited = (contact.limit_stiffness, contact.limit_dissipation) if contact.limits else (0.0, 0.0)
+    if None in own + limited:
+        k0, c0, v0, kj0, cj0, ok = scene_scale(contact, params, dtype)
+    k = k0 if contact.stiffness is None else value(contact.stiffness)
+    c = c0 if contact.dissipation is None else value(contact.dissipation)
+    vs = v0 if stiction is None else value(stiction)
+    mu = value(contact.friction)
+    mus = mu if contact.static_friction is None else value(contact.static_friction)
+    n_lim = (len(contact.limits),)
+    kj = kj0 if limited[0] is None else jnp.broadcast_to(value(limited[0]), n_lim)
+    cj = cj0 if limited[1] is None else jnp.broadcast_to(value(limited[1]), n_lim)
+    good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus, kj, cj)]
+    good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu, kj > 0, cj >= 0]
+    # (a friction read from params may be one coefficient per sphere, `(S,)`)
+    valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
+    return Coefficients(k, c, mu, mus, vs, ok & valid, kj, cj)
