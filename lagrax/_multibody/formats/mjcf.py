@@ -90,7 +90,7 @@ def load_model(source: Any):
     return mujoco, _load(mujoco, source)
 
 
-class _Names:
+class Names:
     """Names of a model's objects (`kind` plus the index where unnamed)."""
 
     def __init__(self, mujoco, model):
@@ -284,7 +284,7 @@ def from_mjcf(
     check_meshes(meshes)
     limits_need_contact(limits, contact)
     model = _load(mujoco, source)
-    names = _Names(mujoco, model)
+    names = Names(mujoco, model)
     found = unsupported(mujoco, model, names)
     if found and not ignore_unsupported:
         raise MJCFError(
@@ -384,7 +384,7 @@ def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
     tree body's (tree body −1: the floating base, or the world without one; −2: the
     world beside a floating base). A model of several parts (a `Forest`) is an
     `MJCFError`."""
-    names = _Names(_mujoco(), model)
+    names = Names(_mujoco(), model)
     parts = split_parts(model, names)
     if len(parts) != 1:
         raise MJCFError(
@@ -395,7 +395,7 @@ def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
 
 
 def _bodies(
-    model, names: _Names, free: int | None, keep: set[int]
+    model, names: Names, free: int | None, keep: set[int]
 ) -> tuple[list[TreeBody], TreeBody | None, dict]:
     """The tree's bodies (of the MuJoCo bodies `keep`), in MuJoCo's joint order, with
     every MuJoCo body's inertia merged into the tree body that carries it; with a free
