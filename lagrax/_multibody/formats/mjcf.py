@@ -113,6 +113,7 @@ def from_mjcf(
     contact: bool | Sequence[str] = False,
     meshes: str = "bounding_sphere",
     friction: float | None = None,
+    margin: bool = False,
 ) -> tuple[Any, dict]:
     r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
     and its params, built from MuJoCo's compiled model.
@@ -249,6 +250,10 @@ def from_mjcf(
       spheres.
     - `friction`: with `contact`, one friction coefficient for every sphere (default: read
       from the geoms, as above).
+    - `margin`: with `contact`, grow each sphere by MuJoCo's contact margin, the geom's
+      `margin` plus the ground's (MuJoCo's contacts act from that distance and rest
+      near it: gymnasium's ant stands 20 mm above its floor); default `False`: the
+      geometry itself. [`from_mujoco`][lagrax.chains.from_mujoco] sets it.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
@@ -333,7 +338,7 @@ def from_mjcf(
             f"one has {len(parts)} part(s)"
             + (" and equality constraints" if robot is not robots[-1] else "")
         )
-    points = mjcf_points(model, names, place, contact, meshes, base is not None)
+    points = mjcf_points(model, names, place, contact, meshes, base is not None, margin)
     return contact_scene(
         robot, params, points, mjcf_ground(model), contact_friction(friction), limits
     )

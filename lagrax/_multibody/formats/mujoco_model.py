@@ -92,6 +92,12 @@ def _not_simulated(mujoco, model, names) -> list[str]:
                 f"MuJoCo's {what} friction (geom {names('geom', rows[0])!r}, condim "
                 f"{int(condim[rows[0]])}, coefficient {friction[rows[0], k + 1]:g})"
             )
+    gaps = [g for g in range(model.ngeom) if collide[g] and model.geom_gap[g] > 0]
+    if gaps:
+        found.append(
+            f"a contact gap (geom {names('geom', gaps[0])!r}, gap {model.geom_gap[gaps[0]]:g}: "
+            "lagrax's contact acts from the margin)"
+        )
     found += _body_contacts(mujoco, model, names)
     for i in range(model.nu):
         if int(model.actuator_dyntype[i]) != 0:
@@ -112,8 +118,9 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     It turns on what lagrax simulates of what `mj_step` does:
 
     - **ground contact** from every geom MuJoCo lets collide (`contype`/`conaffinity`)
-      on a moving body, against the model's floor plane, each geom's friction
-      (`from_mjcf(..., contact=True)`);
+      on a moving body, against the model's floor plane, each geom's friction, each
+      sphere grown by MuJoCo's contact margin (`from_mjcf(..., contact=True,
+      margin=True)`);
     - **joint limits, enforced** as compliant stops of the same normal law
       (`limits="contact"`: their stored energy and dissipation in the energy balance);
     - **actuators** driven by `params["ctrl"]` (MuJoCo's `ctrl`, `(n_u,)`, default
@@ -182,7 +189,12 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # named in this call's warning
             scene, params = from_mjcf(
-                model, contact=True, limits="contact", ignore_unsupported=True, dtype=dtype
+                model,
+                contact=True,
+                limits="contact",
+                ignore_unsupported=True,
+                dtype=dtype,
+                margin=True,
             )
     except (MJCFError, ConfigurationError) as err:
         raise MJCFError(f"from_mujoco cannot put this model on the ground: {err}") from None
