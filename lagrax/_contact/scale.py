@@ -168,8 +168,10 @@ def coefficients(contact, params, dtype) -> Coefficients:
     n_lim = (len(contact.limits),)
     kj = kj0 if limited[0] is None else jnp.broadcast_to(value(limited[0]), n_lim)
     cj = cj0 if limited[1] is None else jnp.broadcast_to(value(limited[1]), n_lim)
-    good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus, kj, cj)]
-    good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu, kj > 0, cj >= 0]
+    good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
+    good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
+    if contact.limits:
+        good += [jnp.isfinite(kj), jnp.isfinite(cj), kj > 0, cj >= 0]
     # (a friction read from params may be one coefficient per sphere, `(S,)`)
     valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
     return Coefficients(k, c, mu, mus, vs, ok & valid, kj, cj)

@@ -280,37 +280,22 @@ class ContactSystem(AbstractSystem):
         the defaults cannot be scaled (no weight on the plane), the stiffness is NaN, so
         the accelerations are NaN and the solve reports it."""
         system = self.system.prepared(params, dtype)
-        own = (
-            self.stiffness,
-            self.dissipation,
-            self.stiction_velocity,
-            self.limit_stiffness,
-            self.limit_dissipation,
-        )
-        if None in own[:3] or (self.limits and None in own[3:]):
+        own = (self.stiffness, self.dissipation, self.stiction_velocity)
+        if self.limits:
+            own = (*own, self.limit_stiffness, self.limit_dissipation)
+        if None in own:
             co = self.coefficients(params, dtype)
-            scaled = (
-                jnp.where(co.ok, co.stiffness, jnp.nan),
-                co.dissipation,
-                co.stiction_velocity,
-                co.limit_stiffness,
-                co.limit_dissipation,
-            )
+            scaled = (jnp.where(co.ok, co.stiffness, jnp.nan), co.dissipation)
+            scaled = (*scaled, co.stiction_velocity, co.limit_stiffness, co.limit_dissipation)
+            scaled = scaled[: len(own)]
         else:
             scaled = own
-        return eqx.tree_at(
-            lambda s: (
-                s.system,
-                s.stiffness,
-                s.dissipation,
-                s.stiction_velocity,
-                s.limit_stiffness,
-                s.limit_dissipation,
-            ),
-            self,
-            (system, *scaled),
-            is_leaf=lambda x: x is None,
-        )
+
+        def fields(s):
+            out = (s.system, s.stiffness, s.dissipation, s.stiction_velocity)
+            return (*out, s.limit_stiffness, s.limit_dissipation) if self.limits else out
+
+        return eqx.tree_at(fields, self, (system, *scaled), is_leaf=lambda x: x is None)
 
     def mass_matrix(self, q, params, qd=None, *, t=0.0):
         """The wrapped system's mass matrix (the contact adds no inertia)."""
