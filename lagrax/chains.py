@@ -11,6 +11,8 @@ MuJoCo model through MuJoCo's own compiler (a free joint: a floating base, whose
 [`from_mujoco_acceleration`][lagrax.chains.from_mujoco_acceleration]; several free bodies: a
 [`Forest`][lagrax.chains.Forest]; equality constraints: a
 [`ConstrainedRobot`][lagrax.chains.ConstrainedRobot]);
+[`from_mujoco`][lagrax.chains.from_mujoco], a MuJoCo model as MuJoCo runs it (ground contact,
+enforced limits, actuators, fluid: one call, what it leaves out named in one warning);
 [`limit_events`][lagrax.chains.limit_events], the events that stop a robot's joints at their
 limits:
 
@@ -73,6 +75,7 @@ from ._multibody.formats.mjcf_actuators import mjcf_actuation as mjcf_actuation
 from ._multibody.formats.mjcf_equality import ConstrainedRobot as ConstrainedRobot
 from ._multibody.formats.mjcf_fluid import MJCFFluid as MJCFFluid
 from ._multibody.formats.mjcf_fluid import mjcf_fluid as mjcf_fluid
+from ._multibody.formats.mujoco_model import from_mujoco as from_mujoco
 from ._multibody.formats.mujoco_state import (
     from_mujoco_acceleration as from_mujoco_acceleration,
 )
@@ -101,6 +104,7 @@ __all__ = [
     "MJCFActuation",
     "mjcf_fluid",
     "MJCFFluid",
+    "from_mujoco",
     "from_mujoco_state",
     "to_mujoco_state",
     "from_mujoco_acceleration",

@@ -20,12 +20,14 @@ A [`Capsule`][lagrax.contact.Capsule] is its two end spheres and a
 [`Box`][lagrax.contact.Box] its corners (exact against a plane); `pairs=` makes spheres
 touch each other (billiards, Newton's cradle), with the same law.
 [`body_sphere`][lagrax.contact.body_sphere] fixes a sphere to a tree's body by name (a
-robot's foot), from the tree's own kinematics.
+robot's foot), from the tree's own kinematics. `limits=` enforces joint limits as
+compliant stops of the same law ([`JointLimit`][lagrax.contact.JointLimit]).
 """
 
 from ._contact.geometry import AbstractSphereSource as AbstractSphereSource
 from ._contact.geometry import Plane as Plane
 from ._contact.geometry import Sphere as Sphere
+from ._contact.limits import JointLimit as JointLimit
 from ._contact.shapes import Box as Box
 from ._contact.shapes import Capsule as Capsule
 from ._contact.system import ContactSystem as ContactSystem
@@ -36,6 +38,7 @@ __all__ = [
     "Box",
     "Capsule",
     "ContactSystem",
+    "JointLimit",
     "Plane",
     "Sphere",
     "body_sphere",

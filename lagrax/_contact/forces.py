@@ -12,6 +12,7 @@ import numpy as np
 
 from .._core.errors import ShapeError
 from . import laws, pairs
+from . import limits as joint_limits
 
 
 def _checked(contact, c):
@@ -137,13 +138,16 @@ def gaps(contact, q, params):
 
 
 def elastic_energy(contact, q, params):
-    """`V_c = Σ k δ₊^{p+1}/(p+1)` over the plane's contacts and the pairs."""
+    """`V_c = Σ k δ₊^{p+1}/(p+1)` over the plane's contacts, the pairs and the joint
+    limits' stops."""
     q = jnp.asarray(q)
     co = contact.coefficients(params, jnp.result_type(q, float))
     total = jnp.zeros((), jnp.result_type(q, float))
     for g in gaps(contact, q, params):
         if g is not None:
             total = total + jnp.sum(laws.elastic_energy(-g, co.stiffness, contact.exponent))
+    if contact.limits:
+        total = total + joint_limits.elastic_energy(contact, q, co.limit_stiffness)
     return total
 
 
@@ -206,13 +210,23 @@ def contact_state(contact, q, v, params):
         cotangent["pair"] = force.astype(dtype)
         energy = energy + jnp.sum(laws.elastic_energy(-gap, co.stiffness, contact.exponent))
     (generalized,) = pullback(cotangent)
+    if contact.limits:
+        gap, rate, f_n, f_el, force = joint_limits.state(
+            contact, q, v, co.limit_stiffness, co.limit_dissipation
+        )
+        sign = jnp.asarray(joint_limits.stops(contact.limits).sign, dtype)
+        out.update(limit_gap=gap, limit_rate=rate, limit_normal_force=f_n)
+        out.update(limit_elastic_force=f_el, limit_force=sign * f_n)
+        generalized = generalized + force
+        energy = energy + joint_limits.elastic_energy(contact, q, co.limit_stiffness)
     out.update(generalized=generalized, energy=energy)
     return out
 
 
 def dissipated_power(state):
-    """`Σ (F − f_el n)·v` over the plane's contacts and the pairs: the power of the
-    dissipation and the friction (the elastic part's is `−dV_c/dt`)."""
+    """`Σ (F − f_el n)·v` over the plane's contacts and the pairs, and `Σ (f_n − f_el)
+    ġ` over the joint limits' stops: the power of the dissipation and the friction (the
+    elastic part's is `−dV_c/dt`)."""
     power = jnp.zeros((), state["generalized"].dtype)
     for prefix in ("", "pair_"):
         if prefix + "force" in state:
@@ -220,4 +234,7 @@ def dissipated_power(state):
             power = power + jnp.sum(
                 (state[prefix + "force"] - elastic) * state[prefix + "velocity"]
             )
+    if "limit_gap" in state:
+        damping = state["limit_normal_force"] - state["limit_elastic_force"]
+        power = power + jnp.sum(damping * state["limit_rate"])
     return power

@@ -25,10 +25,27 @@ $$
 the mass `L/g_n`), `v_s` the stiction velocity. They are functions of `params` only (not
 of the state), so the contact's elastic energy is a true potential, and derivatives with
 respect to `params` include theirs.
+
+**Joint limits** (`limits=`) are scaled the same way, per joint `j`, with the joint's
+effective inertia `I_j = 1/(M(q_ref)⁻¹)_{jj}` (the inertia a push on joint `j` alone
+meets) as the resting contact's mass and `λ_j` the length one unit of the joint moves
+(a hinge: `λ_j = ℓ`, per radian; a slide: `λ_j = 1`): the stop's static penetration is
+`δ_j = 10⁻⁴ ℓ/λ_j` (`10⁻⁴` rad on a hinge) under the load `L_j = I_j g_n/λ_j` (the
+torque that turns the joint's inertia at the angular acceleration `g_n/ℓ`), so
+
+$$
+k_j = L_j/δ_j^p, \qquad c_j = 	frac43 \sqrt{p I_j/(L_j δ_j)} = λ_j\,c_{ground},
+$$
+
+a critically damped stop whose rate `√(p g_n λ_j/(ℓ δ_j λ_j))` is the ground contact's,
+`√(p g_n/δ_ref)`: the limits make the equations no stiffer than the ground does.
 """
+
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 PENETRATION = 1e-4  # δ_ref/ℓ: the static penetration, relative to the scene's size
 STICTION = 1e-4  # v_s/sqrt(g_n ℓ): the stiction velocity, relative to the scene's speed
@@ -58,13 +75,15 @@ def scene_size(contact, params, dtype):
 
 
 def scene_scale(contact, params, dtype):
-    """`(k, c, v_s, ok)`: the default stiffness, dissipation and stiction velocity of
-    `contact` (a `ContactSystem`) at `params`, and whether the scene has a weight on the
-    plane to scale them by (`ok` false: no gravity towards it)."""
+    """`(k, c, v_s, k_j, c_j, ok)`: the default stiffness, dissipation and stiction
+    velocity of `contact` (a `ContactSystem`) at `params`, its joint limits' stiffness
+    and dissipation `(J,)`, and whether the scene has a weight on the plane to scale them
+    by (`ok` false: no gravity towards it)."""
     system, p = contact.system, contact.exponent
     if contact.plane is None:  # pairs alone: no weight on a plane to scale by
         one = jnp.ones((), dtype)
-        return one, one, one, jnp.asarray(False)
+        ones = jnp.ones((len(contact.limits),), dtype)
+        return one, one, one, ones, ones, jnp.asarray(False)
     q_ref = reference_configuration(system, contact.reference, dtype)
     v0 = jnp.zeros((system.n_dof,), dtype)
     free = system.accelerations(jnp.zeros((), dtype), q_ref, v0, params, None)
@@ -89,4 +108,70 @@ def scene_scale(contact, params, dtype):
     stiffness = load / delta**p
     dissipation = 4.0 / 3.0 * DAMPING_RATIO * jnp.sqrt(p / (g_n * delta))
     stiction = STICTION * jnp.sqrt(g_n * size)
-    return stiffness, dissipation, stiction, ok
+    limit_k, limit_c = _limit_scale(contact, mass, g_n, size, dtype)
+    return stiffness, dissipation, stiction, limit_k, limit_c, ok
+
+
+def _limit_scale(contact, mass, g_n, size, dtype):
+    """`(k_j, c_j)` `(J,)` of the joint limits (the module docstring) from the mass
+    matrix at `q_ref`, the normal acceleration `g_n` and the size `ℓ`."""
+    if not contact.limits:
+        return jnp.zeros((0,), dtype), jnp.zeros((0,), dtype)
+    p = contact.exponent
+    rates = np.asarray([lim.rate for lim in contact.limits], int)
+    lever = jnp.where(jnp.asarray([lim.angular for lim in contact.limits]), size, 1.0)
+    basis = jnp.eye(mass.shape[0], dtype=dtype)[:, rates]
+    inertia = 1.0 / jnp.sum(basis * jnp.linalg.solve(mass, basis), axis=0)
+    delta = PENETRATION * size / lever
+    load = inertia * g_n / lever
+    stiffness = load / delta**p
+    dissipation = 4.0 / 3.0 * DAMPING_RATIO * jnp.sqrt(p * inertia / (load * delta))
+    return stiffness, dissipation
+
+
+class Coefficients(NamedTuple):
+    """The contact's coefficients at one `params`: stiffness `k`, dissipation `c`,
+    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, `ok`: all valid
+    (and, for defaults, the scene has a weight to scale them by), and the joint limits'
+    stiffness and dissipation, one per limit `(J,)`."""
+
+    stiffness: Any
+    dissipation: Any
+    friction: Any
+    static_friction: Any
+    stiction_velocity: Any
+    ok: Any
+    limit_stiffness: Any = None
+    limit_dissipation: Any = None
+
+
+def coefficients(contact, params, dtype) -> Coefficients:
+    """`ContactSystem.coefficients`: the contact's coefficients at `params` (functions of
+    `params` evaluated, defaults scaled from the scene), and whether they are valid."""
+
+    def value(c):
+        return jnp.asarray(c(params) if callable(c) else c, dtype)
+
+    ok = jnp.asarray(True)
+    stiction = contact.stiction_velocity
+    if stiction is None and contact.friction == 0.0 and contact.static_friction in (None, 0.0):
+        stiction = 1.0  # frictionless: v_s plays no part
+    own = (contact.stiffness, contact.dissipation, stiction)
+    limited = (contact.limit_stiffness, contact.limit_dissipation) if contact.limits else (0.0, 0.0)
+    if None in own + limited:
+        k0, c0, v0, kj0, cj0, ok = scene_scale(contact, params, dtype)
+    k = k0 if contact.stiffness is None else value(contact.stiffness)
+    c = c0 if contact.dissipation is None else value(contact.dissipation)
+    vs = v0 if stiction is None else value(stiction)
+    mu = value(contact.friction)
+    mus = mu if contact.static_friction is None else value(contact.static_friction)
+    n_lim = (len(contact.limits),)
+    kj = kj0 if limited[0] is None else jnp.broadcast_to(value(limited[0]), n_lim)
+    cj = cj0 if limited[1] is None else jnp.broadcast_to(value(limited[1]), n_lim)
+    good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
+    good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
+    if contact.limits:
+        good += [jnp.isfinite(kj), jnp.isfinite(cj), kj > 0, cj >= 0]
+    # (a friction read from params may be one coefficient per sphere, `(S,)`)
+    valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
+    return Coefficients(k, c, mu, mus, vs, ok & valid, kj, cj)

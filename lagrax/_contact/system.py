@@ -2,7 +2,7 @@
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -12,87 +12,13 @@ from .._core.checks import coords, eager_only, traced
 from .._core.errors import ArgumentTypeError, ConfigurationError
 from .._solve.events import Event
 from .._systems.abstract import AbstractSystem
-from . import forces, pairs, scale, stability, start
-from .geometry import Plane, Sphere, placement_groups, real_number
+from . import arguments, forces, pairs, scale, stability, start
+from . import limits as joint_limits
+from .arguments import Coefficient
+from .geometry import Plane, Sphere, placement_groups
+from .limits import JointLimit
 from .pairs import pair_list as pairs_of
-from .shapes import Box, Capsule
-
-Coefficient = float | Callable[[Any], Any] | None
-
-
-class Coefficients(NamedTuple):
-    """The contact's coefficients at one `params`: stiffness `k`, dissipation `c`,
-    kinetic and static friction `μ`, `μ_s`, stiction velocity `v_s`, and `ok`: all
-    valid (and, for defaults, the scene has a weight to scale them by)."""
-
-    stiffness: Any
-    dissipation: Any
-    friction: Any
-    static_friction: Any
-    stiction_velocity: Any
-    ok: Any
-
-
-def _coefficient(name: str, value: Coefficient, *, allow_none: bool) -> Coefficient:
-    """A number (checked now: finite, `>= 0`) or a function of `params` (checked when
-    `check_state` runs)."""
-    if value is None:
-        if not allow_none:
-            raise ConfigurationError(f"ContactSystem's {name} must be given")
-        return None
-    if callable(value):
-        return value
-    if isinstance(value, (bool, np.bool_)):
-        raise ArgumentTypeError(f"ContactSystem's {name} must be a real number, got {value!r}")
-    x = real_number(value, f"ContactSystem's {name} must be a real number or a function of params")
-    if not (math.isfinite(x) and x >= 0):
-        raise ConfigurationError(
-            f"ContactSystem's {name} must be finite and >= 0, got {name}={value!r}"
-        )
-    return x
-
-
-def _spheres(spheres: Any, plane: Any) -> tuple[Sphere, ...]:
-    """`spheres=` as a tuple of `Sphere`s (a `Capsule` or `Box` stands for its own),
-    each oriented for the plane's dimension (or, without a plane, all alike)."""
-    items = (spheres,) if isinstance(spheres, (Sphere, Capsule, Box)) else tuple(spheres)
-    out = tuple(
-        part for x in items for part in (x.spheres if isinstance(x, (Capsule, Box)) else (x,))
-    )
-    if not out or not all(isinstance(s, Sphere) for s in out):
-        raise ConfigurationError(
-            f"ContactSystem needs one or more lagrax.contact.Sphere (or Capsule, Box), got {out!r}"
-        )
-    planar = any(s.angle is not None for s in out)
-    if planar and any(s.rotation is not None for s in out):
-        raise ConfigurationError(
-            "the Spheres mix angle= (planar) and rotation= (spatial) orientations"
-        )
-    dim = getattr(plane, "dim", None)
-    if planar and dim == 3:
-        raise ConfigurationError(
-            "a Sphere with angle= (a planar body's orientation) needs a 2-D plane; this plane "
-            "is 3-D: give rotation= instead"
-        )
-    if any(s.rotation is not None for s in out) and dim == 2:
-        raise ConfigurationError(
-            "a Sphere with rotation= (a 3x3 rotation matrix) needs a 3-D plane; this plane is "
-            "2-D: give angle= instead"
-        )
-    return out
-
-
-def _max_penetration(value: Any) -> float | None:
-    """`max_penetration=`, checked: a finite number > 0, or `None`."""
-    if value is None:
-        return None
-    x = real_number(value, "ContactSystem's max_penetration must be a number or None")
-    if not (math.isfinite(x) and x > 0):
-        raise ConfigurationError(
-            f"ContactSystem's max_penetration must be finite and > 0 (or None), got "
-            f"max_penetration={value!r}"
-        )
-    return x
+from .scale import Coefficients
 
 
 class ContactSystem(AbstractSystem):
@@ -152,6 +78,27 @@ class ContactSystem(AbstractSystem):
       `0.01`. A deeper start is a `ContactError` (see `check_state`); a shallower one is
       pushed out by the contact spring, its stored energy part of the energy balance.
       `None`: no limit.
+    - `limits`: joint limits enforced as compliant stops, a sequence of
+      [`JointLimit`][lagrax.contact.JointLimit] (default none): each finite bound of
+      joint `i` is a contact of the same normal law and exponent whose gap is
+      `q_i − lo` (or `hi − q_i`) and whose force `±f_n` acts on joint `i` alone; its
+      elastic energy is part of `energy` and its dissipation of `input_power`, as the
+      ground's. The loaders' `limits="contact"` fills it from the robot's file. A
+      joint that starts past its limit starts at it (`initial_state`), as MuJoCo's soft
+      limit puts it there within its time constant: a stop started deep would release
+      its stored energy only at the slow pace the damping allows (the law's force
+      vanishes where the joint leaves faster than `2/(3c)`). MuJoCo's files often start
+      outside (gymnasium's ant, its ankles at 0 against limits from 30°).
+    - `limit_stiffness`, `limit_dissipation`: the stops' `k` (torque per rad^p, or
+      force per m^p) and `c` (time per radian, or per metre), a number, one per limit
+      or a function of `params`; default (`None`) scaled from the scene per joint, as
+      critically damped stops as fast as the ground contact (see the contact guide).
+    - `force`: an applied generalized force `F(t, q, v, params) -> (n_dof,)` added to
+      the input, its power `F·v` in `input_power` (default `None`: none);
+      [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's actuators at
+      `params["ctrl"]` and its fluid forces here.
+    - `unsupported`: what the scene's source file has that the scene does not simulate,
+      one sentence each (default none; set by `from_mujoco`, which warns with them).
     - `name`: a label for messages.
 
     Each coefficient is a number or a function `f(params)`: a function reads it from
@@ -194,6 +141,11 @@ class ContactSystem(AbstractSystem):
     pairs: tuple[tuple[int, int], ...] = eqx.field(static=True)
     max_penetration: float | None = eqx.field(static=True)
     groups: tuple[tuple[int, ...], ...] = eqx.field(static=True)
+    limits: tuple[JointLimit, ...] = eqx.field(static=True)
+    limit_stiffness: Coefficient
+    limit_dissipation: Coefficient
+    force: Callable[..., Any] | None
+    unsupported: tuple[str, ...] = eqx.field(static=True)
 
     def __init__(
         self,
@@ -210,6 +162,11 @@ class ContactSystem(AbstractSystem):
         exponent: float = 1.5,
         reference: Any = None,
         max_penetration: float | None = 0.01,
+        limits: Sequence[JointLimit] | None = None,
+        limit_stiffness: Coefficient = None,
+        limit_dissipation: Coefficient = None,
+        force: Callable[..., Any] | None = None,
+        unsupported: Sequence[str] = (),
         name: str | None = None,
     ):
         if not isinstance(system, AbstractSystem):
@@ -217,7 +174,7 @@ class ContactSystem(AbstractSystem):
                 f"ContactSystem wraps a lagrax system (an AbstractSystem), got "
                 f"{type(system).__name__}"
             )
-        spheres = _spheres(spheres, plane)
+        spheres = arguments.sphere_tuple(spheres, plane)
         if plane is not None and not isinstance(plane, Plane):
             raise ArgumentTypeError(f"plane must be a lagrax.contact.Plane or None, got {plane!r}")
         self.pairs = pairs_of(pairs, len(spheres))
@@ -230,19 +187,21 @@ class ContactSystem(AbstractSystem):
         self.spheres = spheres
         self.groups = placement_groups(spheres)
         self.plane = plane
-        self.friction = _coefficient("friction", friction, allow_none=False)
-        self.static_friction = _coefficient("static_friction", static_friction, allow_none=True)
+        self.friction = arguments.coefficient("friction", friction, allow_none=False)
+        self.static_friction = arguments.coefficient(
+            "static_friction", static_friction, allow_none=True
+        )
         mu, mus = self.friction, self.static_friction
         if isinstance(mu, float) and isinstance(mus, float) and mus < mu:
             raise ConfigurationError(
                 f"static_friction must be >= friction (stiction holds at least as much as "
                 f"sliding), got static_friction={mus!r} < friction={mu!r}"
             )
-        self.stiffness = _coefficient("stiffness", stiffness, allow_none=True)
+        self.stiffness = arguments.coefficient("stiffness", stiffness, allow_none=True)
         if isinstance(self.stiffness, float) and self.stiffness == 0:
             raise ConfigurationError("ContactSystem's stiffness must be > 0, got stiffness=0")
-        self.dissipation = _coefficient("dissipation", dissipation, allow_none=True)
-        self.stiction_velocity = _coefficient(
+        self.dissipation = arguments.coefficient("dissipation", dissipation, allow_none=True)
+        self.stiction_velocity = arguments.coefficient(
             "stiction_velocity", stiction_velocity, allow_none=True
         )
         if self.stiction_velocity == 0:
@@ -257,7 +216,16 @@ class ContactSystem(AbstractSystem):
         self.exponent = exponent
         self.reference = None if reference is None else tuple(float(x) for x in np.ravel(reference))
         self.name = f"{system.name} (contact)" if name is None else name
-        self.max_penetration = _max_penetration(max_penetration)
+        self.max_penetration = arguments.max_penetration(max_penetration)
+        self.limits = joint_limits.checked(limits)
+        self.limit_stiffness = arguments.limit_coefficient("limit_stiffness", limit_stiffness)
+        self.limit_dissipation = arguments.limit_coefficient("limit_dissipation", limit_dissipation)
+        if force is not None and not callable(force):
+            raise ArgumentTypeError(
+                f"ContactSystem's force must be a function F(t, q, v, params), got {force!r}"
+            )
+        self.force = force
+        self.unsupported = tuple(str(x) for x in unsupported)
 
     # ------------------------------------------------------------ shared with the system
     @property
@@ -294,9 +262,16 @@ class ContactSystem(AbstractSystem):
         return self.system.project_configuration(q)
 
     def initial_state(self, q, qd, params):
-        """The wrapped system's initial state (the contact changes nothing there), `ok`
-        false also where a sphere starts deeper than `max_penetration` allows."""
+        """The wrapped system's initial state, with each joint that starts past one of
+        its `limits` moved onto it (its rate kept), and `ok` false also where a sphere
+        starts deeper than `max_penetration` allows."""
         q, qd, ok = self.system.initial_state(q, qd, params)
+        if self.limits:  # a joint started past a limit starts at it
+            index = np.asarray([lim.index for lim in self.limits], int)
+            lower = jnp.asarray([lim.lower for lim in self.limits], q.dtype)
+            upper = jnp.asarray([lim.upper for lim in self.limits], q.dtype)
+            q = jnp.asarray(q)
+            q = q.at[index].set(jnp.clip(q[index], lower, upper))
         return q, qd, ok & start.admissible(self, q, params)
 
     def prepared(self, params, dtype):
@@ -305,21 +280,22 @@ class ContactSystem(AbstractSystem):
         the defaults cannot be scaled (no weight on the plane), the stiffness is NaN, so
         the accelerations are NaN and the solve reports it."""
         system = self.system.prepared(params, dtype)
-        if None in (self.stiffness, self.dissipation, self.stiction_velocity):
+        own = (self.stiffness, self.dissipation, self.stiction_velocity)
+        if self.limits:
+            own = (*own, self.limit_stiffness, self.limit_dissipation)
+        if None in own:
             co = self.coefficients(params, dtype)
-            scaled = (
-                jnp.where(co.ok, co.stiffness, jnp.nan),
-                co.dissipation,
-                co.stiction_velocity,
-            )
+            scaled = (jnp.where(co.ok, co.stiffness, jnp.nan), co.dissipation)
+            scaled = (*scaled, co.stiction_velocity, co.limit_stiffness, co.limit_dissipation)
+            scaled = scaled[: len(own)]
         else:
-            scaled = (self.stiffness, self.dissipation, self.stiction_velocity)
-        return eqx.tree_at(
-            lambda s: (s.system, s.stiffness, s.dissipation, s.stiction_velocity),
-            self,
-            (system, *scaled),
-            is_leaf=lambda x: x is None,
-        )
+            scaled = own
+
+        def fields(s):
+            out = (s.system, s.stiffness, s.dissipation, s.stiction_velocity)
+            return (*out, s.limit_stiffness, s.limit_dissipation) if self.limits else out
+
+        return eqx.tree_at(fields, self, (system, *scaled), is_leaf=lambda x: x is None)
 
     def mass_matrix(self, q, params, qd=None, *, t=0.0):
         """The wrapped system's mass matrix (the contact adds no inertia)."""
@@ -379,25 +355,7 @@ class ContactSystem(AbstractSystem):
         """The contact's coefficients at `params` (functions of `params` evaluated,
         defaults scaled from the scene), and whether they are valid."""
 
-        def value(c):
-            return jnp.asarray(c(params) if callable(c) else c, dtype)
-
-        ok = jnp.asarray(True)
-        stiction = self.stiction_velocity
-        if stiction is None and self.friction == 0.0 and self.static_friction in (None, 0.0):
-            stiction = 1.0  # frictionless: v_s plays no part
-        if None in (self.stiffness, self.dissipation, stiction):
-            k0, c0, v0, ok = scale.scene_scale(self, params, dtype)
-        k = k0 if self.stiffness is None else value(self.stiffness)
-        c = c0 if self.dissipation is None else value(self.dissipation)
-        vs = v0 if stiction is None else value(stiction)
-        mu = value(self.friction)
-        mus = mu if self.static_friction is None else value(self.static_friction)
-        good = [jnp.isfinite(x) for x in (k, c, vs, mu, mus)]
-        good += [k > 0, c >= 0, vs > 0, mu >= 0, mus >= mu]
-        # (a friction read from params may be one coefficient per sphere, `(S,)`)
-        valid = jnp.all(jnp.stack([jnp.all(x) for x in good]))
-        return Coefficients(k, c, mu, mus, vs, ok & valid)
+        return scale.coefficients(self, params, dtype)
 
     # ------------------------------------------------------------ forces
     def contact_state(self, q, v, params):
@@ -429,6 +387,8 @@ class ContactSystem(AbstractSystem):
         contact = self.contact_state(q, qd, params)
         force = contact["generalized"]
         force = force if tau is None else force + tau
+        if self.force is not None:
+            force = force + self.force(t, q, qd, params)
         qdd = self.system.accelerations(t, q, qd, params, force)
         return jnp.where(contact["coefficients"].ok, qdd, jnp.nan)
 
@@ -476,6 +436,7 @@ class ContactSystem(AbstractSystem):
             ("static_friction", co.static_friction, ">= friction"),
             ("stiction_velocity", co.stiction_velocity, "> 0"),
         )
+        arguments.check_limit_coefficients(self, co)
         for label, value, rule in named:
             # (a friction read from params may be one coefficient per sphere, `(S,)`)
             values = np.broadcast_to(np.asarray(value, float), (len(self.spheres),))
@@ -512,9 +473,12 @@ class ContactSystem(AbstractSystem):
 
     def input_power(self, t, q, qd, params, tau):
         """The wrapped system's input power plus the contacts' dissipation and friction,
-        `Σ (F_i − f_el,i n_i)·v_i` over the plane's contacts and the pairs (the
-        elastic part's power is `−dV_c/dt`, in `h`)."""
+        `Σ (F_i − f_el,i n_i)·v_i` over the plane's contacts and the pairs, the joint
+        limits' `Σ (f_n − f_el) ġ` (the elastic parts' power is `−dV_c/dt`, in `h`),
+        and the applied `force`'s `F·v`."""
         power = forces.dissipated_power(self.contact_state(q, qd, params))
+        if self.force is not None:
+            power = power + jnp.dot(self.force(t, q, qd, params), qd)
         inner = self.system.input_power(t, q, qd, params, tau)
         return power if inner is None else inner + power
 
@@ -537,12 +501,13 @@ class ContactSystem(AbstractSystem):
         """The wrapped system's observables, and `contact_gap` `(S,)` and
         `contact_force` `(S, d)` (on each contact point, in the world frame; with a
         plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
-        `(i, j)`; with pairs)."""
+        `(i, j)`; with pairs), `limit_gap` `(K,)` and `limit_force` `(K,)` (each joint
+        limit's stop: its gap, and its generalized force on its joint; with limits)."""
         out = dict(self.system.observables(t, q, qd, params, tau))
         contact = self.contact_state(q, qd, params)
         for key, _ in _OUTPUTS:
             if key in contact:
-                out[key if key.startswith("pair_") else f"contact_{key}"] = contact[key]
+                out[key if key.startswith(("pair_", "limit_")) else f"contact_{key}"] = contact[key]
         return out
 
     def observable_dims(self):
@@ -555,16 +520,21 @@ class ContactSystem(AbstractSystem):
             "contact_force": ("contact", "axis"),
             "pair_gap": ("pair",),
             "pair_force": ("pair", "axis"),
+            "limit_gap": ("stop",),
+            "limit_force": ("stop",),
         }
 
     # ------------------------------------------------------------ events
     def events(self, max_events: int = 100) -> tuple[Event, ...]:
         """One [`Event`][lagrax.Event] per sphere on its gap to the plane, then one per
-        pair on its gap, for `simulate(..., events=)`: each contact's onset and release
-        is located on the dense output and the step is cut there (an identity reset), so
-        the adaptive steps keep their order across the switch. `Solution.events[i]`
+        pair on its gap, then one per joint limit's stop (each finite bound, lower
+        before upper, in the order of `limits`) on its gap, for `simulate(...,
+        events=)`: each contact's onset and release is located on the dense output and
+        the step is cut there (an identity reset), so the adaptive steps keep their
+        order across the switch. `Solution.events[i]`
         records sphere `i`'s crossings (with a plane), then pair `k`'s at
-        `Solution.events[S + k]` (`S`: the number of spheres; `k` without a plane).
+        `Solution.events[S + k]` (`S`: the number of spheres; `k` without a plane), then
+        the stops'.
 
         **Arguments:** `max_events`: the most crossings recorded per contact (a solve
         with more ends with `RESULTS.event_cascade`).
@@ -579,6 +549,10 @@ class ContactSystem(AbstractSystem):
         if self.plane is not None:
             conditions += [gap_of(i, 0) for i in range(len(self.spheres))]
         conditions += [gap_of(k, 1) for k in range(len(self.pairs))]
+        stops = joint_limits.stops(self.limits)
+        conditions += [
+            (lambda t, q, qd, p, k=k: joint_limits.gaps(self, q)[k]) for k in range(len(stops.q))
+        ]
         return tuple(
             Event(c, reset=lambda t, q, qd, p: (q, qd), max_events=max_events) for c in conditions
         )
@@ -589,4 +563,6 @@ _OUTPUTS = (
     ("force", "forces"),
     ("pair_gap", "pair gaps"),
     ("pair_force", "pair forces"),
+    ("limit_gap", "joint limits' gaps"),
+    ("limit_force", "joint limits' forces"),
 )

@@ -30,12 +30,13 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._contact.limits import JointLimit
 from .._core.errors import ConfigurationError, ParameterError
 from .._solve.events import Event
 from .articulated.trees import AbstractTree, Tree
 from .floating.system import FloatingTree
 
-LIMIT_MODELS = (None, "impact")
+LIMIT_MODELS = (None, "impact", "contact")
 """The values of `from_urdf`'s and `from_mjcf`'s `limits=`."""
 
 
@@ -61,15 +62,16 @@ def _restitution(value: Any, n: int, where: str) -> np.ndarray:
 def with_limits(
     tree: Tree, params: dict, limits: str | None, restitution: Any
 ) -> tuple[Tree, dict]:
-    """`(tree, params)` of a robot file read with `limits=` (`None`: unchanged;
-    `"impact"`: `params["restitution"]`, one coefficient per joint)."""
+    """`(tree, params)` of a robot file read with `limits=` (`None`, `"contact"`:
+    unchanged, the contact scene enforces them; `"impact"`: `params["restitution"]`, one
+    coefficient per joint)."""
     if limits not in LIMIT_MODELS:
         raise ConfigurationError(
-            f"limits must be None (limits kept in tree.limits, not enforced) or 'impact' "
-            f"(joints stop at their limits by impacts: lagrax.chains.limit_events), got "
-            f"{limits!r}"
+            f"limits must be None (limits kept in tree.limits, not enforced), 'impact' "
+            f"(joints stop at their limits by impacts: lagrax.chains.limit_events) or "
+            f"'contact' (compliant stops, with contact=), got {limits!r}"
         )
-    if limits is None:
+    if limits in (None, "contact"):
         return tree, params
     lims = np.asarray([tree.limits[b] for b in tree.coordinates], float)
     if not np.any(np.isfinite(lims)):
@@ -79,6 +81,30 @@ def with_limits(
         )
     e = _restitution(restitution, tree.n, "limits='impact'")
     return tree, {**params, "restitution": jnp.asarray(e, dtype=params["g"].dtype)}
+
+
+def contact_limits(robot: Any) -> tuple[JointLimit, ...]:
+    """The robot's finite joint limits as the [`JointLimit`][lagrax.contact.JointLimit]s
+    of a contact scene (`limits="contact"`), in the tree's coordinate order: a hinge's
+    angular, a slide's not; a floating base's joints sit 7 into `q` and 6 into `v`.
+    `ConfigurationError` for a tree with ball joints (their coordinates are not one per
+    joint)."""
+    tree, q0, v0 = _joints(robot)
+    if not isinstance(tree, Tree):
+        return ()
+    if tree.balls:
+        raise ConfigurationError(
+            "limits='contact' is not read for a tree with ball joints yet (their quaternion "
+            "coordinates): load it with limits=None"
+        )
+    out = []
+    for i, body in enumerate(tree.coordinates):
+        lo, hi = (float(x) for x in tree.limits[body])
+        if math.isfinite(lo) or math.isfinite(hi):
+            angular = tree.joint_types[body] != "P"
+            name = tree.joint_names[body]
+            out.append(JointLimit(q0 + i, lo, hi, v0 + i, angular, name))
+    return tuple(out)
 
 
 def _joints(tree: Any) -> tuple[Any, int, int]:

@@ -72,6 +72,10 @@ class Solution(eqx.Module):
       pair's gap `|c_j − c_i| − r_i − r_j` at `ts`, shape `(T, P)`, and the force on
       sphere `j` of pair `(i, j)` (that on `i` is its opposite), shape `(T, P, d)`;
       `None` otherwise.
+    - `limit_gap`, `limit_force`: for a `ContactSystem` with joint `limits`, each stop's
+      gap to its bound at `ts` (negative: past the limit), shape `(T, K)`, and its
+      generalized force on its joint (positive at a lower stop), shape `(T, K)`; `None`
+      otherwise.
 
     After a failed solve with `throw=False`, entries past the failure time are `inf`
     (diffrax's fill value), never silently wrong numbers; a fixed-step solve that blew up
@@ -98,6 +102,8 @@ class Solution(eqx.Module):
     contact_force: Float[Array, "T S d"] | None = None
     pair_gap: Float[Array, "T P"] | None = None
     pair_force: Float[Array, "T P d"] | None = None
+    limit_gap: Float[Array, "T K"] | None = None
+    limit_force: Float[Array, "T K"] | None = None
 
     @property
     def ok(self) -> Array:

@@ -280,13 +280,30 @@ def mjcf_ground(model) -> tuple[tuple[float, float, float], float, float | None]
     return (0.0, 0.0, 1.0), 0.0, None
 
 
+def ground_margin(model) -> float:
+    """The contact margin of the model's ground (`mjcf_ground`'s plane; 0 without)."""
+    for g in range(model.ngeom):
+        if int(model.geom_bodyid[g]) == 0 and int(model.geom_type[g]) == _PLANE:
+            return float(model.geom_margin[g])
+    return 0.0
+
+
 def mjcf_points(
-    model, names: Any, place: dict, contact: Any, meshes: str, floating: bool
+    model,
+    names: Any,
+    place: dict,
+    contact: Any,
+    meshes: str,
+    floating: bool,
+    margin: bool = False,
 ) -> list[ContactPoint]:
     """The contact spheres of the model's colliding geoms (`contype` or `conaffinity`
     nonzero) on moving bodies, each placed in its tree body by `place` (MuJoCo body ->
     `(tree body, R, p)`; tree body −1 the floating base if `floating`, else the world;
-    −2 the world beside a floating base)."""
+    −2 the world beside a floating base); with `margin`, each sphere's radius grown by
+    MuJoCo's margin of its geom against the ground (the two geoms' `margin`s added, as
+    MuJoCo adds them)."""
+    extra = ground_margin(model) if margin else 0.0
     lowest = -1 if floating else 0
     colliding = [
         g
@@ -325,5 +342,7 @@ def mjcf_points(
             pos + rot @ np.asarray(model.geom_pos[g], float),
             rot @ quat_matrix(model.geom_quat[g]),
         )
+        if margin:
+            radius = radius + extra + float(model.geom_margin[g])
         points += placed(body, frame, centres, radius, name, float(model.geom_friction[g, 0]))
     return points

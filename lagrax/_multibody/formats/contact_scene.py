@@ -13,10 +13,22 @@ from ..._contact.geometry import Plane
 from ..._contact.system import ContactSystem
 from ..._core.errors import ConfigurationError
 from ..floating.system import FloatingTree
+from ..limits import contact_limits
 from ..spheres import body_sphere
 from .collision import ContactPoint
 
 DEFAULT_FRICTION = 1.0  # MuJoCo's default sliding friction
+
+
+def limits_need_contact(limits: Any, contact: Any) -> None:
+    """`ConfigurationError` for `limits="contact"` without `contact=`: the stops are
+    a contact scene's, scaled by the weight on its ground."""
+    if limits == "contact" and (contact is False or contact is None):
+        raise ConfigurationError(
+            "limits='contact' enforces the joint limits as compliant contacts of the "
+            "contact scene, which contact= builds (its defaults are scaled by the weight on "
+            "the ground): pass contact=True as well, or limits='impact'"
+        )
 
 
 def contact_friction(value: Any) -> float | None:
@@ -48,12 +60,14 @@ def contact_scene(
     points: Sequence[ContactPoint],
     ground: tuple[Any, float, float | None],
     friction: float | None,
+    limits: str | None = None,
 ) -> tuple[ContactSystem, dict]:
     """`(scene, params)`: `robot.system()` with a sphere per point (by
     [`body_sphere`][lagrax.contact.body_sphere]) on the `ground = (normal, offset,
     its friction or None)`, and `params` plus `"contact_friction"`, one coefficient per
     sphere: `friction` if given, else the point's with the ground's (the larger of the
-    two, MuJoCo's rule), else `DEFAULT_FRICTION`."""
+    two, MuJoCo's rule), else `DEFAULT_FRICTION`; with `limits="contact"`, the robot's
+    joint limits as the scene's compliant stops (`contact_limits`)."""
     if not points:
         raise ConfigurationError(
             "contact=: the model has no collision geometry on its moving bodies (or none "
@@ -77,6 +91,7 @@ def contact_scene(
         spheres,
         Plane(normal, offset),
         friction=lambda p: p["contact_friction"],
+        limits=contact_limits(robot) if limits == "contact" else None,
         name=f"{robot.base_name if floating else 'robot'} on the ground",
     )
     return scene, out

@@ -38,7 +38,7 @@ from ..floating.forest import Forest
 from ..joint_space import FRICTION_VELOCITY
 from ..limits import with_limits
 from .collision import check_meshes, mjcf_ground, mjcf_points
-from .contact_scene import contact_friction, contact_scene
+from .contact_scene import contact_friction, contact_scene, limits_need_contact
 from .mjcf_balls import ball_lanes, balls_supported
 from .mjcf_equality import constrained, equality_rows
 from .mjcf_parts import TreeBody, quat_matrix, split_parts
@@ -90,7 +90,7 @@ def load_model(source: Any):
     return mujoco, _load(mujoco, source)
 
 
-class _Names:
+class Names:
     """Names of a model's objects (`kind` plus the index where unnamed)."""
 
     def __init__(self, mujoco, model):
@@ -113,6 +113,7 @@ def from_mjcf(
     contact: bool | Sequence[str] = False,
     meshes: str = "bounding_sphere",
     friction: float | None = None,
+    margin: bool = False,
 ) -> tuple[Any, dict]:
     r"""A MuJoCo model (MJCF, or any file MuJoCo reads) as a [`Tree`][lagrax.chains.Tree]
     and its params, built from MuJoCo's compiled model.
@@ -227,7 +228,11 @@ def from_mjcf(
       enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
       restitution `restitution`, as for [`lagrax.chains.from_urdf`][] (the params gain
       `"restitution"`; pass [`lagrax.chains.limit_events`][]`(tree)` to
-      [`lagrax.simulate`][]).
+      [`lagrax.simulate`][]); `"contact"` (with `contact=`): each finite limit is a
+      compliant stop of the contact scene, the ground contact's normal law in joint
+      space (a [`JointLimit`][lagrax.contact.JointLimit]; its energy and dissipation in
+      the scene's energy balance, its coefficients scaled from the scene), as MuJoCo
+      enforces its limits by soft constraints.
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
     - `ignore_unsupported`: drop what lagrax does not model (gravity compensation,
@@ -245,6 +250,10 @@ def from_mjcf(
       spheres.
     - `friction`: with `contact`, one friction coefficient for every sphere (default: read
       from the geoms, as above).
+    - `margin`: with `contact`, grow each sphere by MuJoCo's contact margin, the geom's
+      `margin` plus the ground's (MuJoCo's contacts act from that distance and rest
+      near it: gymnasium's ant stands 20 mm above its floor); default `False`: the
+      geometry itself. [`from_mujoco`][lagrax.chains.from_mujoco] sets it.
 
     **Returns:** `(tree, params)`: the [`Tree`][lagrax.chains.Tree] and
     `{"m", "offset", "com", "inertia", "damping", "g"}` (and `"restitution"`, and the
@@ -265,7 +274,8 @@ def from_mjcf(
     `ignore_unsupported`), naming the first one and its value. `MJCFError` also when
     the `mujoco` package is not installed. [`lagrax.MissingFileError`][] (a
     `FileNotFoundError`) for a missing file;
-    `ConfigurationError` for a bad `limits` or `restitution`.
+    `ConfigurationError` for a bad `limits` or `restitution`, or `limits="contact"`
+    without `contact=`.
 
     **Example:**
 
@@ -277,8 +287,9 @@ def from_mjcf(
     """
     mujoco = _mujoco()
     check_meshes(meshes)
+    limits_need_contact(limits, contact)
     model = _load(mujoco, source)
-    names = _Names(mujoco, model)
+    names = Names(mujoco, model)
     found = unsupported(mujoco, model, names)
     if found and not ignore_unsupported:
         raise MJCFError(
@@ -327,8 +338,10 @@ def from_mjcf(
             f"one has {len(parts)} part(s)"
             + (" and equality constraints" if robot is not robots[-1] else "")
         )
-    points = mjcf_points(model, names, place, contact, meshes, base is not None)
-    return contact_scene(robot, params, points, mjcf_ground(model), contact_friction(friction))
+    points = mjcf_points(model, names, place, contact, meshes, base is not None, margin)
+    return contact_scene(
+        robot, params, points, mjcf_ground(model), contact_friction(friction), limits
+    )
 
 
 def _equalities(mujoco, model, names, robot, places: dict, ignore: bool):
@@ -376,7 +389,7 @@ def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
     tree body's (tree body −1: the floating base, or the world without one; −2: the
     world beside a floating base). A model of several parts (a `Forest`) is an
     `MJCFError`."""
-    names = _Names(_mujoco(), model)
+    names = Names(_mujoco(), model)
     parts = split_parts(model, names)
     if len(parts) != 1:
         raise MJCFError(
@@ -387,7 +400,7 @@ def placements(model) -> dict[int, tuple[int, np.ndarray, np.ndarray]]:
 
 
 def _bodies(
-    model, names: _Names, free: int | None, keep: set[int]
+    model, names: Names, free: int | None, keep: set[int]
 ) -> tuple[list[TreeBody], TreeBody | None, dict]:
     """The tree's bodies (of the MuJoCo bodies `keep`), in MuJoCo's joint order, with
     every MuJoCo body's inertia merged into the tree body that carries it; with a free

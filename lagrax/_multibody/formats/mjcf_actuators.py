@@ -167,14 +167,20 @@ def mjcf_actuation(source: Any, *, dtype: Any = None) -> MJCFActuation:
     sol = lagrax.simulate(tree.system(), q0, qd0, params, t1=2.0, tau=actuation.tau(ctrl))
     ```
     """
-    mujoco, model = load_model(source)
+    return actuation(*load_model(source), dtype=dtype)
+
+
+def actuation(mujoco, model, *, dtype: Any = None, instant: bool = False) -> MJCFActuation:
+    """`mjcf_actuation` of a compiled `model`; `instant=True` reads an actuator with
+    activation dynamics as if its activation followed `ctrl` at once (`from_mujoco`,
+    which names each such actuator in its warning)."""
     nu, nv = int(model.nu), int(model.nv)
     moment = np.zeros((nu, nv))
     names = []
     for i in range(nu):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}"
         names.append(name)
-        if int(model.actuator_dyntype[i]) != 0:
+        if int(model.actuator_dyntype[i]) != 0 and not instant:
             raise MJCFError(
                 f"actuator {name!r} has activation dynamics (dyntype "
                 f"{int(model.actuator_dyntype[i])}), a state mjcf_actuation does not carry"

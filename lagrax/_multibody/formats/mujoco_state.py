@@ -9,6 +9,7 @@ from typing import Any
 
 import jax.numpy as jnp
 
+from ..._contact.system import ContactSystem
 from ..._core.errors import ArgumentTypeError, ShapeError
 from ..floating.forest import Forest
 from ..floating.system import FloatingTree
@@ -18,6 +19,12 @@ def _rotation(quat_xyzw: Any) -> jnp.ndarray:
     from ..algorithms.floating_recursions import quaternion_rotation
 
     return quaternion_rotation(quat_xyzw)
+
+
+def _robot(robot: Any) -> Any:
+    """The robot of a contact scene (`from_mujoco`'s, `from_mjcf(..., contact=True)`'s):
+    its system; anything else as it is."""
+    return robot.system if isinstance(robot, ContactSystem) else robot
 
 
 def free_joints(robot: Any) -> list[tuple[int, int]]:
@@ -61,13 +68,15 @@ def from_mujoco_state(qpos: Any, qvel: Any, robot: Any = None) -> tuple[jnp.ndar
     parts' order), and the joints between them are unchanged.
 
     **Arguments:** `qpos` `(..., 7 + n)`, `qvel` `(..., 6 + n)` (leading batch axes
-    allowed); `robot` (default `None`: one free joint, first).
+    allowed); `robot` (default `None`: one free joint, first), or a contact scene
+    ([`from_mujoco`][lagrax.chains.from_mujoco]'s model), read as its robot.
 
     **Returns:** `(q, v)`, of the same shapes.
 
     **Raises:** `ShapeError` for a `qpos` or `qvel` without the free joint's entries, or
     whose joints or batch axes do not match; `ArgumentTypeError` for non-numeric input.
     """
+    robot = _robot(robot)
     if getattr(robot, "balls", ()):
         return _ball_quaternions(robot, qpos, qvel, ("qpos", "qvel"), (1, 2, 3, 0))
     if _floating_balls(robot):  # the balls' quaternions, then the free joint
@@ -134,6 +143,7 @@ def to_mujoco_state(q: Any, v: Any, robot: Any = None) -> tuple[jnp.ndarray, jnp
     **Raises:** as [`from_mujoco_state`][lagrax.chains.from_mujoco_state], naming `q`
     and `v`.
     """
+    robot = _robot(robot)
     if getattr(robot, "balls", ()):
         return _ball_quaternions(robot, q, v, ("q", "v"), (3, 0, 1, 2))
     if _floating_balls(robot):
@@ -190,6 +200,7 @@ def to_mujoco_acceleration(q: Any, v: Any, a: Any, robot: Any = None) -> jnp.nda
     qacc = lagrax.chains.to_mujoco_acceleration(q, v, a, robot)   # ≈ data.qacc
     ```
     """
+    robot = _robot(robot)
     return _accelerations(q, v, a, robot, ("q", "v", "a"), to_mujoco=True)
 
 
@@ -215,6 +226,7 @@ def from_mujoco_acceleration(qpos: Any, qvel: Any, qacc: Any, robot: Any = None)
     **Raises:** as [`to_mujoco_acceleration`][lagrax.chains.to_mujoco_acceleration],
     naming `qpos`, `qvel` and `qacc`.
     """
+    robot = _robot(robot)
     return _accelerations(qpos, qvel, qacc, robot, ("qpos", "qvel", "qacc"), to_mujoco=False)
 
 

@@ -22,7 +22,7 @@ from ..articulated.trees import Tree
 from ..common import about_centres, float_dtype, steiner
 from ..limits import with_limits
 from .collision import check_meshes, urdf_points
-from .contact_scene import contact_friction, contact_scene, robot_up
+from .contact_scene import contact_friction, contact_scene, limits_need_contact, robot_up
 from .urdf_elements import (
     MOVING,
     Body,
@@ -153,7 +153,10 @@ def from_urdf(
       enforced; `"impact"`: joints stop at their limits by impacts with coefficient of
       restitution `restitution` (the params gain `"restitution"`, one per joint; pass
       [`lagrax.chains.limit_events`][]`(tree)` to [`lagrax.simulate`][]'s `events=`,
-      and the hits are in `Solution.events`).
+      and the hits are in `Solution.events`); `"contact"` (with `contact=`): each
+      finite limit is a compliant stop of the contact scene, the ground contact's normal
+      law in joint space (a [`JointLimit`][lagrax.contact.JointLimit]; its energy and
+      dissipation in the scene's energy balance, its coefficients scaled from the scene).
     - `restitution`: with `limits="impact"`, a number in `[0, 1]` or one per joint
       (default `0`: the joint stops dead at its limit).
     - `floating_base`: `True` for a robot that is not bolted to the world (a quadruped,
@@ -209,6 +212,7 @@ def from_urdf(
     ```
     """
     check_meshes(meshes)
+    limits_need_contact(limits, contact)
     links, joints = parse(_read(source))
     joints, root, floating = floating_joint(joints, root)
     floating_base = floating_base or floating
@@ -241,7 +245,7 @@ def from_urdf(
     mesh_info = (folder, tuple(os.fspath(d) for d in package_dirs), meshes)
     points = urdf_points(links, order, place, contact, floating_base, mesh_info)
     ground = (robot_up(robot), 0.0, None)
-    return contact_scene(robot, params, points, ground, contact_friction(friction))
+    return contact_scene(robot, params, points, ground, contact_friction(friction), limits)
 
 
 def _read(source: str | os.PathLike) -> str:
