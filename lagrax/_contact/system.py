@@ -293,6 +293,14 @@ class ContactSystem(AbstractSystem):
         """The wrapped system's projection onto its configuration manifold."""
         return self.system.project_configuration(q)
 
+    @property
+    def rough_jacobian(self) -> bool:  # the slope p k δ^(p−1) at each onset and release
+        return True
+
+    @property
+    def projects(self) -> bool:  # the wrapped system's
+        return self.system.projects
+
     def initial_state(self, q, qd, params):
         """The wrapped system's initial state (the contact changes nothing there), `ok`
         false also where a sphere starts deeper than `max_penetration` allows."""

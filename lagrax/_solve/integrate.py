@@ -37,7 +37,6 @@ from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, unwrapped_term
 from ..integrators import Variational
 
-_DEFAULT_PROJECTION = AbstractSystem.project_configuration
 _DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
 
 DEFAULT_DT0 = 0.01
@@ -258,7 +257,7 @@ def project(term, y):
     term that is not a system's vector field, or a system whose projection is the
     identity (the default)."""
     system = system_of(term)
-    if system is None or type(system).project_configuration is _DEFAULT_PROJECTION:
+    if system is None or not system.projects:
         return y
     q, qd = y
     return system.project_configuration(q), qd
