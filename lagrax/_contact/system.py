@@ -10,7 +10,7 @@ import numpy as np
 
 from .._core.checks import coords, eager_only, traced
 from .._core.errors import ArgumentTypeError, ConfigurationError
-from .._solve.events import Event
+from .._solve.events import Event, keep
 from .._systems.abstract import AbstractSystem
 from . import forces, pairs, scale, stability, start
 from .geometry import Plane, Sphere, placement_groups, real_number
@@ -587,9 +587,7 @@ class ContactSystem(AbstractSystem):
         if self.plane is not None:
             conditions += [gap_of(i, 0) for i in range(len(self.spheres))]
         conditions += [gap_of(k, 1) for k in range(len(self.pairs))]
-        return tuple(
-            Event(c, reset=lambda t, q, qd, p: (q, qd), max_events=max_events) for c in conditions
-        )
+        return tuple(Event(c, reset=keep, max_events=max_events) for c in conditions)
 
 
 _OUTPUTS = (

@@ -131,6 +131,12 @@ class Event(eqx.Module):
             )
 
 
+def keep(t, q, qd, params):
+    """The identity reset, `(q, q̇)` unchanged: an event with it only cuts the step at
+    its root (a contact's onset, [`ContactSystem.events`][lagrax.contact.ContactSystem.events])."""
+    return q, qd
+
+
 def as_events(events: Any) -> tuple[Event, ...] | None:
     """`events=` as a tuple of [`Event`][lagrax.Event] (`None` for none), or an error."""
     if events is None:
@@ -207,7 +213,7 @@ def _crossed(direction: int, g_a, g_b):
     return up | down
 
 
-def _along(ev: Event, t, y, field, args):
+def along(ev: Event, t, y, field, args):
     """`g` and its rate `ġ` along the motion at `(t, y)` (the field's `(q̇, q̈)`: `q̇ =
     N(q) v` on a floating base, whose `q` and `v` differ in size)."""
     params = args[0]
@@ -334,7 +340,7 @@ class _EventLoop:
         event `winner` that has just reset the state)."""
         out = []
         for i, ev in enumerate(self.events):
-            g, rate = _along(ev, t, y, self.field, self.args)
+            g, rate = along(ev, t, y, self.field, self.args)
             if winner is not None:
                 g = jnp.where(winner == i, jnp.zeros_like(g), g)
             out.append(_signed(g, rate))
@@ -462,9 +468,7 @@ class _EventLoop:
             self.term, ta, t_c, step.state.y, self.args, step.state.solver_state, False
         )[0]
         y_c = integrate.project(self.term, y_c)
-        branches = [
-            lambda y, ev=ev: _along(ev, t_c, y, self.field, self.args) for ev in self.events
-        ]
+        branches = [lambda y, ev=ev: along(ev, t_c, y, self.field, self.args) for ev in self.events]
         g, rate = jax.lax.switch(cut.winner, branches, y_c)
         # a cascade cuts at its own time; a touch without rate (grazing) has no implicit
         # derivative: both keep t_c
