@@ -140,7 +140,7 @@ def test_ten_bounces_derivatives_match_central_differences():
 def test_the_crossing_times_derivatives_are_the_implicit_functions():
     """`Solution.events` differentiated: the onset `t* = √(2(h − R)/g)`, so `dt*/dh =
     1/(g t*)` exactly (a free fall), in both modes; the release time against central
-    differences."""
+    differences; the values under differentiation those of the plain solve."""
     body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, lambda q, p: G * q[1], n_dof=2)
     scene = ContactSystem(body, Sphere(R, lambda q, p: q), Plane([0.0, 1.0]), dissipation=0.05)
 
@@ -156,6 +156,9 @@ def test_the_crossing_times_derivatives_are_the_implicit_functions():
     forward = np.asarray(jax.jacfwd(crossings)(H))
     reverse = np.asarray(jax.jacrev(crossings)(H))
     np.testing.assert_allclose(forward, reverse, rtol=1e-12)
+    # differentiated, the values are those of the solve itself (the events loop's)
+    primal, _ = jax.jvp(crossings, (H,), (1.0,))
+    np.testing.assert_array_equal(np.asarray(primal), np.asarray(crossings(H)))
     assert abs(forward[0] * G * onset - 1.0) < 1e-9
     assert abs(forward[2] / (-1.0 / onset) - 1.0) < 1e-9  # v* = −g t*
     f = jax.jit(lambda h: crossings(h[0], 1e-13))
