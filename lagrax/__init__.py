@@ -54,9 +54,9 @@ from ._core.errors import URDFError as URDFError  # noqa: E402
 from ._core.errors import URDFWarning as URDFWarning  # noqa: E402
 from ._core.results import RESULTS as RESULTS  # noqa: E402
 from ._solve.events import Event as Event  # noqa: E402
-from ._solve.events import EventRecord as EventRecord  # noqa: E402
 from ._solve.methods import METHODS as METHODS  # noqa: E402
 from ._solve.simulate import simulate as simulate  # noqa: E402
+from ._solve.solution import EventRecord as EventRecord  # noqa: E402
 from ._solve.solution import Solution as Solution  # noqa: E402
 from ._systems.abstract import AbstractSystem as AbstractSystem  # noqa: E402
 from ._systems.constrained import ConstrainedSystem as ConstrainedSystem  # noqa: E402

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._core.checks import coords, eager_only, traced
 from .._core.errors import ArgumentTypeError, ConfigurationError
-from .._solve.events import Event
+from .._solve.events import Event, keep
 from .._systems.abstract import AbstractSystem
 from . import arguments, forces, pairs, scale, stability, start
 from . import limits as joint_limits
@@ -260,6 +260,14 @@ class ContactSystem(AbstractSystem):
     def project_configuration(self, q):
         """The wrapped system's projection onto its configuration manifold."""
         return self.system.project_configuration(q)
+
+    @property
+    def rough_jacobian(self) -> bool:  # the slope p k δ^(p−1) at each onset and release
+        return True
+
+    @property
+    def projects(self) -> bool:  # the wrapped system's
+        return self.system.projects
 
     def initial_state(self, q, qd, params):
         """The wrapped system's initial state, with each joint that starts past one of
@@ -553,9 +561,7 @@ class ContactSystem(AbstractSystem):
         conditions += [
             (lambda t, q, qd, p, k=k: joint_limits.gaps(self, q)[k]) for k in range(len(stops.q))
         ]
-        return tuple(
-            Event(c, reset=lambda t, q, qd, p: (q, qd), max_events=max_events) for c in conditions
-        )
+        return tuple(Event(c, reset=keep, max_events=max_events) for c in conditions)
 
 
 _OUTPUTS = (

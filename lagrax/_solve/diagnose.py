@@ -21,7 +21,7 @@ from .._core.checks import pivot_threshold
 from .._core.results import RESULTS
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField
-from .events import Event, cascade_message
+from .events import Event
 from .solution import Solution
 
 TAU = "the input tau"
@@ -269,3 +269,22 @@ def _mass_or_accelerations(system: AbstractSystem, sol: Solution, params, y0) ->
             "functions and the energies for divisions by zero or overflow"
         ]
     return []
+
+
+def cascade_message(events: tuple[Event, ...], records, t_end) -> str:
+    """Why a solve ended with `RESULTS.event_cascade`: which event, when, how often."""
+    parts = []
+    for i, (ev, rec) in enumerate(zip(events, records, strict=True)):
+        count = int(rec.count)
+        times = np.asarray(rec.times)[:count]
+        last = f", the last at t={times[-1]:.12g}" if count else ""
+        parts.append(f"events[{i}]: {count} of max_events={ev.max_events} recorded{last}")
+    return (
+        f"an event cascade at t={float(t_end):.12g}: an event occurred more than its "
+        "max_events times, or a reset event recurred at the time of the previous one "
+        "(events accumulating at a point, e.g. a bouncing ball with restitution < 1 "
+        "comes to rest after infinitely many impacts in finite time). "
+        + "; ".join(parts)
+        + ". The solve stopped there; model the resting contact (e.g. a terminal event "
+        "when the rebound speed is small), or raise max_events if the events are real."
+    )

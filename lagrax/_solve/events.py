@@ -30,11 +30,11 @@ import equinox.internal as eqxi
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float, Int
 
 from .._core.errors import ArgumentTypeError, ConfigurationError, ShapeError
 from .._core.results import RESULTS
 from . import integrate
+from .solution import EventRecord
 
 _ROOT_ITERATIONS = 48  # worst case all bisections: 2**-48 of the step, ~1e-14 relative
 
@@ -131,30 +131,10 @@ class Event(eqx.Module):
             )
 
 
-class EventRecord(eqx.Module):
-    """The crossings of one [`Event`][lagrax.Event] found along a solve.
-
-    **Fields:** (`K` is the event's `max_events`; under `vmap` or in a sweep every
-    field gains the batch axes in front)
-
-    - `times`: the crossing times in order, shape `(K,)`; entries past `count` are
-      `inf`.
-    - `q`, `qd`: the state at each crossing (before a reset), shape `(K, n)`;
-      `inf` past `count`.
-    - `count`: how many crossings were recorded (an `int32` scalar).
-
-    `record.times[: record.count]` are the crossings of an eager solve.
-    """
-
-    times: Float[Array, " K"]
-    q: Float[Array, "K n"]
-    qd: Float[Array, "K n"]
-    count: Int[Array, ""]
-
-    @property
-    def first(self) -> Float[Array, ""]:
-        """The first crossing time (`inf` when there was none)."""
-        return self.times[..., 0]
+def keep(t, q, qd, params):
+    """The identity reset, `(q, q̇)` unchanged: an event with it only cuts the step at
+    its root (a contact's onset, [`ContactSystem.events`][lagrax.contact.ContactSystem.events])."""
+    return q, qd
 
 
 def as_events(events: Any) -> tuple[Event, ...] | None:
@@ -233,7 +213,7 @@ def _crossed(direction: int, g_a, g_b):
     return up | down
 
 
-def _along(ev: Event, t, y, field, args):
+def along(ev: Event, t, y, field, args):
     """`g` and its rate `ġ` along the motion at `(t, y)` (the field's `(q̇, q̈)`: `q̇ =
     N(q) v` on a floating base, whose `q` and `v` differ in size)."""
     params = args[0]
@@ -360,7 +340,7 @@ class _EventLoop:
         event `winner` that has just reset the state)."""
         out = []
         for i, ev in enumerate(self.events):
-            g, rate = _along(ev, t, y, self.field, self.args)
+            g, rate = along(ev, t, y, self.field, self.args)
             if winner is not None:
                 g = jnp.where(winner == i, jnp.zeros_like(g), g)
             out.append(_signed(g, rate))
@@ -378,6 +358,14 @@ class _EventLoop:
         step = _Step(s, new, keep, dense)
         g_b, crossed, roots = self.crossings(c, step)
         cut = self.cut_at(c, crossed, roots)
+        # the state at the cut from a step that ends there, and the root refined on it
+        cuts = jnp.isfinite(cut.t)
+        t_cut, y_cut = jax.lax.cond(
+            cuts, lambda: self.step_to(step, cut), lambda: (cut.t, step.new.y)
+        )
+        own = cuts & ~cut.cascade  # the winner's own root (a cascade cuts at its time)
+        roots = roots.at[cut.winner].set(jnp.where(own, t_cut, roots[cut.winner]))
+        cut = cut._replace(t=t_cut)
         times, qs, qds, counts = self.record(c, step, roots, cut.recorded)
         # saves inside the step, up to the cut
         save_end = jnp.minimum(s.tnext, cut.t)
@@ -396,7 +384,7 @@ class _EventLoop:
         step = step._replace(new=eqx.tree_at(lambda x: x.save_index, new, save_i))
         new, g, t_reset = jax.lax.cond(
             jnp.isfinite(cut.t),
-            lambda _: self.cut(c, step, cut),
+            lambda _: self.cut(c, step, cut, y_cut),
             lambda _: (step.new, jnp.where(keep, g_b, c.g), c.t_reset),
             None,
         )
@@ -467,13 +455,35 @@ class _EventLoop:
         counts = c.counts + recorded.astype(jnp.int32)
         return times, qs, qds, counts
 
-    def cut(self, c: _Carry, step: _Step, cut: _Cut):
-        """`(state, g, t_reset)` after a cut at `cut.t`: the state there (reset by the
-        winning event, or kept by a terminal event or a cascade, which also end the solve
-        with their result), the solver restarted from it, and the conditions there."""
+    def step_to(self, step: _Step, cut: _Cut):
+        """`(t*, y(t*))` at the cut: a step from the accepted step's start `t_a` that
+        ends at the located root `t_c`, on which the motion is smooth (before an onset
+        no stage feels the contact; the accepted step's interpolant did), the root then
+        refined on it, `t* = t_c − g/ġ` (so `dt*/dθ = −(∂g/∂θ)/ġ`, the implicit
+        function's, in either mode), and the state carried to it, `y(t_c) + f (t* − t_c)`
+        (the flow's derivatives, `dy/dθ = ∂y/∂θ + f dt*/dθ`)."""
+        ta, tb = step.state.t, step.state.tnext
+        t_c = jax.lax.stop_gradient(cut.t)
+        y_c = self.solver.step(
+            self.term, ta, t_c, step.state.y, self.args, step.state.solver_state, False
+        )[0]
+        y_c = integrate.project(self.term, y_c)
+        branches = [lambda y, ev=ev: along(ev, t_c, y, self.field, self.args) for ev in self.events]
+        g, rate = jax.lax.switch(cut.winner, branches, y_c)
+        # a cascade cuts at its own time; a touch without rate (grazing) has no implicit
+        # derivative: both keep t_c
+        polish = ~cut.cascade & (rate != 0)
+        dt = jnp.clip(jnp.where(polish, -g / jnp.where(polish, rate, 1.0), 0.0), ta - t_c, tb - t_c)
+        rate_y = self.field(t_c, y_c, self.args)
+        return t_c + dt, jax.tree_util.tree_map(lambda y, f: y + f * dt, y_c, rate_y)
+
+    def cut(self, c: _Carry, step: _Step, cut: _Cut, y_cut):
+        """`(state, g, t_reset)` after a cut at `cut.t`, where the state is `y_cut`
+        (`step_to`): that state reset by the winning event, or kept by a terminal event
+        or a cascade (which also end the solve with their result), the solver restarted
+        from it, and the conditions there."""
         ta, tb, dtype = step.state.t, step.state.tnext, self.q0.dtype
         t_cut, winner, params = cut.t, cut.winner, self.params
-        y_cut = integrate.interpolate(self.solver, step.dense, ta, tb, t_cut)
         is_reset = ~cut.cascade & jnp.asarray(self.resets)[winner]
         if self.resets.any():
             branches = [
@@ -573,22 +583,3 @@ def integrate_events(
         EventRecord(out.times[i], out.qs[i], out.qds[i], out.counts[i]) for i in range(len(events))
     )
     return out.ys, out.state, records
-
-
-def cascade_message(events: tuple[Event, ...], records, t_end) -> str:
-    """Why a solve ended with `RESULTS.event_cascade`: which event, when, how often."""
-    parts = []
-    for i, (ev, rec) in enumerate(zip(events, records, strict=True)):
-        count = int(rec.count)
-        times = np.asarray(rec.times)[:count]
-        last = f", the last at t={times[-1]:.12g}" if count else ""
-        parts.append(f"events[{i}]: {count} of max_events={ev.max_events} recorded{last}")
-    return (
-        f"an event cascade at t={float(t_end):.12g}: an event occurred more than its "
-        "max_events times, or a reset event recurred at the time of the previous one "
-        "(events accumulating at a point, e.g. a bouncing ball with restitution < 1 "
-        "comes to rest after infinitely many impacts in finite time). "
-        + "; ".join(parts)
-        + ". The solve stopped there; model the resting contact (e.g. a terminal event "
-        "when the rebound speed is small), or raise max_events if the events are real."
-    )

@@ -38,7 +38,6 @@ from .._systems.vector_field import LagrangianVectorField, unwrapped_term
 from ..integrators import Variational
 from .postprocess import WithWork
 
-_DEFAULT_PROJECTION = AbstractSystem.project_configuration
 _DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
 
 DEFAULT_DT0 = 0.01
@@ -143,19 +142,33 @@ def _primal_part(term, y):
 
 
 class _PrimalNorm(eqx.Module):
-    """A step-size controller's error norm of an augmented state's primal part."""
+    """A step-size controller's error norm of an augmented state `(y, extra)`: the
+    norm of `y`, or (`ratio` given) the largest of it and `ratio` times each tangent's
+    norm, so that the steps resolve the forward sensitivities as well (`tangents`: `k`
+    tangents on a leading axis of `extra`)."""
 
     norm: Any
+    ratio: float | None = eqx.field(default=None, static=True)
+    tangents: bool = eqx.field(default=False, static=True)
 
     def __call__(self, error):
-        return self.norm(error[0])
+        primal = self.norm(error[0])
+        if self.ratio is None:
+            return primal
+        if self.tangents:
+            tangent = jnp.max(jax.vmap(self.norm)(error[1]))
+        else:
+            tangent = self.norm(error[1])
+        return jnp.maximum(primal, self.ratio * tangent)
 
 
-def primal_controller(controller):
+def primal_controller(controller, ratio: float | None = None, tangents: bool = False):
     """`controller` with its error norm taken over the primal part of an augmented
-    state `(y, extra)` (a constant step: unchanged)."""
+    state `(y, extra)`, or (`ratio`) over the tangents in `extra` too (`_PrimalNorm`);
+    a constant step: unchanged."""
     if isinstance(controller, dfx.PIDController):
-        return eqx.tree_at(lambda c: c.norm, controller, _PrimalNorm(controller.norm))
+        norm = _PrimalNorm(controller.norm, ratio, tangents)
+        return eqx.tree_at(lambda c: c.norm, controller, norm)
     return controller
 
 
@@ -284,7 +297,7 @@ def project(term, y):
     term that is not a system's vector field, or a system whose projection is the
     identity (the default)."""
     system = system_of(term)
-    if system is None or type(system).project_configuration is _DEFAULT_PROJECTION:
+    if system is None or not system.projects:
         return y
     if carries_work(term):
         (q, qd), w = y

@@ -30,7 +30,7 @@ from .._core.results import RESULTS, code_of, messages
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
 from ..integrators import Variational
-from . import arguments, integrate, sensitivities, transposed
+from . import arguments, cut_sensitivities, integrate, sensitivities, transposed
 from . import events as _events  # (`events` is simulate's argument)
 from .compiled import call, compiled_or_none, configured
 from .diagnose import failure_message
@@ -195,6 +195,12 @@ def _lean(config: SolveConfig, inputs: SolveInputs, term, controller, y0, args, 
     elif config.events is None:
         (q, qd), end = integrate.integrate(
             term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, kind
+        )
+    elif kind == "lax" and cut_sensitivities.applies(config.events, config.system):
+        # events that only cut the steps, on a rough Jacobian: the tangents of the solve
+        # without them, under the error control
+        (q, qd), end, records = cut_sensitivities.integrate(
+            term, solver, controller, y0, args, t0, t1, dt0, ts, max_steps, config.events, field
         )
     else:
         (q, qd), end, records = _events.integrate_events(

@@ -1,15 +1,36 @@
 """`Solution`: one simulated trajectory at its saved times."""
 
-from typing import TYPE_CHECKING
-
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float, Int
 
 from .._core.results import RESULTS
 
-if TYPE_CHECKING:
-    from .events import EventRecord
+
+class EventRecord(eqx.Module):
+    """The crossings of one [`Event`][lagrax.Event] found along a solve.
+
+    **Fields:** (`K` is the event's `max_events`; under `vmap` or in a sweep every
+    field gains the batch axes in front)
+
+    - `times`: the crossing times in order, shape `(K,)`; entries past `count` are
+      `inf`.
+    - `q`, `qd`: the state at each crossing (before a reset), shape `(K, n)`;
+      `inf` past `count`.
+    - `count`: how many crossings were recorded (an `int32` scalar).
+
+    `record.times[: record.count]` are the crossings of an eager solve.
+    """
+
+    times: Float[Array, " K"]
+    q: Float[Array, "K n"]
+    qd: Float[Array, "K n"]
+    count: Int[Array, ""]
+
+    @property
+    def first(self) -> Float[Array, ""]:
+        """The first crossing time (`inf` when there was none)."""
+        return self.times[..., 0]
 
 
 class Solution(eqx.Module):
@@ -97,7 +118,7 @@ class Solution(eqx.Module):
     work: Float[Array, " T"] | None = None
     velocity_constraint_violation: Float[Array, "T m2"] | None = None
     energy_scale: Float[Array, ""] | None = None
-    events: "tuple[EventRecord, ...] | None" = None
+    events: tuple[EventRecord, ...] | None = None
     contact_gap: Float[Array, "T S"] | None = None
     contact_force: Float[Array, "T S d"] | None = None
     pair_gap: Float[Array, "T P"] | None = None

@@ -172,6 +172,24 @@ class AbstractSystem(eqx.Module):
         raises."""
         return q
 
+    @property
+    def projects(self) -> bool:
+        """Whether [`project_configuration`][lagrax.AbstractSystem.project_configuration]
+        is more than the identity (a system that overrides it); the solvers skip the
+        identity, and the forward sensitivities of `simulate` (an augmented system,
+        whose tangents a projection would have to follow) need it."""
+        return type(self).project_configuration is not AbstractSystem.project_configuration
+
+    @property
+    def rough_jacobian(self) -> bool:
+        """Whether the vector field's Jacobian is not smooth where the motion goes (a
+        compliant contact's onset and release: `∂f_n/∂δ = p k δ^{p−1}`, of infinite slope
+        at `δ = 0` for Hertz's `p = 3/2`). Then the forward sensitivities of a
+        differentiated `simulate` are put under the step-size control beside the state
+        (the state's error alone does not see the Jacobian's roughness). Default
+        `False`."""
+        return False
+
     # ------------------------------------------------------------------ hooks with defaults
     def initial_state(self, q: Vector, qd: Vector, params: Params) -> tuple[Any, Any, Any]:
         """`(q, q̇, ok)`: the state a solve starts from, given the user's initial state.
