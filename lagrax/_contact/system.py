@@ -95,8 +95,15 @@ class ContactSystem(AbstractSystem):
       critically damped stops as fast as the ground contact (see the contact guide).
     - `force`: an applied generalized force `F(t, q, v, params) -> (n_dof,)` added to
       the input, its power `F·v` in `input_power` (default `None`: none);
-      [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's actuators at
-      `params["ctrl"]` and its fluid forces here.
+      [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's fluid forces here.
+    - `actuation`: the scene's actuators, a map `τ = actuation(u, q, v)` from the
+      input `u` to the generalized force (an
+      [`MJCFActuation`][lagrax.chains.MJCFActuation]: MuJoCo's `ctrl` to its
+      `qfrc_actuator`), with `actuation.n_u` its size; default `None`: the input is the
+      generalized force itself. With it, the `tau=` of `simulate` and `sweep` (and of
+      `forward_dynamics`) is `u`, of `n_u` entries (`n_input`), and `u = 0` where none
+      is given (a servo's bias still acts, as in MuJoCo's `mj_step`); its power
+      `τ·v` is part of `input_power`.
     - `unsupported`: what the scene's source file has that the scene does not simulate,
       one sentence each (default none; set by `from_mujoco`, which warns with them).
     - `name`: a label for messages.
@@ -145,6 +152,7 @@ class ContactSystem(AbstractSystem):
     limit_stiffness: Coefficient
     limit_dissipation: Coefficient
     force: Callable[..., Any] | None
+    actuation: Any
     unsupported: tuple[str, ...] = eqx.field(static=True)
 
     def __init__(
@@ -166,6 +174,7 @@ class ContactSystem(AbstractSystem):
         limit_stiffness: Coefficient = None,
         limit_dissipation: Coefficient = None,
         force: Callable[..., Any] | None = None,
+        actuation: Any = None,
         unsupported: Sequence[str] = (),
         name: str | None = None,
     ):
@@ -225,6 +234,14 @@ class ContactSystem(AbstractSystem):
                 f"ContactSystem's force must be a function F(t, q, v, params), got {force!r}"
             )
         self.force = force
+        if actuation is not None and not (
+            callable(actuation) and isinstance(actuation, eqx.Module)
+        ):
+            raise ArgumentTypeError(
+                "ContactSystem's actuation must be an equinox Module called as "
+                f"actuation(u, q, v) with an n_u (an MJCFActuation), got {actuation!r}"
+            )
+        self.actuation = actuation
         self.unsupported = tuple(str(x) for x in unsupported)
 
     # ------------------------------------------------------------ shared with the system
@@ -232,6 +249,23 @@ class ContactSystem(AbstractSystem):
     def n_dof(self) -> int | None:
         """The wrapped system's number of velocities."""
         return self.system.n_dof
+
+    @property
+    def n_input(self) -> int | None:
+        """The size of the input `tau`: the number of actuators with an `actuation`
+        (MuJoCo's `ctrl`), else the wrapped system's."""
+        return self.system.n_input if self.actuation is None else int(self.actuation.n_u)
+
+    def generalized_input(self, q, qd, tau):
+        """The generalized force `(n_dof,)` the input `tau` applies at `(q, q̇)`: `tau`
+        itself, or with an `actuation`, the actuators' `actuation(u, q, q̇)` at `u = tau`
+        (`u = 0` for `None`: MuJoCo's `qfrc_actuator` at `ctrl = 0`); `None` for no
+        input and no actuation. Never raises."""
+        if self.actuation is None:
+            return tau
+        dtype = jnp.result_type(qd)
+        u = jnp.zeros((self.n_input,), dtype) if tau is None else jnp.asarray(tau, dtype)
+        return self.actuation(u, q, qd)
 
     @property
     def n_configuration(self) -> int | None:
@@ -386,6 +420,7 @@ class ContactSystem(AbstractSystem):
         to `tau`; NaN where a coefficient is invalid (so `simulate` reports it)."""
         contact = self.contact_state(q, qd, params)
         force = contact["generalized"]
+        tau = self.generalized_input(q, qd, tau)
         force = force if tau is None else force + tau
         if self.force is not None:
             force = force + self.force(t, q, qd, params)
@@ -401,7 +436,8 @@ class ContactSystem(AbstractSystem):
         q = coords(q, "q", self.n_configuration, self.name)
         qd = coords(qd, "qd", self.n_dof, self.name)
         if tau is not None:
-            tau = coords(tau, "tau", self.n_dof, self.name)
+            size = "degrees of freedom" if self.actuation is None else "actuators (ctrl)"
+            tau = coords(tau, "tau", self.n_input, self.name, size=size)
         if not traced(self, q, qd, tau, params, t):
             self.check_state(q, qd, params, t=t)
         qdd = self.accelerations(t, q, qd, params, tau)
@@ -479,7 +515,7 @@ class ContactSystem(AbstractSystem):
         power = forces.dissipated_power(self.contact_state(q, qd, params))
         if self.force is not None:
             power = power + jnp.dot(self.force(t, q, qd, params), qd)
-        inner = self.system.input_power(t, q, qd, params, tau)
+        inner = self.system.input_power(t, q, qd, params, self.generalized_input(q, qd, tau))
         return power if inner is None else inner + power
 
     def energy_and_magnitude(self, t, q, qd, params):
@@ -503,6 +539,7 @@ class ContactSystem(AbstractSystem):
         plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
         `(i, j)`; with pairs), `limit_gap` `(K,)` and `limit_force` `(K,)` (each joint
         limit's stop: its gap, and its generalized force on its joint; with limits)."""
+        tau = self.generalized_input(q, qd, tau)
         out = dict(self.system.observables(t, q, qd, params, tau))
         contact = self.contact_state(q, qd, params)
         for key, _ in _OUTPUTS:

@@ -145,6 +145,16 @@ class AbstractSystem(eqx.Module):
         return self.n_dof
 
     @property
+    def n_input(self) -> int | None:
+        """The size of the input `tau` that `simulate`, `sweep` and
+        [`accelerations`][lagrax.AbstractSystem.accelerations] take. By default it is
+        `n_dof` (one generalized force per velocity); a scene whose input is its
+        actuators' controls (a [`from_mujoco`][lagrax.chains.from_mujoco] model: MuJoCo's
+        `ctrl`) has one entry per actuator, and maps them to the generalized force
+        itself."""
+        return self.n_dof
+
+    @property
     def configuration_names(self) -> tuple[str, ...] | None:
         """A label for each entry of the configuration `q` (`None`: unnamed); by default
         the `coordinate_names` (`q` and the velocity have one size). A floating base
