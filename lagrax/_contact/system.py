@@ -96,14 +96,10 @@ class ContactSystem(AbstractSystem):
     - `force`: an applied generalized force `F(t, q, v, params) -> (n_dof,)` added to
       the input, its power `F·v` in `input_power` (default `None`: none);
       [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's fluid forces here.
-    - `actuation`: the scene's actuators, a map `τ = actuation(u, q, v)` from the
-      input `u` to the generalized force (an
-      [`MJCFActuation`][lagrax.chains.MJCFActuation]: MuJoCo's `ctrl` to its
-      `qfrc_actuator`), with `actuation.n_u` its size; default `None`: the input is the
-      generalized force itself. With it, the `tau=` of `simulate` and `sweep` (and of
-      `forward_dynamics`) is `u`, of `n_u` entries (`n_input`), and `u = 0` where none
-      is given (a servo's bias still acts, as in MuJoCo's `mj_step`); its power
-      `τ·v` is part of `input_power`.
+    - `actuation`: actuators `τ = actuation(u, q, v)` (an
+      [`MJCFActuation`][lagrax.chains.MJCFActuation]: MuJoCo's `ctrl` to
+      `qfrc_actuator`); then the input `tau=` is `u`, `n_input = actuation.n_u` long,
+      `u = 0` where none is given (default `None`: `tau` is the generalized force).
     - `unsupported`: what the scene's source file has that the scene does not simulate,
       one sentence each (default none; set by `from_mujoco`, which warns with them).
     - `name`: a label for messages.
@@ -229,19 +225,7 @@ class ContactSystem(AbstractSystem):
         self.limits = joint_limits.checked(limits)
         self.limit_stiffness = arguments.limit_coefficient("limit_stiffness", limit_stiffness)
         self.limit_dissipation = arguments.limit_coefficient("limit_dissipation", limit_dissipation)
-        if force is not None and not callable(force):
-            raise ArgumentTypeError(
-                f"ContactSystem's force must be a function F(t, q, v, params), got {force!r}"
-            )
-        self.force = force
-        if actuation is not None and not (
-            callable(actuation) and isinstance(actuation, eqx.Module)
-        ):
-            raise ArgumentTypeError(
-                "ContactSystem's actuation must be an equinox Module called as "
-                f"actuation(u, q, v) with an n_u (an MJCFActuation), got {actuation!r}"
-            )
-        self.actuation = actuation
+        self.force, self.actuation = arguments.applied(force, actuation)
         self.unsupported = tuple(str(x) for x in unsupported)
 
     # ------------------------------------------------------------ shared with the system
@@ -252,15 +236,13 @@ class ContactSystem(AbstractSystem):
 
     @property
     def n_input(self) -> int | None:
-        """The size of the input `tau`: the number of actuators with an `actuation`
-        (MuJoCo's `ctrl`), else the wrapped system's."""
+        """The input's size: the actuators' (`ctrl`) with an `actuation`, else `n_dof`."""
         return self.system.n_input if self.actuation is None else int(self.actuation.n_u)
 
     def generalized_input(self, q, qd, tau):
-        """The generalized force `(n_dof,)` the input `tau` applies at `(q, q̇)`: `tau`
-        itself, or with an `actuation`, the actuators' `actuation(u, q, q̇)` at `u = tau`
-        (`u = 0` for `None`: MuJoCo's `qfrc_actuator` at `ctrl = 0`); `None` for no
-        input and no actuation. Never raises."""
+        """The generalized force `(n_dof,)` of the input `tau` at `(q, q̇)`: `tau`, or
+        with an `actuation`, `actuation(u, q, q̇)` at `u = tau` (`u = 0` for `None`:
+        MuJoCo's `qfrc_actuator` at `ctrl = 0`). Never raises."""
         if self.actuation is None:
             return tau
         dtype = jnp.result_type(qd)
@@ -342,6 +324,20 @@ class ContactSystem(AbstractSystem):
         effective masses along its normal and tangent (see the contact guide). A
         fixed-step explicit solve is stopped where `h λ > 2`."""
         return stability.rate(self, q, v, params)
+
+    @property
+    def default_method(self) -> str:
+        """With neither `solver=` nor `dt=`: `"kvaerno5"` where a contact can stick (a
+        `friction` or `static_friction` not the constant 0) or limits are enforced,
+        else `"tsit5"` (see the contact guide, "The default method")."""
+        frictionless = self.friction == 0.0 and self.static_friction in (None, 0.0)
+        return "tsit5" if frictionless and not self.limits else "kvaerno5"
+
+    def stiff_account(self, q, v, params):
+        """Eagerly, `(sentence, λ)`: the contact of fastest rate `λ` at `(q, v)` (a
+        sphere, a pair, a limit's stop), its stiff part (spring or friction) and its
+        coefficients; the wrapped system's where none touches. Never raises."""
+        return stability.account(self, q, v, params) or self.system.stiff_account(q, v, params)
 
     def failure_hint(self, q, params):
         """The wrapped system's hint."""
@@ -539,8 +535,7 @@ class ContactSystem(AbstractSystem):
         plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
         `(i, j)`; with pairs), `limit_gap` `(K,)` and `limit_force` `(K,)` (each joint
         limit's stop: its gap, and its generalized force on its joint; with limits)."""
-        tau = self.generalized_input(q, qd, tau)
-        out = dict(self.system.observables(t, q, qd, params, tau))
+        out = dict(self.system.observables(t, q, qd, params, self.generalized_input(q, qd, tau)))
         contact = self.contact_state(q, qd, params)
         for key, _ in _OUTPUTS:
             if key in contact:

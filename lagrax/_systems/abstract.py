@@ -224,6 +224,20 @@ class AbstractSystem(eqx.Module):
         can blow up. Never raises."""
         return None
 
+    @property
+    def default_method(self) -> str:
+        """The method `simulate` and `sweep` use when given neither `solver=` nor `dt=`:
+        `"tsit5"` (explicit, adaptive), the right one for smooth, non-stiff scenes. A
+        kind whose forces are stiff by construction (a contact scene) names an implicit
+        one."""
+        return "tsit5"
+
+    def stiff_account(self, q: Any, v: Any, params: Params) -> tuple[str, float] | None:
+        """Eagerly, `(sentence, λ)`: the system's stiffest force at a state, named with
+        the coefficients it comes from, and its rate `λ` (1/s), for the message of a
+        solve that ran out of steps (`None`: nothing stiff to name, the default)."""
+        return None
+
     def failure_hint(self, q: Any, params: Params) -> str | None:
         """Eagerly, a sentence on why the accelerations may be undefined at `q` beyond a
         singular mass matrix (`None`: nothing to add). Used in failure messages."""
