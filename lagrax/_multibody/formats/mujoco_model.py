@@ -141,9 +141,8 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     and listed in `scene.unsupported`; nothing is dropped silently.
 
     A state from MuJoCo: [`from_mujoco_state`][lagrax.chains.from_mujoco_state]`(qpos,
-    qvel, scene.system)`; simulate with an implicit method
-    (`lagrax.simulate(scene, q0, v0, params, t1=..., solver="kvaerno5")`): contact and
-    limits are stiff.
+    qvel, scene.system)`; `simulate` then takes the implicit `"kvaerno5"` by default
+    (the scene's `default_method`: contact and limits are stiff).
 
     **Arguments:**
 
