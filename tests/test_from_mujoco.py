@@ -10,7 +10,8 @@
 - the actuators' generalized force at a ``ctrl`` is MuJoCo's ``qfrc_actuator`` (a
   filtered servo's at MuJoCo's activation ``act = ctrl``), and the ant's accelerations
   with ``tau=ctrl`` (one control beyond its range, clamped) are MuJoCo's ``qacc``;
-- with ``tau=ctrl`` a solve's energy balance holds with the actuators' work in it; a
+- with ``tau=ctrl`` a solve's energy balance holds with the actuators' work in it, and
+  a sweep's members end where ``simulate`` does; a
   ``ctrl`` of the wrong length (a constant or a function's) is a ``ShapeError`` naming
   ``tau`` and both lengths;
 - a model MuJoCo cannot compile is an ``MJCFError`` (a ``LagraxError``) with MuJoCo's
@@ -185,6 +186,25 @@ def test_ctrl_drives_a_solve_and_its_work_is_in_the_energy_balance(rover):
     assert float(np.max(np.abs(sol.energy_error))) < 1e-7
     idle = lx.simulate(scene, q0, v0, params, t1=0.2, solver="tsit5", n_save=21)
     assert float(np.max(np.abs(sol.q[-1, 7:] - idle.q[-1, 7:]))) > 1e-3  # ctrl acts
+
+
+def test_a_sweep_takes_ctrl_as_simulate_does(rover):
+    """Two members (their friction differs; in the air it does not act), one ``ctrl``
+    for both: each member's final state is ``simulate``'s with the same ``tau=ctrl``."""
+    scene, params, _ = rover
+    q0 = np.zeros(scene.n_configuration)
+    q0[2], q0[6] = 1.0, 1.0
+    v0 = np.zeros(scene.n_dof)
+    ctrl = np.array([0.8, 0.3])
+    friction = np.stack([params["contact_friction"], 0.5 * params["contact_friction"]])
+    batch = {**params, "contact_friction": friction}
+    batch = {k: (v if k == "contact_friction" else np.stack([v, v])) for k, v in batch.items()}
+    run = dict(t1=0.1, tau=ctrl, solver="tsit5")
+    ds = lx.sweep(scene, np.stack([q0, q0]), np.stack([v0, v0]), batch, **run)
+    for i in range(2):
+        member = {k: v[i] for k, v in batch.items()}
+        sol = lx.simulate(scene, q0, v0, member, **run)
+        np.testing.assert_allclose(ds.q.values[i], sol.q[-1], rtol=1e-9, atol=1e-12)
 
 
 def test_a_ctrl_of_the_wrong_length_names_tau_and_both_lengths(rover):
