@@ -250,12 +250,12 @@ def test_the_ant_comes_to_rest_where_mujocos_does():
     for _ in range(4000):
         mujoco.mj_step(model, data)
     assert np.max(np.abs(data.qvel)) < 1e-6  # MuJoCo's ant is at rest
-    sol = lx.simulate(scene, q0, v0, params, t1=2.0, solver="kvaerno5", n_save=21)
+    sol = lx.simulate(scene, q0, v0, params, t1=2.0, n_save=21)  # the default: kvaerno5
     assert bool(sol.ok)
     assert np.max(np.abs(np.asarray(sol.qd[-1]))) < 1e-6  # at rest
     assert abs(float(sol.q[-1, 2]) - float(data.qpos[2])) < 0.025  # measured 0.1 mm
     # ...and started from MuJoCo's own initial state, lagrax rests there too
     qpos0 = mujoco.MjData(model).qpos
     q1, v1 = lx.chains.from_mujoco_state(qpos0, np.zeros(model.nv), scene)
-    again = lx.simulate(scene, q1, v1, params, t1=2.0, solver="kvaerno5", n_save=21)
+    again = lx.simulate(scene, q1, v1, params, t1=2.0, n_save=21)
     assert abs(float(again.q[-1, 2]) - float(sol.q[-1, 2])) < 1e-6
