@@ -228,9 +228,8 @@ def _solo12_standing(lx, jnp, np):
         return jnp.concatenate([jnp.zeros(6), 10.0 * (stance - q[7:]) - 0.3 * v[6:]])
 
     q0 = jnp.concatenate([jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]), stance])
-    return lambda: (
-        lx.simulate(scene, q0, jnp.zeros(18), p, t1=2.0, tau=pd, rtol=1e-5, atol=1e-5, n_save=201).q
-    )
+    run = dict(t1=2.0, tau=pd, rtol=1e-5, atol=1e-5, n_save=201, solver="tsit5")  # chosen for it
+    return lambda: lx.simulate(scene, q0, jnp.zeros(18), p, **run).q
 
 
 def first_result(processes: int, chart: str | None, save=None, baseline=None) -> None:

@@ -1,6 +1,9 @@
 """Contact (`lagrax.contact`) against the textbook's closed forms, the static load,
 the energy balance and central differences.
 
+Every solve here uses the default method (`ContactSystem.default_method`, implicit), as
+the contact guide writes them.
+
 Planar models throughout (a disk in `(x, y, θ)`, a point mass in `(x, y)`, a box in
 `(x, y, θ)` with four corner points), on a flat floor `y = 0`; an incline is gravity
 tilted by `θ` (`params["gx"], params["gy"]`), so that one compiled solve serves every
@@ -8,6 +11,7 @@ slope and friction coefficient.
 """
 
 import math
+import re
 
 import jax
 import jax.numpy as jnp
@@ -15,7 +19,7 @@ import numpy as np
 import pytest
 
 import lagrax as lx
-from lagrax.contact import Box, ContactSystem, Plane, Sphere
+from lagrax.contact import Box, ContactSystem, JointLimit, Plane, Sphere
 
 G = 9.81
 R = 0.1  # the disk's and the point mass's radius
@@ -56,7 +60,7 @@ def ball():
         k = scene.coefficients(params)
         rest = (params["m"] * G * np.cos(angle) / float(k.stiffness)) ** (1 / 1.5)
         q0 = [0.0, R - rest, 0.0]  # resting on the floor
-        return lx.simulate(scene, q0, qd0, params, t1=t1, ts=ts, solver="kvaerno5")
+        return lx.simulate(scene, q0, qd0, params, t1=t1, ts=ts)  # the default method
 
     return run
 
@@ -179,7 +183,7 @@ def test_box_on_a_slope_below_its_friction_angle_stays_put():
     box = ContactSystem(body, corners, FLOOR, friction=0.5)
     angle = np.deg2rad(15.0)
     params = {"m": m, **_gravity(angle)}
-    sol = lx.simulate(box, [0.0, b, 0.0], [0.0, 0.0, 0.0], params, t1=5.0, solver="kvaerno5")
+    sol = lx.simulate(box, [0.0, b, 0.0], [0.0, 0.0, 0.0], params, t1=5.0)  # default method
     assert bool(sol.ok)
     assert abs(float(sol.q[-1, 0] - sol.q[0, 0])) <= 1e-3
     # at rest the contact forces carry the weight: normal m g cos θ, tangential m g sin θ
@@ -404,3 +408,54 @@ def test_body_sphere_sits_where_pinocchio_places_the_frame():
         np.testing.assert_allclose(base.position(q, params), expected, atol=1e-12)
     with pytest.raises(lx.ConfigurationError, match="no body named 'toe'"):
         lx.contact.body_sphere(robot, "toe", 0.02)
+
+
+def test_a_contact_scene_defaults_to_an_implicit_method(ball):
+    body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, lambda q, p: 0.0, n_dof=2)
+    assert body.default_method == "tsit5"
+    ball = Sphere(R, lambda q, p: q)
+    # implicit where a contact can stick (friction) or limits are enforced
+    assert ContactSystem(body, ball, FLOOR, friction=0.3).default_method == "kvaerno5"
+    assert ContactSystem(body, ball, FLOOR, friction=lambda p: 0.0).default_method == "kvaerno5"
+    stop = [JointLimit(0, -1.0, 1.0)]
+    assert ContactSystem(body, ball, FLOOR, limits=stop).default_method == "kvaerno5"
+    # a frictionless scene: its impacts are the explicit method's
+    assert ContactSystem(body, ball, FLOOR).default_method == "tsit5"
+
+
+@pytest.fixture(scope="module")
+def held():
+    """The rolling sphere of the first test (its friction holds its contact point),
+    solved with an explicit method and a small step budget: it runs out of steps."""
+
+    def kinetic(q, qd, p):
+        return 0.5 * (qd[0] ** 2 + qd[1] ** 2) + 0.2 * R**2 * qd[2] ** 2
+
+    body = lx.LagrangianSystem(kinetic, lambda q, p: _potential(q, {**p, "m": 1.0}), n_dof=3)
+    sphere = Sphere(R, lambda q, p: q[:2], angle=lambda q, p: q[2])
+    scene = ContactSystem(body, sphere, FLOOR, friction=0.5, static_friction=1.0)
+    params = _gravity(np.deg2rad(15.0))
+    k = float(scene.coefficients(params).stiffness)
+    rest = (G * np.cos(np.deg2rad(15.0)) / k) ** (1 / 1.5)
+    return scene, [0.0, R - rest, 0.0], params
+
+
+def test_a_contact_that_sticks_and_runs_out_of_steps_is_named_with_what_to_do(held):
+    scene, q0, params = held
+    with pytest.raises(lx.SimulationError) as info:
+        lx.simulate(scene, q0, [0.0] * 3, params, t1=1.0, solver="tsit5", max_steps=2000)
+    text = str(info.value)
+    v_s = float(scene.coefficients(params).stiction_velocity)
+    # which contact, which part of it, its coefficient, its rate against the step reached
+    assert "sphere 0's contact with the plane, its friction holding it" in text
+    assert f"stiction_velocity={v_s:.4g}" in text
+    found = re.search(r"lambda=([0-9.e+]+) 1/s, against a mean step of ([0-9.e+-]+) s", text)
+    assert found is not None
+    lam, h = float(found.group(1)), float(found.group(2))
+    # the stuck contact's rate: μ_s f_n/(v_s m_t), f_n = m g cos θ, m_t = (2/7) m
+    expected = 1.0 * G * np.cos(np.deg2rad(15.0)) / (v_s * 2.0 / 7.0)
+    assert 0.5 < lam / expected < 2.0
+    assert 1.0 < h * lam < 4.0  # an explicit method held at its stability limit
+    # what to do: the implicit method, the coefficients, the budget
+    for advice in ("solver='kvaerno5'", "stiction_velocity=", "stiffness=", "max_steps"):
+        assert advice in text, advice

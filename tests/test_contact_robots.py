@@ -98,7 +98,8 @@ def test_a_two_legged_body_dropped_under_joint_pd_stands():
 
     ts = np.linspace(0.0, 2.0, 201)
     q0 = jnp.concatenate([jnp.array([0.0, 0.3, 0.0]), stance])  # the body 0.3 m up
-    sol = lx.simulate(scene, q0, jnp.zeros(5), {}, t1=2.0, ts=ts, tau=pd, rtol=1e-6, atol=1e-6)
+    run = dict(t1=2.0, ts=ts, tau=pd, rtol=1e-6, atol=1e-6, solver="tsit5")  # chosen for it
+    sol = lx.simulate(scene, q0, jnp.zeros(5), {}, **run)
     _check_standing(sol, ts, sol.q[:, 1])
     forces = np.asarray(sol.contact_force[-1])
     assert abs(forces[:, 1].sum() / weight - 1.0) < 1e-4  # measured 8e-6
@@ -132,7 +133,8 @@ def solo12_standing(t1=2.0):
 
     q0 = jnp.concatenate([jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]), stance])
     ts = np.linspace(0.0, t1, 201)
-    sol = lx.simulate(scene, q0, jnp.zeros(18), params, t1=t1, ts=ts, tau=pd, rtol=1e-5, atol=1e-5)
+    run = dict(t1=t1, ts=ts, tau=pd, rtol=1e-5, atol=1e-5, solver="tsit5")  # chosen for it
+    sol = lx.simulate(scene, q0, jnp.zeros(18), params, **run)
     return scene, params, ts, sol, weight
 
 

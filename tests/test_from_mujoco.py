@@ -1,13 +1,19 @@
 """``lagrax.chains.from_mujoco``: a MuJoCo model as MuJoCo runs it, in one call.
 
 - gymnasium's ant loads with its ground contact, its eight joint limits enforced and its
-  eight motors at ``params["ctrl"]``, with nothing left out (MuJoCo's ant has nothing
+  eight motors driven by the scene's input (``tau=`` is MuJoCo's ``ctrl``), with nothing
+  left out (MuJoCo's ant has nothing
   lagrax does not simulate): no warning;
 - a model with what lagrax does not simulate (a height field, torsional and rolling
   friction, contact between bodies, a filtered actuator, an equality beside contact) is
   loaded, with each named in one warning and on ``scene.unsupported``;
 - the actuators' generalized force at a ``ctrl`` is MuJoCo's ``qfrc_actuator`` (a
-  filtered servo's at MuJoCo's activation ``act = ctrl``);
+  filtered servo's at MuJoCo's activation ``act = ctrl``), and the ant's accelerations
+  with ``tau=ctrl`` (one control beyond its range, clamped) are MuJoCo's ``qacc``;
+- with ``tau=ctrl`` a solve's energy balance holds with the actuators' work in it, and
+  a sweep's members end where ``simulate`` does; a
+  ``ctrl`` of the wrong length (a constant or a function's) is a ``ShapeError`` naming
+  ``tau`` and both lengths;
 - a model MuJoCo cannot compile is an ``MJCFError`` (a ``LagraxError``) with MuJoCo's
   message;
 - with ``LAGRAX_ALL_ROBOTS=1``: the ant started from MuJoCo's initial state with
@@ -19,6 +25,7 @@ import importlib.util
 import os
 import warnings
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -88,7 +95,8 @@ def test_the_ant_loads_with_everything_on_and_nothing_left_out():
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, lim.name)
         assert (lim.lower, lim.upper) == pytest.approx(tuple(model.jnt_range[j]))
         assert (lim.index, lim.rate) == (model.jnt_qposadr[j], model.jnt_dofadr[j])
-    np.testing.assert_array_equal(params["ctrl"], np.zeros(model.nu))
+    assert scene.n_input == model.nu == 8 and scene.n_dof == 14  # tau= is MuJoCo's ctrl
+    assert "ctrl" not in params
 
 
 def test_what_is_not_simulated_is_named_in_one_warning(rover):
@@ -122,10 +130,97 @@ def test_the_actuators_force_is_mujocos(rover):
     data.act[:] = ctrl[1:]  # the filtered servo, its activation arrived at its control
     mujoco.mj_forward(model, data)
     q, v = lx.chains.from_mujoco_state(data.qpos, data.qvel, scene)
-    force = scene.force(0.0, q, v, {**params, "ctrl": ctrl})
+    force = scene.generalized_input(q, v, ctrl)
     # (the base at rest and upright: its generalized force is MuJoCo's as it is)
     np.testing.assert_allclose(force, data.qfrc_actuator, rtol=1e-12, atol=1e-12)
     assert float(force[6]) == pytest.approx(2.0 * 1.0)  # gear 2 on ctrl clamped to 1
+
+
+def test_the_ants_accelerations_under_ctrl_are_mujocos():
+    """In the air (no contact) with every joint inside its range (no limit acting),
+    the ant's forward dynamics with ``tau=ctrl`` is MuJoCo's: motors of gear 150, a
+    control beyond ``ctrlrange = [-1, 1]`` clamped as MuJoCo clamps it."""
+    scene, params = lx.chains.from_mujoco(ant_xml())
+    model = mujoco.MjModel.from_xml_path(ant_xml())
+    data = mujoco.MjData(model)
+    data.qpos[2] = 2.0
+    rng = np.random.default_rng(3)
+    low, high = model.jnt_range[1:, 0], model.jnt_range[1:, 1]
+    data.qpos[7:] = low + (high - low) * rng.uniform(0.2, 0.8, 8)
+    data.qvel[:] = rng.normal(0.0, 0.5, model.nv)
+    ctrl = np.array([0.3, -0.7, 1.6, -2.0, 0.0, 0.5, -0.1, 0.9])  # two beyond ±1
+    data.ctrl[:] = ctrl
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 0 and data.nefc == 0  # nothing but the actuators and gravity
+    q, v = lx.chains.from_mujoco_state(data.qpos, data.qvel, scene)
+    np.testing.assert_allclose(
+        scene.generalized_input(q, v, ctrl), data.qfrc_actuator, rtol=1e-12, atol=1e-9
+    )
+    a = scene.forward_dynamics(q, v, params, tau=ctrl)
+    qacc = lx.chains.to_mujoco_acceleration(q, v, a, scene.system)
+    np.testing.assert_allclose(qacc, data.qacc, rtol=1e-8, atol=1e-8)
+    # with no tau, ctrl = 0: the motors have no bias, so no actuator force
+    free = scene.forward_dynamics(q, v, params)
+    data.ctrl[:] = 0.0
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(
+        lx.chains.to_mujoco_acceleration(q, v, free, scene.system), data.qacc, rtol=1e-8, atol=1e-8
+    )
+
+
+def test_ctrl_drives_a_solve_and_its_work_is_in_the_energy_balance(rover):
+    """The rover in the air, its shoulder motor (gear 2) driven by ``ctrl(t)`` and its
+    flap's servo (kp 5) by a constant through ``tau=``: the energy balance holds with
+    the actuators' work, which it could not if the input were left out of it."""
+    scene, params, _ = rover
+    q0 = np.zeros(scene.n_configuration)
+    q0[2], q0[6] = 1.0, 1.0  # 1 m up, upright
+    v0 = np.zeros(scene.n_dof)
+
+    def ctrl(t, q, v):
+        return jnp.array([0.8, 0.0]) * jnp.cos(jnp.pi * t) + jnp.array([0.0, 0.3])
+
+    sol = lx.simulate(scene, q0, v0, params, t1=0.2, tau=ctrl, solver="tsit5", n_save=21)
+    assert bool(sol.ok)
+    assert float(np.max(np.abs(sol.work))) > 1e-2  # the actuators did work
+    assert float(np.max(np.abs(sol.energy_error))) < 1e-7
+    idle = lx.simulate(scene, q0, v0, params, t1=0.2, solver="tsit5", n_save=21)
+    assert float(np.max(np.abs(sol.q[-1, 7:] - idle.q[-1, 7:]))) > 1e-3  # ctrl acts
+
+
+def test_a_sweep_takes_ctrl_as_simulate_does(rover):
+    """Two members (their friction differs; in the air it does not act), one ``ctrl``
+    for both: each member's final state is ``simulate``'s with the same ``tau=ctrl``."""
+    scene, params, _ = rover
+    q0 = np.zeros(scene.n_configuration)
+    q0[2], q0[6] = 1.0, 1.0
+    v0 = np.zeros(scene.n_dof)
+    ctrl = np.array([0.8, 0.3])
+    friction = np.stack([params["contact_friction"], 0.5 * params["contact_friction"]])
+    batch = {**params, "contact_friction": friction}
+    batch = {k: (v if k == "contact_friction" else np.stack([v, v])) for k, v in batch.items()}
+    run = dict(t1=0.1, tau=ctrl, solver="tsit5")
+    ds = lx.sweep(scene, np.stack([q0, q0]), np.stack([v0, v0]), batch, **run)
+    for i in range(2):
+        member = {k: v[i] for k, v in batch.items()}
+        sol = lx.simulate(scene, q0, v0, member, **run)
+        np.testing.assert_allclose(ds.q.values[i], sol.q[-1], rtol=1e-9, atol=1e-12)
+
+
+def test_a_ctrl_of_the_wrong_length_names_tau_and_both_lengths(rover):
+    scene, params, _ = rover
+    q0 = np.zeros(scene.n_configuration)
+    q0[2], q0[6] = 1.0, 1.0
+    v0 = np.zeros(scene.n_dof)
+    with pytest.raises(lx.ShapeError, match=r"tau has length 8 but .* has 2 inputs") as info:
+        lx.simulate(scene, q0, v0, params, t1=0.1, tau=np.zeros(8))
+    assert isinstance(info.value, LagraxError)
+    with pytest.raises(lx.ShapeError, match=r"tau has length 3 but .* has 2 actuators"):
+        scene.forward_dynamics(q0, v0, params, tau=np.zeros(3))
+    with pytest.raises(
+        lx.ShapeError, match=r"tau\(t, q, qd\) returned shape \(8,\); expected \(2,\)"
+    ):
+        lx.simulate(scene, q0, v0, params, t1=0.1, tau=lambda t, q, v: np.zeros(8))
 
 
 def test_a_model_mujoco_cannot_compile_is_an_mjcf_error_with_its_message():
@@ -155,12 +250,12 @@ def test_the_ant_comes_to_rest_where_mujocos_does():
     for _ in range(4000):
         mujoco.mj_step(model, data)
     assert np.max(np.abs(data.qvel)) < 1e-6  # MuJoCo's ant is at rest
-    sol = lx.simulate(scene, q0, v0, params, t1=2.0, solver="kvaerno5", n_save=21)
+    sol = lx.simulate(scene, q0, v0, params, t1=2.0, n_save=21)  # the default: kvaerno5
     assert bool(sol.ok)
     assert np.max(np.abs(np.asarray(sol.qd[-1]))) < 1e-6  # at rest
     assert abs(float(sol.q[-1, 2]) - float(data.qpos[2])) < 0.025  # measured 0.1 mm
     # ...and started from MuJoCo's own initial state, lagrax rests there too
     qpos0 = mujoco.MjData(model).qpos
     q1, v1 = lx.chains.from_mujoco_state(qpos0, np.zeros(model.nv), scene)
-    again = lx.simulate(scene, q1, v1, params, t1=2.0, solver="kvaerno5", n_save=21)
+    again = lx.simulate(scene, q1, v1, params, t1=2.0, n_save=21)
     assert abs(float(again.q[-1, 2]) - float(sol.q[-1, 2])) < 1e-6

@@ -117,9 +117,8 @@ def solo12_drop(robots: Path, seconds: float = 1.0, fps: float = 30.0):
 
     q0 = jnp.concatenate([jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]), stance])
     ts = np.linspace(0.0, seconds, int(round(seconds * fps)) + 1)
-    return lx.simulate(
-        scene, q0, jnp.zeros(18), params, t1=seconds, ts=ts, tau=pd, rtol=1e-5, atol=1e-5
-    )
+    run = dict(t1=seconds, ts=ts, tau=pd, rtol=1e-5, atol=1e-5, solver="tsit5")  # chosen for it
+    return lx.simulate(scene, q0, jnp.zeros(18), params, **run)
 
 
 def solo12_drop_view(sol, robots: Path, fps: float = 30.0):

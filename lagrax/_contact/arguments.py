@@ -5,6 +5,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import equinox as eqx
 import numpy as np
 
 from .._core.errors import ArgumentTypeError, ConfigurationError
@@ -104,3 +105,18 @@ def check_limit_coefficients(contact, co) -> None:
                     f"joint {contact.limits[j].name or contact.limits[j].index!r}; it must be "
                     f"finite and {rule}"
                 )
+
+
+def applied(force: Any, actuation: Any) -> tuple[Any, Any]:
+    """`(force, actuation)` checked: a function `F(t, q, v, params)` or `None`, and an
+    equinox Module called as `actuation(u, q, v)` with an `n_u`, or `None`."""
+    if force is not None and not callable(force):
+        raise ArgumentTypeError(
+            f"ContactSystem's force must be a function F(t, q, v, params), got {force!r}"
+        )
+    if actuation is not None and not (callable(actuation) and isinstance(actuation, eqx.Module)):
+        raise ArgumentTypeError(
+            "ContactSystem's actuation must be an equinox Module called as "
+            f"actuation(u, q, v) with an n_u (an MJCFActuation), got {actuation!r}"
+        )
+    return force, actuation

@@ -95,8 +95,11 @@ class ContactSystem(AbstractSystem):
       critically damped stops as fast as the ground contact (see the contact guide).
     - `force`: an applied generalized force `F(t, q, v, params) -> (n_dof,)` added to
       the input, its power `F·v` in `input_power` (default `None`: none);
-      [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's actuators at
-      `params["ctrl"]` and its fluid forces here.
+      [`from_mujoco`][lagrax.chains.from_mujoco] puts the model's fluid forces here.
+    - `actuation`: actuators `τ = actuation(u, q, v)` (an
+      [`MJCFActuation`][lagrax.chains.MJCFActuation]: MuJoCo's `ctrl` to
+      `qfrc_actuator`); then the input `tau=` is `u`, `n_input = actuation.n_u` long,
+      `u = 0` where none is given (default `None`: `tau` is the generalized force).
     - `unsupported`: what the scene's source file has that the scene does not simulate,
       one sentence each (default none; set by `from_mujoco`, which warns with them).
     - `name`: a label for messages.
@@ -145,6 +148,7 @@ class ContactSystem(AbstractSystem):
     limit_stiffness: Coefficient
     limit_dissipation: Coefficient
     force: Callable[..., Any] | None
+    actuation: Any
     unsupported: tuple[str, ...] = eqx.field(static=True)
 
     def __init__(
@@ -166,6 +170,7 @@ class ContactSystem(AbstractSystem):
         limit_stiffness: Coefficient = None,
         limit_dissipation: Coefficient = None,
         force: Callable[..., Any] | None = None,
+        actuation: Any = None,
         unsupported: Sequence[str] = (),
         name: str | None = None,
     ):
@@ -220,11 +225,7 @@ class ContactSystem(AbstractSystem):
         self.limits = joint_limits.checked(limits)
         self.limit_stiffness = arguments.limit_coefficient("limit_stiffness", limit_stiffness)
         self.limit_dissipation = arguments.limit_coefficient("limit_dissipation", limit_dissipation)
-        if force is not None and not callable(force):
-            raise ArgumentTypeError(
-                f"ContactSystem's force must be a function F(t, q, v, params), got {force!r}"
-            )
-        self.force = force
+        self.force, self.actuation = arguments.applied(force, actuation)
         self.unsupported = tuple(str(x) for x in unsupported)
 
     # ------------------------------------------------------------ shared with the system
@@ -232,6 +233,21 @@ class ContactSystem(AbstractSystem):
     def n_dof(self) -> int | None:
         """The wrapped system's number of velocities."""
         return self.system.n_dof
+
+    @property
+    def n_input(self) -> int | None:
+        """The input's size: the actuators' (`ctrl`) with an `actuation`, else `n_dof`."""
+        return self.system.n_input if self.actuation is None else int(self.actuation.n_u)
+
+    def generalized_input(self, q, qd, tau):
+        """The generalized force `(n_dof,)` of the input `tau` at `(q, q̇)`: `tau`, or
+        with an `actuation`, `actuation(u, q, q̇)` at `u = tau` (`u = 0` for `None`:
+        MuJoCo's `qfrc_actuator` at `ctrl = 0`). Never raises."""
+        if self.actuation is None:
+            return tau
+        dtype = jnp.result_type(qd)
+        u = jnp.zeros((self.n_input,), dtype) if tau is None else jnp.asarray(tau, dtype)
+        return self.actuation(u, q, qd)
 
     @property
     def n_configuration(self) -> int | None:
@@ -317,6 +333,20 @@ class ContactSystem(AbstractSystem):
         fixed-step explicit solve is stopped where `h λ > 2`."""
         return stability.rate(self, q, v, params)
 
+    @property
+    def default_method(self) -> str:
+        """With neither `solver=` nor `dt=`: `"kvaerno5"` where a contact can stick (a
+        `friction` or `static_friction` not the constant 0) or limits are enforced,
+        else `"tsit5"` (see the contact guide, "The default method")."""
+        frictionless = self.friction == 0.0 and self.static_friction in (None, 0.0)
+        return "tsit5" if frictionless and not self.limits else "kvaerno5"
+
+    def stiff_account(self, q, v, params):
+        """Eagerly, `(sentence, λ)`: the contact of fastest rate `λ` at `(q, v)` (a
+        sphere, a pair, a limit's stop), its stiff part (spring or friction) and its
+        coefficients; the wrapped system's where none touches. Never raises."""
+        return stability.account(self, q, v, params) or self.system.stiff_account(q, v, params)
+
     def failure_hint(self, q, params):
         """The wrapped system's hint."""
         return self.system.failure_hint(q, params)
@@ -394,6 +424,7 @@ class ContactSystem(AbstractSystem):
         to `tau`; NaN where a coefficient is invalid (so `simulate` reports it)."""
         contact = self.contact_state(q, qd, params)
         force = contact["generalized"]
+        tau = self.generalized_input(q, qd, tau)
         force = force if tau is None else force + tau
         if self.force is not None:
             force = force + self.force(t, q, qd, params)
@@ -409,7 +440,8 @@ class ContactSystem(AbstractSystem):
         q = coords(q, "q", self.n_configuration, self.name)
         qd = coords(qd, "qd", self.n_dof, self.name)
         if tau is not None:
-            tau = coords(tau, "tau", self.n_dof, self.name)
+            size = "degrees of freedom" if self.actuation is None else "actuators (ctrl)"
+            tau = coords(tau, "tau", self.n_input, self.name, size=size)
         if not traced(self, q, qd, tau, params, t):
             self.check_state(q, qd, params, t=t)
         qdd = self.accelerations(t, q, qd, params, tau)
@@ -487,7 +519,7 @@ class ContactSystem(AbstractSystem):
         power = forces.dissipated_power(self.contact_state(q, qd, params))
         if self.force is not None:
             power = power + jnp.dot(self.force(t, q, qd, params), qd)
-        inner = self.system.input_power(t, q, qd, params, tau)
+        inner = self.system.input_power(t, q, qd, params, self.generalized_input(q, qd, tau))
         return power if inner is None else inner + power
 
     def energy_and_magnitude(self, t, q, qd, params):
@@ -511,7 +543,7 @@ class ContactSystem(AbstractSystem):
         plane), `pair_gap` `(P,)` and `pair_force` `(P, d)` (on sphere `j` of each pair
         `(i, j)`; with pairs), `limit_gap` `(K,)` and `limit_force` `(K,)` (each joint
         limit's stop: its gap, and its generalized force on its joint; with limits)."""
-        out = dict(self.system.observables(t, q, qd, params, tau))
+        out = dict(self.system.observables(t, q, qd, params, self.generalized_input(q, qd, tau)))
         contact = self.contact_state(q, qd, params)
         for key, _ in _OUTPUTS:
             if key in contact:

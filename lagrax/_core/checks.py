@@ -325,8 +325,9 @@ def energy_value(out: Any, label: str, q: Any) -> Any:
     return out
 
 
-def force_value(out: Any, who: str, q: Any) -> Any:
-    """The result of a user force (`force`, `tau`): a real array shaped like `q`."""
+def force_value(out: Any, who: str, q: Any, shape: tuple[int, ...] | None = None) -> Any:
+    """The result of a user force (`force`, `tau`): a real array shaped like `q` (or
+    `shape`, for an input that is not a generalized force: an actuator's controls)."""
     if out is None:
         raise ArgumentTypeError(f"{who} returned None; did it forget `return`?")
     try:
@@ -341,11 +342,10 @@ def force_value(out: Any, who: str, q: Any) -> Any:
         )
     if not (jnp.issubdtype(out.dtype, jnp.floating) or jnp.issubdtype(out.dtype, jnp.integer)):
         raise ArgumentTypeError(f"{who} returned dtype {out.dtype}, not numbers")
-    if out.shape != jnp.shape(q):
-        raise ShapeError(
-            f"{who} returned shape {out.shape}; expected {jnp.shape(q)} (one generalized "
-            "force per coordinate)"
-        )
+    expected = jnp.shape(q) if shape is None else shape
+    if out.shape != expected:
+        what = "one generalized force per coordinate" if shape is None else "one per input"
+        raise ShapeError(f"{who} returned shape {out.shape}; expected {expected} ({what})")
     return out
 
 

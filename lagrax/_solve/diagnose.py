@@ -142,7 +142,9 @@ def diagnose(
     """A readable account of why a solve failed, from the states it reached.
 
     `tau_fn` / `tau_const` are the solve's inputs, `y0` its initial state (the
-    reference for a mass matrix that collapses during the solve) and `t1` its end.
+    reference for a mass matrix that collapses during the solve) and `t1` its end. A
+    solve out of steps names the system's stiffest force where it has one
+    (`AbstractSystem.stiff_account`).
     """
     t_end = float(sol.t_end)
     q_end, qd_end = np.asarray(sol.q_end), np.asarray(sol.qd_end)
@@ -165,14 +167,49 @@ def diagnose(
         )
     lines.insert(0, f"simulate failed for {system.name}: {reason}")
     if sol.result == RESULTS.max_steps_reached and not input_cause:
+        stiff = _stiff_lines(system, sol, params) if finite_state else None
+        if stiff is not None:
+            lines += stiff
         lines.append(
             f"  all {steps} steps of max_steps={max_steps} were used (rtol={rtol}, "
-            f"atol={atol}). Try: a larger max_steps; looser tolerances; or, if the scene "
-            "is stiff (stiff springs or dampers), an implicit solver such as "
-            "solver=diffrax.Kvaerno5()."
+            f"atol={atol}). Try: "
+            + (
+                "a larger max_steps; looser tolerances; or what is said above."
+                if stiff is not None
+                else "a larger max_steps; looser tolerances; or, if the scene is stiff "
+                "(stiff springs or dampers), an implicit method: solver='kvaerno5'."
+            )
         )
     lines.append("  Pass throw=False to get the partial Solution (entries never reached are inf).")
     return "\n".join(lines)
+
+
+def _stiff_lines(system, sol: Solution, params) -> list[str] | None:
+    """What is stiff where a solve ran out of steps (`AbstractSystem.stiff_account`):
+    the force, its rate `λ` against the mean step the solve reached, and what to do;
+    `None` where the system names nothing stiff."""
+    found = system.stiff_account(np.asarray(sol.q_end), np.asarray(sol.qd_end), params)
+    if found is None:
+        return None
+    what, lam = found
+    accepted = max(int(sol.stats["num_accepted_steps"]), 1)
+    h = (float(sol.t_end) - float(sol.ts[0])) / accepted
+    text = [
+        f"  the stiffest force there is {what}: its rate is lambda={lam:.4g} 1/s, against "
+        f"a mean step of {h:.3g} s (h lambda = {h * lam:.3g})."
+    ]
+    text.append(
+        "  An explicit method's step (tsit5, dopri5, ...) is held to h lambda <~ 2-3 "
+        "there, so it crawls: use an implicit method, solver='kvaerno5' (the default "
+        "where a contact can stick), whose step is not bound by lambda."
+    )
+    text.append(
+        "  Or soften it: a smaller stiffness= (the spring's lambda grows as sqrt(k)), a "
+        "larger stiction_velocity= (friction's lambda falls as 1/v_s, the creep of a held "
+        "contact grows with it), or more dissipation= for a bouncing contact; or give it a "
+        "larger max_steps."
+    )
+    return text
 
 
 def _blew_up(system, field, sol: Solution, params, tau_const) -> tuple[list[str], bool]:

@@ -381,12 +381,17 @@ def simulate(
     - `ts`: times at which to save; default `n_save` evenly spaced points in
       `[t0, t1]`. `saveat` (a `diffrax.SaveAt`) overrides both.
     - `tau`: input generalized forces, a constant `(n,)` array or a function
-      `tau(t, q, qd) -> (n,)` (a controller). Added to the system's own `force`.
+      `tau(t, q, qd) -> (n,)` (a controller). Added to the system's own `force`. A
+      system whose `n_input` differs takes that many entries (a
+      [`from_mujoco`][lagrax.chains.from_mujoco] scene: MuJoCo's `ctrl`).
     - `solver`: a method name or a diffrax solver. Names (see `lagrax.METHODS`):
-      `"tsit5"` (default; explicit 5(4), adaptive), `"dopri5"`, `"dopri8"` (tight
+      `"tsit5"` (explicit 5(4), adaptive), `"dopri5"`, `"dopri8"` (tight
       tolerances), `"kvaerno5"` (implicit; stiff springs and dampers), `"rk4"` (fixed
       step), `"variational"` / `"variational4"` (symplectic, fixed step; bounded
-      energy error over long horizons).
+      energy error over long horizons). Default (`None`): the system's
+      [`default_method`][lagrax.AbstractSystem.default_method]: `"tsit5"`, and
+      `"kvaerno5"` for a contact scene where a contact can stick (friction) or joint
+      limits are enforced; with `dt=`, `"tsit5"` at that step.
     - `rtol`, `atol`: error-control tolerances of the adaptive step (default 1e-8);
       for implicit methods at a fixed step, the tolerances of their Newton iterations.
       Changing them, `params`, the initial state, `t1` or `dt` does not recompile.
@@ -461,6 +466,7 @@ def simulate(
         t0, t1, rtol, atol, n_save, ts, saveat, tdt, eager
     )
     # (t0, t1, rtol and atol are checked: under jit the checks travel with these values)
+    solver = system.default_method if solver is None and dt is None else solver
     solver, stepsize_controller, dt0, max_steps = stepping(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, eager
     )

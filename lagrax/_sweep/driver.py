@@ -401,6 +401,8 @@ def _solve_config(system, tau_fn, method: tuple, times: tuple, events) -> tuple[
     (`diffrax.PIDController(rtol, atol)` by default). With `events`, they are checked to
     be supported by the method (`simulate.events_supported`)."""
     solver, rtol, atol, dt, dt0, max_steps, stepsize_controller = method
+    if solver is None and dt is None:  # (a contact scene's is implicit)
+        solver = system.default_method
     t0, t1, tdt = times
     solver_, controller, dt0_, max_steps_ = configure(
         solver, rtol, atol, dt, dt0, max_steps, stepsize_controller, t0, t1, tdt, True

@@ -145,6 +145,16 @@ class AbstractSystem(eqx.Module):
         return self.n_dof
 
     @property
+    def n_input(self) -> int | None:
+        """The size of the input `tau` that `simulate`, `sweep` and
+        [`accelerations`][lagrax.AbstractSystem.accelerations] take. By default it is
+        `n_dof` (one generalized force per velocity); a scene whose input is its
+        actuators' controls (a [`from_mujoco`][lagrax.chains.from_mujoco] model: MuJoCo's
+        `ctrl`) has one entry per actuator, and maps them to the generalized force
+        itself."""
+        return self.n_dof
+
+    @property
     def configuration_names(self) -> tuple[str, ...] | None:
         """A label for each entry of the configuration `q` (`None`: unnamed); by default
         the `coordinate_names` (`q` and the velocity have one size). A floating base
@@ -230,6 +240,20 @@ class AbstractSystem(eqx.Module):
         default). A fixed-step solve with an explicit method checks `h λ ≤ 2` after every
         step and stops with `RESULTS.step_past_stability_limit` past it, before the state
         can blow up. Never raises."""
+        return None
+
+    @property
+    def default_method(self) -> str:
+        """The method `simulate` and `sweep` use when given neither `solver=` nor `dt=`:
+        `"tsit5"` (explicit, adaptive), the right one for smooth, non-stiff scenes. A
+        kind whose forces are stiff by construction (a contact scene) names an implicit
+        one."""
+        return "tsit5"
+
+    def stiff_account(self, q: Any, v: Any, params: Params) -> tuple[str, float] | None:
+        """Eagerly, `(sentence, λ)`: the system's stiffest force at a state, named with
+        the coefficients it comes from, and its rate `λ` (1/s), for the message of a
+        solve that ran out of steps (`None`: nothing stiff to name, the default)."""
         return None
 
     def failure_hint(self, q: Any, params: Params) -> str | None:

@@ -30,7 +30,9 @@ class LagrangianVectorField(eqx.Module):
         """The input generalized force at `(t, q, q̇)` (`None` when there is none)."""
         tau = tau_const
         if self.tau_fn is not None:
-            tau = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", qd).astype(qd.dtype)
+            shape = _input_shape(self.system)
+            out = force_value(self.tau_fn(t, q, qd), "tau(t, q, qd)", qd, shape)
+            tau = out.astype(qd.dtype)
             if tau_const is not None:
                 tau = tau + tau_const
         return tau
@@ -52,16 +54,32 @@ def split_tau(system: AbstractSystem, tau: Any, q: Array, *, host: bool = False)
     coordinates `q` it goes with (its shape and dtype), and `host=True` to convert a
     constant with NumPy (no device transfer; `simulate`'s eager set-up).
 
-    **Raises:** `ShapeError` or `ArgumentTypeError` for a constant of the wrong shape or
-    kind, `NonFiniteError` for one with NaN or inf.
+    A system whose input is its actuators' controls (`system.n_input != system.n_dof`)
+    takes a constant of `n_input` entries, and a function returning that many.
+
+    **Raises:** `ShapeError` (naming `tau`, its length and the system's) or
+    `ArgumentTypeError` for a constant of the wrong shape or kind, `NonFiniteError` for
+    one with NaN or inf.
     """
     if tau is None:
         return None, None
     if callable(tau):
         return tau, None
-    tau_const = coords(tau, "tau", system.n_dof, system.name, host=host)
-    same_shape("tau", tau_const, q)
+    shape = _input_shape(system)
+    if shape is None:
+        tau_const = coords(tau, "tau", system.n_dof, system.name, host=host)
+        same_shape("tau", tau_const, q)
+    else:  # the input is not a generalized force: its own size
+        size = "inputs (one per actuator: MuJoCo's ctrl)"
+        tau_const = coords(tau, "tau", shape[0], system.name, host=host, size=size)
     return None, finite(tau_const.astype(q.dtype), "tau")
+
+
+def _input_shape(system: AbstractSystem) -> tuple[int, ...] | None:
+    """`(n_input,)` for a system whose input is not one generalized force per velocity
+    (see `AbstractSystem.n_input`), else `None`."""
+    n = system.n_input
+    return None if n == system.n_dof or n is None else (n,)
 
 
 @eqx.filter_jit

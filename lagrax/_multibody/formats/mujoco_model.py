@@ -3,20 +3,18 @@ r"""A MuJoCo model with everything on that lagrax simulates:
 
 `from_mjcf` stays the building block; this module turns on, in one call, what MuJoCo's
 `mj_step` simulates and lagrax has: the ground contact (`contact=True`), the joint
-limits enforced as compliant stops (`limits="contact"`), the actuators driven by
-`params["ctrl"]` (`mjcf_actuation`) and the fluid forces (`mjcf_fluid`), and names in
+limits enforced as compliant stops (`limits="contact"`), the actuators driven by the
+scene's input, MuJoCo's `ctrl` (`mjcf_actuation`), and the fluid forces (`mjcf_fluid`), and names in
 one warning what it leaves out.
 """
 
 import warnings
 from typing import Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..._contact.system import ContactSystem
 from ..._core.errors import ConfigurationError, MJCFError
-from ..common import float_dtype
 from .mjcf import Names, from_mjcf, load_model
 from .mjcf_actuators import actuation
 from .mjcf_fluid import mjcf_fluid
@@ -123,10 +121,13 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
       margin=True)`);
     - **joint limits, enforced** as compliant stops of the same normal law
       (`limits="contact"`: their stored energy and dissipation in the energy balance);
-    - **actuators** driven by `params["ctrl"]` (MuJoCo's `ctrl`, `(n_u,)`, default
-      zeros: with no control, the servos' bias acts, as in `mj_step`), clamped to
-      `ctrlrange` as MuJoCo clamps it ([`mjcf_actuation`][lagrax.chains.mjcf_actuation]),
-      applied as the scene's `force`;
+    - **actuators**, the scene's input: the `tau=` of `simulate`, `sweep` and
+      `forward_dynamics` is MuJoCo's `ctrl`, `(n_u,)` (`scene.n_input`; a constant, or
+      a function `ctrl(t, q, v)`), and with no `tau=`, `ctrl = 0` (the servos' bias
+      acts, as in `mj_step`). Each control is clamped to its `ctrlrange` where MuJoCo's
+      `ctrllimited` says (unless the model disables clamping), as MuJoCo clamps it, and
+      each force to its `forcerange` ([`mjcf_actuation`][lagrax.chains.mjcf_actuation],
+      the scene's `actuation`);
     - **fluid forces** where the model has `density` or `viscosity`
       ([`mjcf_fluid`][lagrax.chains.mjcf_fluid]), applied the same way;
     - and what `from_mjcf` reads of the model's joints (damping, armature, springs,
@@ -140,9 +141,8 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     and listed in `scene.unsupported`; nothing is dropped silently.
 
     A state from MuJoCo: [`from_mujoco_state`][lagrax.chains.from_mujoco_state]`(qpos,
-    qvel, scene.system)`; simulate with an implicit method
-    (`lagrax.simulate(scene, q0, v0, params, t1=..., solver="kvaerno5")`): contact and
-    limits are stiff.
+    qvel, scene.system)`; `simulate` then takes the implicit `"kvaerno5"` by default
+    (the scene's `default_method`: contact and limits are stiff).
 
     **Arguments:**
 
@@ -151,23 +151,24 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     - `dtype`: of the params (default float64 with x64).
 
     **Returns:** `(scene, params)`: the `ContactSystem` (`scene.system` the robot's
-    system, `scene.limits` the enforced limits, `scene.unsupported` what is left out)
-    and the params of `from_mjcf` plus `"contact_friction"` and, with actuators,
-    `"ctrl"`.
+    system, `scene.limits` the enforced limits, `scene.actuation` the actuators,
+    `scene.unsupported` what is left out) and the params of `from_mjcf` plus
+    `"contact_friction"`.
 
     **Raises:** [`lagrax.MJCFError`][] (a [`lagrax.LagraxError`][]) when MuJoCo
     cannot compile the model, with MuJoCo's message; when the model cannot be put on
     the ground at all (several free bodies, ball joints beside contact, no collision
     geometry on a moving body, no weight on the ground to scale the contact by), naming
-    why; as `from_mjcf` for a model with no joint.
+    why; as `from_mjcf` for a model with no joint. A `ctrl` (`tau=`) of the wrong length
+    is a [`lagrax.ShapeError`][] naming `tau`, its length and the number of actuators.
 
     **Example:**
 
     ```python
     scene, params = lagrax.chains.from_mujoco("ant.xml")
     q0, v0 = lagrax.chains.from_mujoco_state(data.qpos, data.qvel, scene.system)
-    sol = lagrax.simulate(scene, q0, v0, params, t1=1.0, solver="kvaerno5")
-    sol = lagrax.simulate(scene, q0, v0, {**params, "ctrl": u}, t1=1.0, solver="kvaerno5")
+    sol = lagrax.simulate(scene, q0, v0, params, t1=1.0)  # ctrl = 0
+    sol = lagrax.simulate(scene, q0, v0, params, t1=1.0, tau=ctrl)  # MuJoCo's ctrl
     ```
     """
     mujoco, model = load_model(source)
@@ -214,9 +215,7 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     except MJCFError as err:
         notes.append(f"the actuators ({err})")
         drive = None
-    if drive is not None:
-        params = {**params, "ctrl": jnp.zeros((drive.n_u,), float_dtype(dtype))}
-    force = _applied(drive, fluid)
+    force = None if fluid is None else _fluid_force(fluid)
     if notes:
         warnings.warn(
             "from_mujoco: lagrax does not simulate, in this model: " + "; ".join(notes),
@@ -230,24 +229,17 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
         friction=scene.friction,
         limits=scene.limits,
         force=force,
+        actuation=drive,
         unsupported=notes,
         name=scene.name,
     )
     return scene, params
 
 
-def _applied(drive, fluid):
-    """The applied force `F(t, q, v, params)`: the actuators at `params["ctrl"]` plus the
-    fluid's (`None` with neither)."""
-    if drive is None and fluid is None:
-        return None
+def _fluid_force(fluid):
+    """The fluid's applied force `F(t, q, v, params)`."""
 
     def force(t, q, v, params):
-        total = jnp.zeros(v.shape, v.dtype)
-        if drive is not None:
-            total = total + drive(params["ctrl"], q, v)
-        if fluid is not None:
-            total = total + fluid(q, v, params)
-        return total
+        return fluid(q, v, params)
 
     return force
