@@ -3,10 +3,9 @@ guide's textbook scenes (closed forms) and on gymnasium's ant dropped for 1 s.
 
 Each (scene, method) runs in a process of its own, so that its first call is a cold
 compile (run from the repository root with `PYTHONPATH=.`, for this checkout's lagrax):
-`python benchmarks/bench_contact_methods.py SCENE METHOD` prints one JSON line
-(steps taken, `sol.ok`, the error against the closed form, the lowered program's lines,
-the first call's and a warm call's wall time); with no arguments it runs every pair and
-prints a table.
+each prints one JSON line (steps taken, `sol.ok`, the error against the closed form,
+the lowered program's lines, the first call's and a warm call's wall time):
+`python benchmarks/bench_contact_methods.py [--scenes rolling,ant]`.
 
 Scenes: `rolling` (a sphere on 15°, μ = 0.5, μ_s = 1: `a = 5/7 g sin θ`),
 `sliding` (30°, μ = μ_s = 0.1: `a = g (sin θ − μ cos θ)`), `sticking` (a box of four
@@ -19,6 +18,7 @@ lagrax configures it: Newton with a fresh Jacobian each iteration, a PI controll
 `kvaerno5_chord` (`diffrax.Kvaerno5()` as diffrax configures it: a chord iteration).
 """
 
+import argparse
 import importlib.util
 import json
 import os
@@ -170,26 +170,29 @@ def run(scene_name, method):
     }
 
 
-def main():
-    if len(sys.argv) == 3:
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--scenes", default="all", help="comma-separated, or all")
+    parser.add_argument("--child", nargs=2, default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child is not None:  # one scene and method, in a fresh process
+        scene, method = args.child
         try:
-            print(json.dumps(run(sys.argv[1], sys.argv[2])))
+            print(json.dumps(run(scene, method)))
         except Exception as err:  # a failed solve is a row of the table
-            print(
-                json.dumps(
-                    {
-                        "scene": sys.argv[1],
-                        "method": sys.argv[2],
-                        "failed": str(err).splitlines()[0][:200],
-                    }
-                )
-            )
+            failed = str(err).splitlines()[0][:200]
+            print(json.dumps({"scene": scene, "method": method, "failed": failed}))
         return
-    scenes = sys.argv[1].split(",") if len(sys.argv) > 1 else SCENES
-    for scene in scenes:
+    for scene in SCENES if args.scenes == "all" else args.scenes.split(","):
         for method in METHODS:
             out = subprocess.run(
-                [sys.executable, __file__, scene, method], capture_output=True, text=True
+                [sys.executable, __file__, "--child", scene, method],
+                capture_output=True,
+                text=True,
+                check=False,
             )
             print(out.stdout.strip() or out.stderr.strip().splitlines()[-1], flush=True)
 

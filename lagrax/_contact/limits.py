@@ -91,6 +91,17 @@ class Stops(NamedTuple):
     joint: np.ndarray
 
 
+def clipped(limits: tuple[JointLimit, ...], q):
+    """`q` with each joint of `limits` that is past one of its bounds moved onto it."""
+    if not limits:
+        return q
+    index = np.asarray([lim.index for lim in limits], int)
+    lower = jnp.asarray([lim.lower for lim in limits], q.dtype)
+    upper = jnp.asarray([lim.upper for lim in limits], q.dtype)
+    q = jnp.asarray(q)
+    return q.at[index].set(jnp.clip(q[index], lower, upper))
+
+
 def stops(limits: tuple[JointLimit, ...]) -> Stops:
     """The `Stops` of `limits`, lower bounds before upper ones within each joint."""
     rows = [

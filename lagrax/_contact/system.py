@@ -286,16 +286,10 @@ class ContactSystem(AbstractSystem):
         return self.system.projects
 
     def initial_state(self, q, qd, params):
-        """The wrapped system's initial state, with each joint that starts past one of
-        its `limits` moved onto it (its rate kept), and `ok` false also where a sphere
-        starts deeper than `max_penetration` allows."""
+        """The wrapped system's, a joint past one of its `limits` moved onto it (its rate
+        kept); `ok` false also where a sphere starts deeper than `max_penetration`."""
         q, qd, ok = self.system.initial_state(q, qd, params)
-        if self.limits:  # a joint started past a limit starts at it
-            index = np.asarray([lim.index for lim in self.limits], int)
-            lower = jnp.asarray([lim.lower for lim in self.limits], q.dtype)
-            upper = jnp.asarray([lim.upper for lim in self.limits], q.dtype)
-            q = jnp.asarray(q)
-            q = q.at[index].set(jnp.clip(q[index], lower, upper))
+        q = joint_limits.clipped(self.limits, q)  # a joint started past a limit: at it
         return q, qd, ok & start.admissible(self, q, params)
 
     def prepared(self, params, dtype):
