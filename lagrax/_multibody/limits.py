@@ -159,10 +159,13 @@ class _LimitImpact(eqx.Module):
             e = jnp.asarray(params["restitution"], qd.dtype)[self.index]
         else:
             e = jnp.asarray(self.restitution, qd.dtype)
-        mass = self.tree.system().mass_matrix(q, params)
+        # the impulse acts where the state goes on: at the stop itself (the located
+        # crossing may lie a root tolerance past it), so that the momentum of every
+        # other direction is kept with the mass matrix the solve continues with
+        q_after = q.at[i].set(jnp.clip(q[i], self.lower, self.upper))
+        mass = self.tree.system().mass_matrix(q_after, params)
         x = jnp.linalg.solve(mass, jnp.zeros_like(qd).at[k].set(1.0))  # M⁻¹ e_k
         impulse = -(1 + e) * qd[k] / x[k]
-        q_after = q.at[i].set(jnp.clip(q[i], self.lower, self.upper))
         return q_after, qd + impulse * x
 
 
