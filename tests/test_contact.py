@@ -415,10 +415,10 @@ def test_a_contact_scene_defaults_to_an_implicit_method(ball):
     assert body.default_method == "tsit5"
     ball = Sphere(R, lambda q, p: q)
     # implicit where a contact can stick (friction) or limits are enforced
-    assert ContactSystem(body, ball, FLOOR, friction=0.3).default_method == "kvaerno5"
-    assert ContactSystem(body, ball, FLOOR, friction=lambda p: 0.0).default_method == "kvaerno5"
+    assert ContactSystem(body, ball, FLOOR, friction=0.3).default_method == "rodas4"
+    assert ContactSystem(body, ball, FLOOR, friction=lambda p: 0.0).default_method == "rodas4"
     stop = [JointLimit(0, -1.0, 1.0)]
-    assert ContactSystem(body, ball, FLOOR, limits=stop).default_method == "kvaerno5"
+    assert ContactSystem(body, ball, FLOOR, limits=stop).default_method == "rodas4"
     # a frictionless scene: its impacts are the explicit method's
     assert ContactSystem(body, ball, FLOOR).default_method == "tsit5"
 
@@ -457,5 +457,5 @@ def test_a_contact_that_sticks_and_runs_out_of_steps_is_named_with_what_to_do(he
     assert 0.5 < lam / expected < 2.0
     assert 1.0 < h * lam < 4.0  # an explicit method held at its stability limit
     # what to do: the implicit method, the coefficients, the budget
-    for advice in ("solver='kvaerno5'", "stiction_velocity=", "stiffness=", "max_steps"):
+    for advice in ("solver='rodas4'", "stiction_velocity=", "stiffness=", "max_steps"):
         assert advice in text, advice

@@ -97,8 +97,8 @@ def test_kept_contact_forces_equal_simulate_and_the_closed_forms(scene, kept):
 def test_kept_at_the_end_and_through_checkpoint_and_store(scene, kept, checkpoint, tmp_path):
     final = _sweep(scene, observables=True)
     assert final.contact_force.dims == ("member", "contact", "axis")
-    # (the default method here is the implicit kvaerno5: the two programs' Newton
-    # iterations end at iterates that differ within the solve's tolerance, 8e-12 apart)
+    # (the default method here is the linearly implicit rodas4: the two programs' linear
+    # solves and Jacobians differ in their round-off)
     np.testing.assert_allclose(final.contact_force, kept.contact_force.isel(time=-1), rtol=1e-10)
     # the same sweep again loads its chunks from the checkpoint
     again = _sweep(scene, keep=TS, observables=OBSERVED, checkpoint=checkpoint)

@@ -250,7 +250,7 @@ def test_the_ant_comes_to_rest_where_mujocos_does():
     for _ in range(4000):
         mujoco.mj_step(model, data)
     assert np.max(np.abs(data.qvel)) < 1e-6  # MuJoCo's ant is at rest
-    sol = lx.simulate(scene, q0, v0, params, t1=2.0, n_save=21)  # the default: kvaerno5
+    sol = lx.simulate(scene, q0, v0, params, t1=2.0, n_save=21)  # the default: rodas4
     assert bool(sol.ok)
     assert np.max(np.abs(np.asarray(sol.qd[-1]))) < 1e-6  # at rest
     assert abs(float(sol.q[-1, 2]) - float(data.qpos[2])) < 0.025  # measured 0.1 mm

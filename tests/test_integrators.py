@@ -2,6 +2,7 @@
 
 import math
 
+import diffrax as dfx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import lagrax as lx
 from lagrax.bench import precision as wp
 from lagrax.bench import stability as st
+from lagrax.integrators import Rodas4
 
 ARM, P = lx.models.planar_2r()
 Q0 = jnp.array([-math.pi / 2 + 0.6, 0.4])  # regular motion
@@ -25,6 +27,7 @@ ORDERS = {
     "dopri5": (5, 1.0, (0.05, 0.025, 0.0125)),
     "dopri8": (8, 3.0, (0.3, 0.2, 0.15, 0.1, 0.075, 0.05)),
     "kvaerno5": (5, 1.0, (0.05, 0.025, 0.0125)),
+    "rodas4": (4, 1.0, (0.05, 0.025, 0.0125)),
     "variational": (2, 1.0, (0.04, 0.02, 0.01)),
     "variational4": (4, 1.0, (0.04, 0.02, 0.01)),
 }
@@ -119,6 +122,71 @@ def test_implicit_matches_explicit_on_a_non_stiff_problem(references):
     np.testing.assert_allclose(sol.q, references[1.0].q, atol=1e-7)
 
 
+# ------------------------------------------------------------------ Rodas4
+# Prothero–Robinson: y' = λ (y − g(t)) + g'(t), y(0) = g(0), whose solution is g(t) for
+# every λ: a closed form that is stiff for λ ≪ 0 and needs the method's ∂f/∂t term
+def _prothero_robinson(lam):
+    def field(t, y, args):
+        del args
+        return lam * (y - jnp.sin(t)) + jnp.cos(t)
+
+    return dfx.ODETerm(field)
+
+
+def test_rodas4_is_fourth_order_on_a_time_dependent_field():
+    errs, dts = [], (0.1, 0.05, 0.025)
+    for dt in dts:
+        sol = dfx.diffeqsolve(
+            _prothero_robinson(-1.0), Rodas4(), 0.0, 2.0, dt, jnp.zeros(1),
+            stepsize_controller=dfx.ConstantStepSize(), max_steps=200,
+        )  # fmt: skip
+        errs.append(abs(float(sol.ys[-1, 0]) - math.sin(2.0)))
+    slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
+    assert 3.7 < slope < 4.6, (errs, slope)
+
+
+def test_rodas4_is_l_stable_a_stiff_mode_is_damped_in_one_step():
+    # h λ = −1e6: an explicit method blows up; an L-stable, stiffly accurate one damps
+    # the stiff mode in one step and lands on the slow solution g(t1), up to the method's
+    # own error on g at this step (8.8e-6)
+    y0 = jnp.array([1.0])  # off the slow solution sin(0) = 0 by 1
+    y1, _, _, _, _ = Rodas4().step(_prothero_robinson(-1e7), 0.0, 0.1, y0, None, None, False)
+    assert abs(float(y1[0]) - math.sin(0.1)) < 2e-5
+
+
+def test_rodas4_dense_output_is_third_order():
+    term, s = _prothero_robinson(-1.0), Rodas4()
+    errs, hs = [], (0.2, 0.1, 0.05)
+    for h in hs:
+        y0 = jnp.array([0.3])  # off sin(0): the solution is sin t + 0.3 e^{−t}
+        _, _, dense, _, _ = s.step(term, 0.0, h, y0, None, None, False)
+        path = s.interpolation_cls(t0=0.0, t1=h, **dense)
+        t = np.array([0.25, 0.5, 0.75]) * h
+        exact = np.sin(t) + 0.3 * np.exp(-t)
+        pairs = zip(t, exact, strict=True)
+        errs.append(max(abs(float(path.evaluate(ti)[0]) - e) for ti, e in pairs))
+    slope = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    assert slope > 3.7, (errs, slope)  # a local error O(h⁴) of a third-order interpolant
+
+
+def test_rodas4_derivatives_agree_in_both_modes_and_with_differences():
+    system, params = st.stiff_arm(1e4)
+    q0 = jnp.array([-math.pi / 2 + 1.0, 0.5])
+
+    def final(speed):
+        qd0 = jnp.array([speed, 0.0])
+        sol = lx.simulate(system, q0, qd0, params, t1=0.2, solver="rodas4", rtol=1e-11,
+                          atol=1e-11)  # fmt: skip
+        return sol.q_end[0]
+
+    grad, fwd = jax.grad(final)(0.5), jax.jacfwd(final)(0.5)
+    e = 1e-4
+    central = (final(0.5 + e) - final(0.5 - e)) / (2 * e)
+    central_half = (final(0.5 + e / 2) - final(0.5 - e / 2)) / e
+    assert abs(central - central_half) < 1e-7 * abs(central)  # the differences converged
+    np.testing.assert_allclose([grad, fwd], [central, central], rtol=1e-6)
+
+
 def test_new_step_size_does_not_recompile():
     traces = []
 
@@ -135,12 +203,13 @@ def test_new_step_size_does_not_recompile():
 
 
 # ------------------------------------------------------------------ atlas failures
-def test_stiff_scene_explicit_fails_implicit_completes():
+@pytest.mark.parametrize("implicit", ["kvaerno5", "rodas4"])
+def test_stiff_scene_explicit_fails_implicit_completes(implicit):
     system, params = st.stiff_arm(1e6)
     q0 = jnp.array([-math.pi / 2 + 1.0, 0.5])
-    with pytest.raises(lx.SimulationError, match="solver='kvaerno5'"):
+    with pytest.raises(lx.SimulationError, match="solver='rodas4' or 'kvaerno5'"):
         lx.simulate(system, q0, QD0, params, t1=0.5, rtol=1e-6, atol=1e-6, max_steps=2000)
-    sol = lx.simulate(system, q0, QD0, params, t1=0.5, solver="kvaerno5", rtol=1e-6, atol=1e-6)
+    sol = lx.simulate(system, q0, QD0, params, t1=0.5, solver=implicit, rtol=1e-6, atol=1e-6)
     assert int(sol.stats["num_steps"]) < 500
     # the stiff spring holds joint 2 at its rest angle (0.3 rad) once the transient decays
     assert abs(float(sol.q_end[1]) - 0.3) < 1e-3

@@ -126,7 +126,7 @@ class ContactSystem(AbstractSystem):
     wheel = Sphere(0.1, lambda q, p: q[:2], angle=lambda q, p: q[2])
     scene = ContactSystem(disk, wheel, Plane([np.sin(0.2), np.cos(0.2)]), friction=0.5)
     q0 = [0.1 * np.sin(0.2), 0.1 * np.cos(0.2), 0.0]   # touching the slope
-    sol = lx.simulate(scene, q0, [0.0, 0.0, 0.0], {"m": 1.0}, t1=1.0, solver="kvaerno5")
+    sol = lx.simulate(scene, q0, [0.0, 0.0, 0.0], {"m": 1.0}, t1=1.0)  # rodas4: it sticks
     ```
     """
 
@@ -329,11 +329,11 @@ class ContactSystem(AbstractSystem):
 
     @property
     def default_method(self) -> str:
-        """With neither `solver=` nor `dt=`: `"kvaerno5"` where a contact can stick (a
+        """With neither `solver=` nor `dt=`: `"rodas4"` where a contact can stick (a
         `friction` or `static_friction` not the constant 0) or limits are enforced,
         else `"tsit5"` (see the contact guide, "The default method")."""
         frictionless = self.friction == 0.0 and self.static_friction in (None, 0.0)
-        return "tsit5" if frictionless and not self.limits else "kvaerno5"
+        return "tsit5" if frictionless and not self.limits else "rodas4"
 
     def stiff_account(self, q, v, params):
         """Eagerly, `(sentence, λ)`: the contact of fastest rate `λ` at `(q, v)` (a

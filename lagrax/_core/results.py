@@ -55,7 +55,7 @@ class RESULTS(dfx.RESULTS):
         "stiction): h * lambda > 2, lambda the magnitude of the fastest eigenvalue there "
         "(a contact's omega = sqrt(k_eff/m)); the solve stopped there, before the state "
         "could blow up. Use a step below 2/lambda (simulate's error names it), an adaptive "
-        "step, an implicit method (kvaerno5), or a softer contact."
+        "step, an implicit method (rodas4, kvaerno5), or a softer contact."
     )
 
 

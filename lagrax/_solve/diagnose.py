@@ -120,7 +120,7 @@ def stability_message(system: AbstractSystem, sol: Solution, params: Any) -> str
         f"rate there is lambda={lam:.4g} 1/s (a contact's omega = sqrt(k_eff/m), or its "
         f"stiction's 2 mu_s f_n/(v_s m)), so an explicit method needs dt <= 2/lambda = "
         f"{2.0 / lam:.3g} s there. The solve stopped before the state could blow up. Try: "
-        "a smaller dt, an adaptive step (no dt), solver='kvaerno5', or a softer contact "
+        "a smaller dt, an adaptive step (no dt), solver='rodas4', or a softer contact "
         "(a smaller stiffness=, a larger stiction_velocity=)."
         "\n  Pass throw=False to get the partial Solution (entries never reached are inf)."
     )
@@ -177,7 +177,7 @@ def diagnose(
                 "a larger max_steps; looser tolerances; or what is said above."
                 if stiff is not None
                 else "a larger max_steps; looser tolerances; or, if the scene is stiff "
-                "(stiff springs or dampers), an implicit method: solver='kvaerno5'."
+                "(stiff springs or dampers), an implicit method: solver='rodas4' or 'kvaerno5'."
             )
         )
     lines.append("  Pass throw=False to get the partial Solution (entries never reached are inf).")
@@ -200,7 +200,7 @@ def _stiff_lines(system, sol: Solution, params) -> list[str] | None:
     ]
     text.append(
         "  An explicit method's step (tsit5, dopri5, ...) is held to h lambda <~ 2-3 "
-        "there, so it crawls: use an implicit method, solver='kvaerno5' (the default "
+        "there, so it crawls: use an implicit method, solver='rodas4' (the default "
         "where a contact can stick), whose step is not bound by lambda."
     )
     text.append(

@@ -35,7 +35,7 @@ import numpy as np
 from .._core.results import RESULTS, code_of
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, unwrapped_term
-from ..integrators import Variational
+from ..integrators import Rodas4, Variational
 from .postprocess import WithWork
 
 _DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
@@ -267,7 +267,7 @@ def stiff_system(term, solver, controller):
     system without stiff forces (`AbstractSystem.stiff_rate` not overridden)."""
     if not isinstance(controller, dfx.ConstantStepSize):
         return None
-    if isinstance(solver, (dfx.AbstractImplicitSolver, Variational)):
+    if isinstance(solver, (dfx.AbstractImplicitSolver, Variational, Rodas4)):
         return None
     system = system_of(term)
     if system is None or type(system).stiff_rate is _DEFAULT_STIFF_RATE:

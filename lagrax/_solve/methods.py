@@ -12,7 +12,7 @@ import optimistix as optx
 
 from .._core import checks
 from .._core.errors import ArgumentTypeError, ConfigurationError
-from ..integrators import RK4, Variational
+from ..integrators import RK4, Rodas4, Variational
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,13 @@ METHODS: dict[str, MethodInfo] = {
         True,
         True,
         "Kværnø 5(4) ESDIRK, implicit, adaptive: stiff springs and dampers",
+    ),
+    "rodas4": MethodInfo(
+        Rodas4,
+        True,
+        True,
+        "Rodas4, linearly implicit (Rosenbrock), L-stable, adaptive: stiff contact and "
+        "limits at one Jacobian a step",
     ),
     "rk4": MethodInfo(RK4, False, False, "classic Runge–Kutta 4, explicit, fixed step only"),
     "variational": MethodInfo(

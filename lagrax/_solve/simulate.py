@@ -29,7 +29,7 @@ from .._core.one_shot import one_shot_on
 from .._core.results import RESULTS, code_of, messages
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, TauFn
-from ..integrators import Variational
+from ..integrators import Rodas4, Variational
 from . import arguments, cut_sensitivities, integrate, sensitivities, transposed
 from . import events as _events  # (`events` is simulate's argument)
 from .compiled import call, compiled_or_none, configured
@@ -236,7 +236,7 @@ def work_as_state(solver, field, args, t0, y0) -> bool:
     """Whether the plain loop carries the work as state (`postprocess.WithWork`): a
     Runge–Kutta method (lagrax's variational integrators step `(q, v)` as such) and a
     system with a power to integrate."""
-    if not isinstance(solver, dfx.AbstractRungeKutta):
+    if not isinstance(solver, (dfx.AbstractRungeKutta, Rodas4)):
         return False
     return not no_power(field.system, field, args[0], args[1], t0, *y0)
 
@@ -386,11 +386,12 @@ def simulate(
       [`from_mujoco`][lagrax.chains.from_mujoco] scene: MuJoCo's `ctrl`).
     - `solver`: a method name or a diffrax solver. Names (see `lagrax.METHODS`):
       `"tsit5"` (explicit 5(4), adaptive), `"dopri5"`, `"dopri8"` (tight
-      tolerances), `"kvaerno5"` (implicit; stiff springs and dampers), `"rk4"` (fixed
+      tolerances), `"kvaerno5"` (implicit; stiff springs and dampers), `"rodas4"`
+      (linearly implicit, one Jacobian a step; stiff contact), `"rk4"` (fixed
       step), `"variational"` / `"variational4"` (symplectic, fixed step; bounded
       energy error over long horizons). Default (`None`): the system's
       [`default_method`][lagrax.AbstractSystem.default_method]: `"tsit5"`, and
-      `"kvaerno5"` for a contact scene where a contact can stick (friction) or joint
+      `"rodas4"` for a contact scene where a contact can stick (friction) or joint
       limits are enforced; with `dt=`, `"tsit5"` at that step.
     - `rtol`, `atol`: error-control tolerances of the adaptive step (default 1e-8);
       for implicit methods at a fixed step, the tolerances of their Newton iterations.

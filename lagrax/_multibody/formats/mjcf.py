@@ -195,7 +195,8 @@ def from_mjcf(
       from a dissipation function (so its power is in `Solution.work`), with its
       analytic derivative. MuJoCo solves friction loss as a soft constraint instead;
       away from rest (`|q̇| ≥ v_s`) the two forces agree. A small `v_s` makes the
-      equations stiff near rest: an implicit solver (`solver="kvaerno5"`) steps over it.
+      equations stiff near rest: an implicit solver (`solver="rodas4"` or
+      `"kvaerno5"`) steps over it.
 
     **Contact** (`contact=True`, or a list of geom names): each colliding geom
     (`contype` or `conaffinity` nonzero) on a moving body becomes

@@ -141,7 +141,7 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     and listed in `scene.unsupported`; nothing is dropped silently.
 
     A state from MuJoCo: [`from_mujoco_state`][lagrax.chains.from_mujoco_state]`(qpos,
-    qvel, scene.system)`; `simulate` then takes the implicit `"kvaerno5"` by default
+    qvel, scene.system)`; `simulate` then takes the linearly implicit `"rodas4"` by default
     (the scene's `default_method`: contact and limits are stiff).
 
     **Arguments:**
