@@ -259,3 +259,45 @@ def test_the_ant_comes_to_rest_where_mujocos_does():
     q1, v1 = lx.chains.from_mujoco_state(qpos0, np.zeros(model.nv), scene)
     again = lx.simulate(scene, q1, v1, params, t1=2.0, n_save=21)
     assert abs(float(again.q[-1, 2]) - float(sol.q[-1, 2])) < 1e-6
+
+
+PLANAR = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="torso" pos="0 0 0.5">
+      <joint name="rootx" type="slide" axis="1 0 0"/>
+      <joint name="rootz" type="slide" axis="0 0 1"/>
+      <joint name="rooty" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.05" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_planar_roots_state_is_mujocos_as_it_is():
+    """A planar root (two slides and a hinge, as in hopper.xml and walker.xml) has no free
+    joint: the state converts unchanged, both ways, given the scene (this raised an
+    `AttributeError` once)."""
+    scene, _ = lx.chains.from_mujoco(PLANAR)
+    qpos, qvel = np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, -3.0])
+    q, v = lx.chains.from_mujoco_state(qpos, qvel, scene)
+    np.testing.assert_array_equal(np.asarray(q), qpos)
+    np.testing.assert_array_equal(np.asarray(v), qvel)
+    back = lx.chains.to_mujoco_state(q, v, scene)
+    np.testing.assert_array_equal(np.asarray(back[0]), qpos)
+    np.testing.assert_array_equal(np.asarray(back[1]), qvel)
+
+
+def test_two_free_bodies_on_the_ground_are_refused_for_what_they_are():
+    """dm_control's quadruped with its ball: two free bodies, no equality constraint; the
+    refusal names the parts and nothing else (it named equality constraints once)."""
+    two = """
+    <mujoco><worldbody><geom type="plane" size="5 5 0.1"/>
+      <body pos="0 0 1"><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>
+      <body pos="1 0 1"><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>
+    </worldbody></mujoco>"""
+    with pytest.raises(MJCFError, match=r"2 part\(s\)") as info:
+        lx.chains.from_mujoco(two)
+    assert "equality" not in str(info.value).split("this one has")[1]

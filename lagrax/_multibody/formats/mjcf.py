@@ -330,14 +330,15 @@ def from_mjcf(
     else:
         part_names = [names("body", p.free) if p.free is not None else "world" for p in parts]
         robot, params = Forest(robots, part_names), tuple(all_params)
+    plain = robot
     robot = _equalities(mujoco, model, names, robot, places, ignore_unsupported)
     if contact is False or contact is None:
         return robot, params
-    if len(parts) != 1 or robot is not robots[0]:
+    if len(parts) != 1 or robot is not plain:
         raise MJCFError(
             "contact= is read for a model of one robot without equality constraints; this "
             f"one has {len(parts)} part(s)"
-            + (" and equality constraints" if robot is not robots[-1] else "")
+            + (" and equality constraints" if robot is not plain else "")
         )
     points = mjcf_points(model, names, place, contact, meshes, base is not None, margin)
     return contact_scene(

@@ -35,6 +35,8 @@ def free_joints(robot: Any) -> list[tuple[int, int]]:
     robot = getattr(robot, "robot", robot)  # a ConstrainedRobot: its robot
     if robot is None:
         return [(0, 0)]
+    if not isinstance(robot, (Forest, FloatingTree)):
+        return []  # a fixed base (a planar root of slides and a hinge, say): no free joint
     parts = robot.parts if isinstance(robot, Forest) else (robot,)
     out, qa, va = [], 0, 0
     for part in parts:
