@@ -301,3 +301,16 @@ def test_two_free_bodies_on_the_ground_are_refused_for_what_they_are():
     with pytest.raises(MJCFError, match=r"2 part\(s\)") as info:
         lx.chains.from_mujoco(two)
     assert "equality" not in str(info.value).split("this one has")[1]
+
+
+def test_a_robot_that_bears_no_weight_on_its_ground_is_refused_at_load():
+    """The contact's defaults are scaled from the weight the ground bears at `qpos0`: a
+    pendulum hanging from the world bears none, and the load says so (the scaling runs
+    as one compiled program there, not op by op)."""
+    hanging = """
+    <mujoco><worldbody><geom type="plane" size="5 5 0.1"/>
+      <body pos="0 0 1"><joint type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.05" mass="1"/></body>
+    </worldbody></mujoco>"""
+    with pytest.raises(MJCFError, match="bears no weight on its ground"):
+        lx.chains.from_mujoco(hanging)

@@ -11,6 +11,7 @@ one warning what it leaves out.
 import warnings
 from typing import Any
 
+import jax
 import numpy as np
 
 from ..._contact.system import ContactSystem
@@ -202,7 +203,8 @@ def from_mujoco(source: Any, *, dtype: Any = None) -> tuple[Any, dict]:
     finally:
         model.opt.density, model.opt.viscosity = saved[:2]
         model.opt.disableflags = saved[2]
-    co = scene.coefficients(params)
+    # one compiled program, not the scaling's few hundred small eager ones (12 s for the ant)
+    co = jax.jit(scene.coefficients)(params)
     if not bool(co.ok):
         raise MJCFError(
             "from_mujoco cannot scale the contact's defaults: the model bears no weight on its "
