@@ -169,15 +169,18 @@ def _chart(rows: list[dict], path: str) -> None:
     print(f"chart: {path}")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated")
     parser.add_argument("--t1", type=float, default=3.0, help="seconds simulated")
     parser.add_argument("--save", default=None, help="also write the rows to this JSON file")
     parser.add_argument("--chart", default=None, help="draw the heights into this PNG")
     parser.add_argument("--load", default=None, help="redraw (--chart) a run saved by --save")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     if args.child:
         print("ROW " + json.dumps(child(args.child, args.t1)))
         return
