@@ -248,3 +248,36 @@ def test_gradient_through_an_elastic_bounce_from_its_onset_matches_the_closed_fo
     v0 = 2.0
     assert abs(float(apex(v0)) - R - v0**2 / (2 * G)) < 1e-9  # back up to the apex
     assert abs(float(jax.jacfwd(apex)(v0)) / (v0 / G) - 1.0) < 1e-6
+
+
+def test_billiards_where_the_object_ball_stops_moves_with_the_cue_speed_by_its_derivative():
+    """A cue ball sliding on a table with friction (μ = 0.2, point masses) strikes a
+    second ball 0.3 m away, which slides and stops. The derivative of where it stops
+    with respect to the cue's speed, by `jax.grad` and `jax.jacfwd` with the defaults
+    (the default method here, `rodas4`: something can stick), against central differences
+    at `1e-12` (two steps agreeing to 1e-8): the pair's onset moves with the speed. The
+    implicit method's sensitivities are under the step-size control (the augmented
+    system, as for an explicit method); without it `jax.grad` was 6.8e-3 off."""
+    body = lx.LagrangianSystem(
+        lambda q, qd, p: 0.5 * p["m"] * qd @ qd, lambda q, p: p["m"] * G * (q[1] + q[3]), n_dof=4
+    )
+    balls = [Sphere(R, lambda q, p, i=i: q[2 * i : 2 * i + 2]) for i in range(2)]
+    scene = ContactSystem(body, balls, FLOOR, pairs="all", dissipation=0.0, friction=0.2)
+    assert scene.default_method == "rodas4"
+    k = float(scene.coefficients({"m": 1.0}).stiffness)
+    y = R - (G / k) ** (1 / 1.5)
+
+    def stops_at(v, **kw):
+        q0, v0 = jnp.array([0.0, y, 0.3, y]), jnp.stack([v, 0.0, 0.0, 0.0])
+        sol = lx.simulate(scene, q0, v0, {"m": 1.0}, t1=1.0, n_save=2, **kw)
+        return sol.q[-1, 2]
+
+    tight = dict(rtol=1e-12, atol=1e-12)
+    fd = [
+        (float(stops_at(1.0 + h, **tight)) - float(stops_at(1.0 - h, **tight))) / (2 * h)
+        for h in (1e-3, 1e-4)
+    ]
+    assert abs(fd[0] / fd[1] - 1.0) < 1e-7  # the central differences have converged
+    assert abs(float(stops_at(1.0, **tight)) - 0.3547) < 1e-3  # it moved 5 cm and stopped
+    for derivative in (jax.grad(stops_at), jax.jacfwd(stops_at)):
+        assert abs(float(derivative(1.0)) / fd[1] - 1.0) < 1e-6  # measured 7e-10, 3e-9

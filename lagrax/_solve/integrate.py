@@ -150,6 +150,7 @@ class _PrimalNorm(eqx.Module):
     norm: Any
     ratio: float | None = eqx.field(default=None, static=True)
     tangents: bool = eqx.field(default=False, static=True)
+    gate: Any = None  # a traced 0/1 factor on the tangents' part (None: 1)
 
     def __call__(self, error):
         primal = self.norm(error[0])
@@ -159,15 +160,18 @@ class _PrimalNorm(eqx.Module):
             tangent = jnp.max(jax.vmap(self.norm)(error[1]))
         else:
             tangent = self.norm(error[1])
-        return jnp.maximum(primal, self.ratio * tangent)
+        weight = self.ratio if self.gate is None else self.ratio * self.gate
+        return jnp.maximum(primal, weight * tangent)
 
 
-def primal_controller(controller, ratio: float | None = None, tangents: bool = False):
+def primal_controller(
+    controller, ratio: float | None = None, tangents: bool = False, gate: Any = None
+):
     """`controller` with its error norm taken over the primal part of an augmented
-    state `(y, extra)`, or (`ratio`) over the tangents in `extra` too (`_PrimalNorm`);
-    a constant step: unchanged."""
+    state `(y, extra)`, or (`ratio`) over the tangents in `extra` too, times `gate`
+    where given (`_PrimalNorm`); a constant step: unchanged."""
     if isinstance(controller, dfx.PIDController):
-        norm = _PrimalNorm(controller.norm, ratio, tangents)
+        norm = _PrimalNorm(controller.norm, ratio, tangents, gate)
         return eqx.tree_at(lambda c: c.norm, controller, norm)
     return controller
 
