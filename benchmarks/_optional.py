@@ -6,6 +6,8 @@ it, so a long run never dies half-way on a missing package.
 """
 
 import importlib
+import importlib.util
+import os
 
 EXTRA = 'pip install -e ".[bench]"'
 
@@ -18,3 +20,11 @@ def available(module: str, what: str) -> bool:
         print(f"note: {what} skipped: {module} is not installed ({EXTRA})", flush=True)
         return False
     return True
+
+
+def asset(package: str, *parts: str) -> str:
+    """A file shipped inside an installed package, found without importing it."""
+    spec = importlib.util.find_spec(package)
+    if spec is None or not spec.submodule_search_locations:
+        raise FileNotFoundError(f"{package} is not installed ({EXTRA})")
+    return os.path.join(spec.submodule_search_locations[0], *parts)

@@ -53,6 +53,8 @@ import subprocess
 import sys
 import time
 
+from _optional import asset
+
 OFF = "--xla_cpu_use_fusion_emitters=false"
 
 
@@ -127,16 +129,6 @@ FIRST_ROWS = ("2R arm, 1 s", "arm7, 1 s", "humanoid_CMU, 1 s", "ant, contact, 1 
               "solo12 on four feet, 2 s", "ant, MJX, 1 s")  # fmt: skip
 
 
-def _asset(package: str, *parts: str) -> str:
-    """A file shipped inside an installed package, found without importing it."""
-    import importlib.util
-
-    spec = importlib.util.find_spec(package)
-    if spec is None or not spec.submodule_search_locations:
-        raise FileNotFoundError(f"{package} is not installed")
-    return os.path.join(spec.submodule_search_locations[0], *parts)
-
-
 def _first_child(row: str) -> dict:
     """One row of the first-result table, timed from before `import lagrax` (or, for
     MJX, `import mujoco.mjx`): `{"first": s, "again": s}`."""
@@ -146,7 +138,7 @@ def _first_child(row: str) -> dict:
         import mujoco
         from mujoco import mjx
 
-        model = mujoco.MjModel.from_xml_path(_asset("gymnasium", "envs/mujoco/assets/ant.xml"))
+        model = mujoco.MjModel.from_xml_path(asset("gymnasium", "envs/mujoco/assets/ant.xml"))
         steps = round(1.0 / model.opt.timestep)
         mx, dx = mjx.put_model(model), mjx.put_data(model, mujoco.MjData(model))
 
@@ -189,11 +181,11 @@ def _first_scene(row, lx, jnp, np):
     if row == "solo12 on four feet, 2 s":
         return _solo12_standing(lx, jnp, np)
     if row == "humanoid_CMU, 1 s":
-        path = _asset("dm_control", "suite", "humanoid_CMU.xml")
+        path = asset("dm_control", "suite", "humanoid_CMU.xml")
         model, p = lx.chains.from_mjcf(path)
         system = robot = model.system()
     else:
-        path = _asset("gymnasium", "envs/mujoco/assets/ant.xml")
+        path = asset("gymnasium", "envs/mujoco/assets/ant.xml")
         system, p = lx.chains.from_mjcf(path, contact=True)
         robot = system.system
     mj = mujoco.MjModel.from_xml_path(path)
@@ -307,7 +299,7 @@ def sizes() -> None:
     import lagrax as lx
     from lagrax.contact import ContactSystem
 
-    scene, p = lx.chains.from_mjcf(_asset("gymnasium", "envs/mujoco/assets/ant.xml"), contact=True)
+    scene, p = lx.chains.from_mjcf(asset("gymnasium", "envs/mujoco/assets/ant.xml"), contact=True)
     robot = scene.system
     fixed = ContactSystem(
         robot, scene.spheres, scene.plane, friction=lambda x: x["contact_friction"],

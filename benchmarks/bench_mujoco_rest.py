@@ -21,13 +21,14 @@ dm_control's `cheetah`, `walker`, `quadruped` (`dm:` names dm_control's suite). 
 """
 
 import argparse
-import importlib.util
 import json
 import os
 import subprocess
 import sys
 import time
 import warnings
+
+from _optional import asset
 
 MODELS = (
     "ant",
@@ -42,16 +43,10 @@ MODELS = (
 
 
 def _path(name: str) -> str:
-    """The model file, found inside its installed package without importing it."""
-    package, parts = (
-        ("dm_control", ("suite", name[3:] + ".xml"))
-        if name.startswith("dm:")
-        else ("gymnasium", ("envs", "mujoco", "assets", name + ".xml"))
-    )
-    spec = importlib.util.find_spec(package)
-    if spec is None or not spec.submodule_search_locations:
-        raise SystemExit(f"{package} is not installed: pip install -e '.[bench]'")
-    return os.path.join(spec.submodule_search_locations[0], *parts)
+    """The model file: `dm:` names dm_control's suite, others gymnasium's assets."""
+    if name.startswith("dm:"):
+        return asset("dm_control", "suite", name[3:] + ".xml")
+    return asset("gymnasium", "envs", "mujoco", "assets", name + ".xml")
 
 
 def _height_address(mujoco, model) -> int | None:

@@ -60,7 +60,7 @@ from .._core.closures import closes_over_tracers
 from .._core.results import code_of, from_code
 from .._systems.abstract import AbstractSystem
 from .._systems.implicit import along_given, switched_off
-from ..integrators._rosenbrock import Rodas4
+from ..integrators import Rodas4
 from . import integrate as _integrate
 
 _RULE = {"on": True}
