@@ -21,6 +21,7 @@ from collections.abc import Callable
 from typing import Any, ClassVar
 
 import diffrax as dfx
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
@@ -72,6 +73,17 @@ _H = np.array(
 )  # fmt: skip
 # the solution's weights: the last stage's argument plus the last increment
 _M = _A[5] + np.eye(6)[5]
+
+
+class TangentLinearField(eqx.Module):
+    """A vector field of a state `(y, s)` whose second part is the first's linearization,
+    `F(t, (y, s)) = (f(t, y), ∂f/∂y s + g(t, y))`, so that its Jacobian is block lower
+    triangular, `[[J, 0], [H(s), J]]` (`J = ∂f/∂y`, `H(s) = ∂(J s + g)/∂y`), with one
+    diagonal block per tangent where `tangents` (then `s` carries `k` tangents on a
+    leading axis, each of `y`'s structure). `Rodas4` forms and factorizes only `J` for
+    such a field (`_tangent_step`)."""
+
+    tangents: eqx.AbstractVar[bool]
 
 
 class RodasInterpolation(dfx.AbstractLocalInterpolation):
@@ -129,6 +141,9 @@ class Rodas4(dfx.AbstractAdaptiveSolver):
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         del solver_state, made_jump
+        field = terms.vector_field if isinstance(terms, dfx.ODETerm) else None
+        if isinstance(field, TangentLinearField):
+            return _tangent_step(terms, field.tangents, t0, t1, y0, args)
         y0f, unravel = ravel_pytree(y0)
         dtype = y0f.dtype
         t0 = jnp.asarray(t0, dtype)
@@ -160,3 +175,69 @@ class Rodas4(dfx.AbstractAdaptiveSolver):
         y1 = unravel(y1f)
         dense = dict(y0=y0, y1=y1, k1=unravel(k[0]), k2=unravel(k[1]))
         return y1, unravel(stages[5]), dense, None, dfx.RESULTS.successful
+
+
+def _tangent_step(terms, tangents: bool, t0, t1, y0, args):
+    """`Rodas4.step` for a `TangentLinearField`: the same numbers as the step on the full
+    state (its Jacobian is that field's, exactly), with the Jacobian's columns taken along
+    `y` only (`n + 1` directions, where the full state has `n (1 + k) + 1`) and one LU of
+    `I/(h γ) − J`: `W = I/(h γ) − [[J, 0], [H, J]]` is block lower triangular, so
+    `W (x, ξ) = (r, ρ)` is `x = W₀⁻¹ r`, `ξᵢ = W₀⁻¹ (ρᵢ + Hᵢ x)`."""
+    y0_, s0_ = y0
+    y0f, unravel = ravel_pytree(y0_)
+    one = s0_ if tangents else jax.tree_util.tree_map(lambda x: x[None], s0_)
+    s0f = jax.vmap(lambda x: ravel_pytree(x)[0])(one)  # (k, n)
+    dtype = y0f.dtype
+    t0 = jnp.asarray(t0, dtype)
+    h = jnp.asarray(t1, dtype) - t0
+    n, k = y0f.size, s0f.shape[0]
+
+    def pack(sf):
+        tree = jax.vmap(unravel)(sf)
+        return tree if tangents else jax.tree_util.tree_map(lambda x: x[0], tree)
+
+    def unpack(tree):
+        one = tree if tangents else jax.tree_util.tree_map(lambda x: x[None], tree)
+        return jax.vmap(lambda x: ravel_pytree(x)[0])(one)
+
+    def field(t, y, sf):
+        dy, ds = terms.vf(t, (unravel(y), pack(sf)), args)
+        return ravel_pytree(dy)[0], unpack(ds)
+
+    z0 = jnp.concatenate([y0f, t0[None]])
+
+    def along(e):
+        return jax.jvp(lambda z: field(z[n], z[:n], s0f), (z0,), (e,))[1]
+
+    col_y, col_s = jax.vmap(along)(jnp.eye(n + 1, dtype=dtype))  # (n + 1, n), (n + 1, k, n)
+    jac, f_t = col_y[:n].T, col_y[n]
+    coupling, g_t = jnp.transpose(col_s[:n], (1, 2, 0)), col_s[n]  # Hᵢ: (k, n, n); (k, n)
+    lu = jsl.lu_factor(jnp.eye(n, dtype=dtype) / (h * _GAMMA) - jac)
+    a, c_over_h = jnp.asarray(_A, dtype), jnp.asarray(_C, dtype) / h
+    nodes, d = jnp.asarray(_NODES, dtype), jnp.asarray(_D, dtype)
+
+    def stage(i, carry):
+        stages, tangent_stages = carry
+        f_i, g_i = field(
+            t0 + nodes[i] * h,
+            y0f + a[i] @ stages,
+            s0f + jnp.einsum("j,jkn->kn", a[i], tangent_stages),
+        )
+        r = f_i + c_over_h[i] @ stages + h * d[i] * f_t
+        rho = g_i + jnp.einsum("j,jkn->kn", c_over_h[i], tangent_stages) + h * d[i] * g_t
+        x = jsl.lu_solve(lu, r)
+        xi = jsl.lu_solve(lu, (rho + coupling @ x).T).T
+        return stages.at[i].set(x), tangent_stages.at[i].set(xi)
+
+    zeros = (jnp.zeros((6, n), dtype), jnp.zeros((6, k, n), dtype))
+    stages, tangent_stages = jax.lax.fori_loop(0, 6, stage, zeros)
+    m, hh = jnp.asarray(_M, dtype), jnp.asarray(_H, dtype)
+
+    def both(weights_y, weights_s):
+        return unravel(weights_y), pack(weights_s)
+
+    y1 = both(y0f + m @ stages, s0f + jnp.einsum("j,jkn->kn", m, tangent_stages))
+    k_y, k_s = hh @ stages, jnp.einsum("rj,jkn->rkn", hh, tangent_stages)
+    dense = dict(y0=y0, y1=y1, k1=both(k_y[0], k_s[0]), k2=both(k_y[1], k_s[1]))
+    error = both(stages[5], tangent_stages[5])
+    return y1, error, dense, None, dfx.RESULTS.successful
