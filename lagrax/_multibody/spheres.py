@@ -77,7 +77,11 @@ class TreeSpheres(AbstractSphereSource):
         """`(centres (K, 3), rotations (K, 3, 3))` of the spheres on `bodies` (`−1`: the
         floating base) at `offsets` in the bodies' frames."""
         q = jnp.asarray(q)
-        origins, rots = self.tree.frames(q[7:] if self.floating else q, params)
+        if self.tree.n_bodies == 0:  # a lone free body: its spheres all on the base
+            dtype = jnp.result_type(q.dtype, float)
+            origins, rots = jnp.zeros((0, 3), dtype), jnp.zeros((0, 3, 3), dtype)
+        else:
+            origins, rots = self.tree.frames(q[7:] if self.floating else q, params)
         dtype = rots.dtype
         bodies = np.asarray(bodies, int)
         if np.any(bodies < 0):  # the floating base itself: origin 0, no rotation

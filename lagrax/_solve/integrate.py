@@ -36,6 +36,7 @@ from .._core.results import RESULTS, code_of
 from .._systems.abstract import AbstractSystem
 from .._systems.vector_field import LagrangianVectorField, unwrapped_term
 from ..integrators import Rodas4, Variational
+from ..integrators._rosenbrock import TangentLinearField
 from .postprocess import WithWork
 
 _DEFAULT_STIFF_RATE = AbstractSystem.stiff_rate
@@ -294,12 +295,32 @@ def stability_check(term, solver, controller, step, keep, y, args, result):
     return RESULTS.where(past, RESULTS.step_past_stability_limit, result)
 
 
+def _project_with_tangents(inner, tangents: bool, y):
+    """`project(inner, ·)` of the state of an augmented system `(y, s)`, with its tangents
+    carried along by the projection's derivative (`s ↦ P'(y) s`, each of them where
+    `tangents`): the forward sensitivities of the projected solve."""
+    primal, s = y
+    system = system_of(inner)
+    if system is None or not system.projects:
+        return y
+
+    def along(direction):
+        return jax.jvp(lambda v: project(inner, v), (primal,), (direction,))
+
+    if tangents:
+        return jax.vmap(along, out_axes=(None, 0))(s)
+    return along(s)
+
+
 def project(term, y):
     """The state `(q, v)` with `q` put back onto its manifold by the system's
     [`project_configuration`][lagrax.AbstractSystem.project_configuration] (a floating
     base: its quaternion normalized), after every accepted step; `y` unchanged for a
     term that is not a system's vector field, or a system whose projection is the
     identity (the default)."""
+    field = getattr(unwrapped_term(term), "vector_field", None)
+    if isinstance(field, TangentLinearField):  # forward sensitivities: `(y, s)`
+        return _project_with_tangents(dfx.ODETerm(field.field), field.tangents, y)
     system = system_of(term)
     if system is None or not system.projects:
         return y

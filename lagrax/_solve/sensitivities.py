@@ -45,9 +45,10 @@ alone, `n + 1` of them where the augmented state has `n (1 + k) + 1` (the billia
 
 The rule covers what `simulate`'s forward-mode loops differentiate in practice: the
 initial state, `params` and a constant `tau`. Any other perturbed input (the times, the
-tolerances, the vector field's closure) or a system that projects its configuration
-after each step (a floating base: the projection's tangent) takes `jax.jvp` of the loop
-itself, as before.
+tolerances, the vector field's closure) takes `jax.jvp` of the loop itself, as before. A
+system that projects its configuration after each step (a floating base's quaternion
+normalized) has its tangents carried by the projection's derivative
+(`integrate.project`), which is the JVP of the projected step.
 """
 
 import contextlib
@@ -200,6 +201,8 @@ def _integrate_jvp(primals, tangents):
     if dargs is None:
         dargs = jtu.tree_map(lambda _: None, args)
     own = d_term is not None and bool(jtu.tree_leaves(d_term))
+    if own and _projects(_field_of(term)):  # (the projection needs the field's arrays)
+        return eqx.filter_jvp(_plain, primals, tangents)
     if own:  # the field's arrays are perturbed: they join the arguments
         arrays, rest = eqx.partition(term.vector_field, eqx.is_array)
         term = dfx.ODETerm(rest)
@@ -238,14 +241,13 @@ def _augmentable(term, solver, other_tangents) -> bool:
     one iterates on it) or, on a rough system, `Rodas4` (its tangents under the error
     control at tolerances of at least `ROSENBROCK_TANGENT_TOLERANCE`), only the initial
     state, the arguments and the vector field's arrays perturbed (not the times or the
-    tolerances), and a system that does not project its configuration after each step."""
+    tolerances; a projecting system's arrays perturbed take the loop's JVP too)."""
     field = _field_of(term)
     return (
         _RULE["on"]
         and field is not None
         and (isinstance(solver, dfx.AbstractERK) or (isinstance(solver, Rodas4) and _rough(field)))
         and not jtu.tree_leaves(other_tangents)
-        and not _projects(field)
     )
 
 
