@@ -166,6 +166,43 @@ def test_the_crossing_times_derivatives_are_the_implicit_functions():
     assert abs(forward[1] / fd[1] - 1.0) < 1e-6
 
 
+def test_a_controllers_gains_in_its_closure_are_differentiated_through_the_bounce():
+    """A controller `tau(t, q, qd)` whose PD gains are the values differentiated, held in
+    its closure (as a user writes one): the height and speed 0.25 s after the bounce,
+    with respect to both gains, by `jax.jacfwd` and `jax.jacrev` at the default options,
+    against central differences of `dopri8` solves at `1e-13` (two steps agreeing to
+    3e-8). The gains are hoisted out of the closure (`jax.closure_convert`), so the
+    tangents go under the error control as `params`' do: measured 9e-8, where the
+    loop's own JVP, the only route a closure had before, is 21 % off."""
+    from lagrax._solve import sensitivities
+
+    body = lx.LagrangianSystem(lambda q, qd, p: 0.5 * qd @ qd, lambda q, p: G * q[1], n_dof=2)
+    scene = ContactSystem(body, Sphere(R, lambda q, p: q), Plane([0.0, 1.0]), dissipation=0.05)
+
+    def after(gains, **options):
+        kp, kd = gains[0], gains[1]
+
+        def tau(t, q, qd):  # a pull towards 1 m
+            return jnp.stack([0.0 * q[0], kp * (1.0 - q[1]) - kd * qd[1]])
+
+        sol = lx.simulate(
+            scene, jnp.array([0.0, H]), jnp.zeros(2), {}, tau=tau, t1=T1, n_save=2, **options
+        )
+        return jnp.stack([sol.q[-1, 1], sol.qd[-1, 1]])
+
+    x0 = np.array([3.0, 0.5])
+    tight = jax.jit(lambda x: after(x, solver="dopri8", rtol=1e-13, atol=1e-13, max_steps=10**5))
+    fd = _converged_central(tight, x0, [1e-3, 1e-3])
+    scale = np.max(np.abs(fd))
+    forward = np.asarray(jax.jacfwd(after)(jnp.asarray(x0)))
+    reverse = np.asarray(jax.jacrev(after)(jnp.asarray(x0)))
+    np.testing.assert_allclose(forward, fd, rtol=0, atol=1e-6 * scale)
+    np.testing.assert_allclose(reverse, fd, rtol=0, atol=1e-6 * scale)
+    with sensitivities.plain_jvp():  # the loop's own JVP: what a closure got before
+        plain = np.asarray(jax.jacfwd(after)(jnp.asarray(x0)))
+    assert np.max(np.abs(plain - fd)) > 0.1 * scale
+
+
 FREE_BODY = """<mujoco><worldbody><geom type="plane" size="2 2 0.1" friction="0.6"/>
 <body pos="0 0 0.3"><freejoint/>
 <geom type="sphere" size="0.04" pos="0.1 0 0" mass="1"/>

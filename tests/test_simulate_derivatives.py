@@ -185,9 +185,10 @@ def test_forward_sensitivities_as_state_equal_the_loops_jvp(case):
 
 
 def test_closures_over_differentiated_values():
-    """A `tau` function closing over the differentiated value: forward mode picks the
-    loop's own JVP (it was a raw JAX error) and matches central differences, as reverse
-    mode does. An energy closing over it cannot be differentiated by the compiled solve
+    """A `tau` function closing over the differentiated value: the value is hoisted out
+    of the closure, so both modes take the solve's own derivative rules (forward mode
+    took the loop's own JVP before, and a raw JAX error before that), and match central
+    differences. An energy closing over it cannot be differentiated by the compiled solve
     (the derivative came out as a silent zero): a `ConfigurationError` that says to pass
     it through `params`, in either mode."""
     system, params = lx.models.planar_2r()

@@ -5,9 +5,10 @@ modes that traced them.
 A system built inside `jax.jit` or `jax.vmap` of a user's function may close over a traced
 value (`V = ½ k q·q` with `k` the function's argument): its calls are then traced even
 where the arrays passed are concrete. Under `jax.grad` or `jax.jvp` such a closure hides a
-derivative from any custom rule (a rule sees only its arguments): callers then take plain
-automatic differentiation, or refuse with a message that says to pass the value through
-`params`.
+derivative from any custom rule (a rule sees only its arguments): callers then hoist the
+values into the function's fields (`hoisted`: `simulate` does for a `tau` function), take
+plain automatic differentiation, or refuse with a message that says to pass the value
+through `params`.
 """
 
 import contextlib
@@ -15,7 +16,9 @@ import dataclasses
 import functools
 import types
 import weakref
+from collections.abc import Callable
 
+import equinox as eqx
 import jax
 
 try:  # JAX's tracer types of jax.jvp and of linearize (jax.grad): private, so looked up softly
@@ -134,3 +137,25 @@ def differentiated_closure(*values) -> bool:
     """Whether a function among `values` closes over a value that automatic
     differentiation traces (a derivative that a custom rule would not see)."""
     return any(modes(leaf) for leaf in _hidden(values))
+
+
+class Hoisted(eqx.Module):
+    """A function whose closed-over differentiated values are its fields: `fn(*args,
+    *consts)` (from `jax.closure_convert`), so that a custom rule sees their tangents as
+    it sees any array's (`hoisted`)."""
+
+    fn: Callable = eqx.field(static=True)
+    consts: tuple
+
+    def __call__(self, *args):
+        return self.fn(*args, *self.consts)
+
+
+def hoisted(fn, *example_args):
+    """`fn` with the values that automatic differentiation traces, among those it closes
+    over (a controller's gains, say), hoisted into its fields (a `Hoisted`), traced at
+    `example_args`' shapes and dtypes; `fn` itself where it closes over none."""
+    if not differentiated_closure(fn):
+        return fn
+    converted, consts = jax.closure_convert(fn, *example_args)
+    return Hoisted(converted, tuple(consts))

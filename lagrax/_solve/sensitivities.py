@@ -201,12 +201,15 @@ def _integrate_jvp(primals, tangents):
     if dargs is None:
         dargs = jtu.tree_map(lambda _: None, args)
     own = d_term is not None and bool(jtu.tree_leaves(d_term))
-    if own and _projects(_field_of(term)):  # (the projection needs the field's arrays)
-        return eqx.filter_jvp(_plain, primals, tangents)
-    if own:  # the field's arrays are perturbed: they join the arguments
-        arrays, rest = eqx.partition(term.vector_field, eqx.is_array)
+    if own:  # the field's perturbed arrays (a controller's gains, say) join the arguments
+        field, d_field = term.vector_field, d_term.vector_field
+        if _projects(field) and jtu.tree_leaves(getattr(d_field, "system", None)):
+            # (the projection after each step needs the system's arrays in the field)
+            return eqx.filter_jvp(_plain, primals, tangents)
+        perturbed = jtu.tree_map(lambda _, d: d is not None, field, d_field)
+        arrays, rest = eqx.partition(field, perturbed)
         term = dfx.ODETerm(rest)
-        args, dargs = (args, arrays), (dargs, d_term.vector_field)
+        args, dargs = (args, arrays), (dargs, d_field)
     loop = (term, solver, controller, t0, t1, dt0, ts, max_steps, kind, own)
     ys, d_ys, end, d_end_y = _augmented(loop, y0, s0, args, dargs)
     d_end = _integrate.StepState(None, None, d_end_y, None, None, None, None, None, None)

@@ -473,6 +473,9 @@ def simulate(
     )
     transposed_ok = False
     if not eager:  # jax.jvp / jax.jacfwd through simulate: forward mode
+        if tau_fn is not None:  # a controller's differentiated gains, say: as its fields,
+            # where the solve's derivative rules see them (not hidden in its closure)
+            tau_fn = closures.hoisted(tau_fn, jnp.zeros((), tdt), q0, qd0)
         # (jax.grad by forward sensitivities: lagrax's adjoint, few differentiated scalars)
         values = (q0, qd0, params, tau_const, t0, t1, ts, system, tau_fn)
         k = arguments.differentiated_scalars(*values) if adjoint is None else None
@@ -487,7 +490,7 @@ def simulate(
                 "params (the functions' last argument) instead"
             )
         hidden = closures.hidden_tracers(tau_fn)  # a tau function's closure
-        values = (q0, qd0, params, tau_const, t0, t1, ts, *hidden)
+        values = (q0, qd0, params, tau_const, t0, t1, ts, tau_fn, *hidden)
         adjoint = arguments.adjoint_for(adjoint, *values)
     events = _events.as_events(events)
     if events is not None:

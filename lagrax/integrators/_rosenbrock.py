@@ -145,52 +145,26 @@ class Rodas4(dfx.AbstractAdaptiveSolver):
         if isinstance(field, TangentLinearField):
             return _tangent_step(terms, field.tangents, t0, t1, y0, args)
         y0f, unravel = ravel_pytree(y0)
-        dtype = y0f.dtype
-        t0 = jnp.asarray(t0, dtype)
-        h = jnp.asarray(t1, dtype) - t0
-        n = y0f.size
 
-        def field(t, y):
-            return ravel_pytree(terms.vf(t, unravel(y), args))[0]
+        def flat(t, y, s):
+            del s
+            return ravel_pytree(terms.vf(t, unravel(y), args))[0], None
 
-        # J = ∂f/∂y and ∂f/∂t at (t₀, y₀), as one batched JVP over z = (y, t)
-        z0 = jnp.concatenate([y0f, t0[None]])
-        eye = jnp.eye(n + 1, dtype=dtype)
-        columns = jax.vmap(lambda e: jax.jvp(lambda z: field(z[n], z[:n]), (z0,), (e,))[1])(
-            eye
-        )  # (n + 1, n): row k is the derivative along z's k-th entry
-        jac, f_t = columns[:n].T, columns[n]
-        lu = jsl.lu_factor(jnp.eye(n, dtype=dtype) / (h * _GAMMA) - jac)
-        a, c_over_h = jnp.asarray(_A, dtype), jnp.asarray(_C, dtype) / h
-        nodes, d = jnp.asarray(_NODES, dtype), jnp.asarray(_D, dtype)
-
-        def stage(i, stages):
-            f_i = field(t0 + nodes[i] * h, y0f + a[i] @ stages)
-            rhs = f_i + c_over_h[i] @ stages + h * d[i] * f_t
-            return stages.at[i].set(jsl.lu_solve(lu, rhs))
-
-        stages = jax.lax.fori_loop(0, 6, stage, jnp.zeros((6, n), dtype))
-        y1f = y0f + jnp.asarray(_M, dtype) @ stages
-        k = jnp.asarray(_H, dtype) @ stages
+        (y1f, k, error), _ = _step(flat, y0f, None, t0, t1)
         y1 = unravel(y1f)
         dense = dict(y0=y0, y1=y1, k1=unravel(k[0]), k2=unravel(k[1]))
-        return y1, unravel(stages[5]), dense, None, dfx.RESULTS.successful
+        return y1, unravel(error), dense, None, dfx.RESULTS.successful
 
 
 def _tangent_step(terms, tangents: bool, t0, t1, y0, args):
     """`Rodas4.step` for a `TangentLinearField`: the same numbers as the step on the full
     state (its Jacobian is that field's, exactly), with the Jacobian's columns taken along
     `y` only (`n + 1` directions, where the full state has `n (1 + k) + 1`) and one LU of
-    `I/(h γ) − J`: `W = I/(h γ) − [[J, 0], [H, J]]` is block lower triangular, so
-    `W (x, ξ) = (r, ρ)` is `x = W₀⁻¹ r`, `ξᵢ = W₀⁻¹ (ρᵢ + Hᵢ x)`."""
+    `I/(h γ) − J` (`_step`)."""
     y0_, s0_ = y0
     y0f, unravel = ravel_pytree(y0_)
     one = s0_ if tangents else jax.tree_util.tree_map(lambda x: x[None], s0_)
     s0f = jax.vmap(lambda x: ravel_pytree(x)[0])(one)  # (k, n)
-    dtype = y0f.dtype
-    t0 = jnp.asarray(t0, dtype)
-    h = jnp.asarray(t1, dtype) - t0
-    n, k = y0f.size, s0f.shape[0]
 
     def pack(sf):
         tree = jax.vmap(unravel)(sf)
@@ -200,44 +174,64 @@ def _tangent_step(terms, tangents: bool, t0, t1, y0, args):
         one = tree if tangents else jax.tree_util.tree_map(lambda x: x[None], tree)
         return jax.vmap(lambda x: ravel_pytree(x)[0])(one)
 
-    def field(t, y, sf):
+    def flat(t, y, sf):
         dy, ds = terms.vf(t, (unravel(y), pack(sf)), args)
         return ravel_pytree(dy)[0], unpack(ds)
 
+    (y1f, k, error), (s1f, ks, s_error) = _step(flat, y0f, s0f, t0, t1)
+
+    def both(y, s):
+        return unravel(y), pack(s)
+
+    y1 = both(y1f, s1f)
+    dense = dict(y0=y0, y1=y1, k1=both(k[0], ks[0]), k2=both(k[1], ks[1]))
+    return y1, both(error, s_error), dense, None, dfx.RESULTS.successful
+
+
+def _step(field, y0f, s0f, t0, t1):
+    """One Rodas4 step on flat arrays: `((y₁, dense rows, error), tangents' alike)`.
+
+    `field(t, y, s) -> (f, g)` is the vector field of a state `y` of `n` entries and, for
+    a `TangentLinearField`, of its `k` tangents `s` (`(k, n)`; `None` and `g = None`
+    otherwise, then the tangents' part of the result is `None`). `J = ∂f/∂y`, `∂f/∂t`
+    (and for tangents `Hᵢ = ∂gᵢ/∂y`, `∂g/∂t`) come from one batched JVP along `y` and
+    `t`, `n + 1` directions; `W = I/(h γ) − [[J, 0], [H, J]]` is block lower triangular,
+    so each stage's `W (x, ξ) = (r, ρ)` is `x = W₀⁻¹ r`, `ξᵢ = W₀⁻¹ (ρᵢ + Hᵢ x)` with
+    the one LU of `W₀ = I/(h γ) − J`."""
+    dtype = y0f.dtype
+    t0 = jnp.asarray(t0, dtype)
+    h = jnp.asarray(t1, dtype) - t0
+    n = y0f.size
     z0 = jnp.concatenate([y0f, t0[None]])
 
-    def along(e):
+    def along(e):  # the derivatives along z = (y, t)'s direction e
         return jax.jvp(lambda z: field(z[n], z[:n], s0f), (z0,), (e,))[1]
 
     col_y, col_s = jax.vmap(along)(jnp.eye(n + 1, dtype=dtype))  # (n + 1, n), (n + 1, k, n)
     jac, f_t = col_y[:n].T, col_y[n]
-    coupling, g_t = jnp.transpose(col_s[:n], (1, 2, 0)), col_s[n]  # Hᵢ: (k, n, n); (k, n)
     lu = jsl.lu_factor(jnp.eye(n, dtype=dtype) / (h * _GAMMA) - jac)
     a, c_over_h = jnp.asarray(_A, dtype), jnp.asarray(_C, dtype) / h
     nodes, d = jnp.asarray(_NODES, dtype), jnp.asarray(_D, dtype)
+    if s0f is not None:
+        coupling, g_t = jnp.transpose(col_s[:n], (1, 2, 0)), col_s[n]  # Hᵢ: (k, n, n); (k, n)
 
     def stage(i, carry):
         stages, tangent_stages = carry
-        f_i, g_i = field(
-            t0 + nodes[i] * h,
-            y0f + a[i] @ stages,
-            s0f + jnp.einsum("j,jkn->kn", a[i], tangent_stages),
-        )
-        r = f_i + c_over_h[i] @ stages + h * d[i] * f_t
+        s_i = None if s0f is None else s0f + jnp.einsum("j,jkn->kn", a[i], tangent_stages)
+        f_i, g_i = field(t0 + nodes[i] * h, y0f + a[i] @ stages, s_i)
+        x = jsl.lu_solve(lu, f_i + c_over_h[i] @ stages + h * d[i] * f_t)
+        if s0f is None:
+            return stages.at[i].set(x), None
         rho = g_i + jnp.einsum("j,jkn->kn", c_over_h[i], tangent_stages) + h * d[i] * g_t
-        x = jsl.lu_solve(lu, r)
         xi = jsl.lu_solve(lu, (rho + coupling @ x).T).T
         return stages.at[i].set(x), tangent_stages.at[i].set(xi)
 
-    zeros = (jnp.zeros((6, n), dtype), jnp.zeros((6, k, n), dtype))
-    stages, tangent_stages = jax.lax.fori_loop(0, 6, stage, zeros)
+    zeros = None if s0f is None else jnp.zeros((6, *s0f.shape), dtype)
+    stages, tangent_stages = jax.lax.fori_loop(0, 6, stage, (jnp.zeros((6, n), dtype), zeros))
     m, hh = jnp.asarray(_M, dtype), jnp.asarray(_H, dtype)
-
-    def both(weights_y, weights_s):
-        return unravel(weights_y), pack(weights_s)
-
-    y1 = both(y0f + m @ stages, s0f + jnp.einsum("j,jkn->kn", m, tangent_stages))
-    k_y, k_s = hh @ stages, jnp.einsum("rj,jkn->rkn", hh, tangent_stages)
-    dense = dict(y0=y0, y1=y1, k1=both(k_y[0], k_s[0]), k2=both(k_y[1], k_s[1]))
-    error = both(stages[5], tangent_stages[5])
-    return y1, error, dense, None, dfx.RESULTS.successful
+    primal = (y0f + m @ stages, hh @ stages, stages[5])
+    if s0f is None:
+        return primal, None
+    s1f = s0f + jnp.einsum("j,jkn->kn", m, tangent_stages)
+    ks = jnp.einsum("rj,jkn->rkn", hh, tangent_stages)
+    return primal, (s1f, ks, tangent_stages[5])
