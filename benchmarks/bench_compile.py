@@ -36,6 +36,16 @@ over the same second. `--chart PATH` draws the table. About 3 minutes on 2 cores
     python benchmarks/bench_compile.py --first-result [--processes 1] [--chart PATH]
         [--json PATH] [--baseline PATH]
 
+**One-trajectory options** (`--one-shot-options`): `simulate`'s compiled program with
+lagrax's XLA options for a program that runs one trajectory
+(`lagrax._core.xla_flags.one_shot_options`: XLA:CPU's loop emitter) and with XLA's
+defaults (`LAGRAX_ONE_SHOT_XLA=0`), for the first-result table's models: in one process,
+the settings alternating `--processes` times each, every compiled program dropped
+between calls, so that the machine's drift (up to 40 % an hour across processes) falls on
+both alike. About 4 minutes on 2 cores.
+
+    python benchmarks/bench_compile.py --one-shot-options [--processes 2]
+
 **Program sizes** (`--sizes`): the lines of the lowered program (StableHLO text) and
 XLA's flop estimate of each part of the ant's contact simulation: the kinematics, the
 spheres' placement, the contact forces with `Σ Jᵢᵀ Fᵢ`, the default coefficients'
@@ -258,6 +268,45 @@ def first_result(processes: int, chart: str | None, save=None, baseline=None) ->
         print(f"wrote {chart}")
 
 
+def one_shot_options(rounds: int) -> None:
+    """Print the first call and a later call of each first-result model (MJX aside) with
+    lagrax's one-trajectory XLA options and with XLA's defaults, alternating."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import lagrax as lx
+    from lagrax._solve import compiled
+
+    rows = [r for r in FIRST_ROWS if "MJX" not in r]
+    fns = {row: _first_scene(row, lx, jnp, np) for row in rows}
+    got: dict = {}
+    for _ in range(rounds):
+        for setting in ("1", "0"):
+            os.environ["LAGRAX_ONE_SHOT_XLA"] = setting
+            for row in rows:
+                compiled.compiled.cache_clear()
+                compiled._FRONT.clear()
+                jax.clear_caches()
+                t0 = time.perf_counter()
+                jax.block_until_ready(fns[row]())
+                t1 = time.perf_counter()
+                jax.block_until_ready(fns[row]())
+                t2 = time.perf_counter()
+                got.setdefault((row, setting), []).append((t1 - t0, t2 - t1))
+    os.environ.pop("LAGRAX_ONE_SHOT_XLA")
+    print(f"medians of {rounds} rounds, alternating; the model loaded once, traced each time")
+    print(f"{'model':28s} {'first call (s)':>24s} {'again (ms)':>22s}")
+    print(
+        f"{'':28s} {'options':>8s} {'defaults':>9s} {'ratio':>6s} {'options':>8s} {'defaults':>9s}"
+    )
+    for row in rows:
+        (a, a2), (b, b2) = (
+            [statistics.median(x[i] for x in got[(row, s)]) for i in (0, 1)] for s in "10"
+        )
+        print(f"{row:28s} {a:8.2f} {b:9.2f} {a / b:6.2f} {1e3 * a2:8.1f} {1e3 * b2:9.1f}")
+
+
 def draw(rows: dict, before: dict | None, path: str) -> None:
     """The first-result chart: a bar per row (`before`'s beside it, in grey, where given)."""
     import matplotlib.pyplot as plt
@@ -372,6 +421,12 @@ def main(argv=None):
     parser.add_argument(
         "--baseline", default=None, help="--first-result: a --json file to draw beside"
     )
+    parser.add_argument(
+        "--one-shot-options",
+        action="store_true",
+        help="simulate's first call with lagrax's one-trajectory XLA options and with "
+        "XLA's defaults, alternating in one process",
+    )
     parser.add_argument("--sizes", action="store_true", help="the program-size table")
     args = parser.parse_args(argv)
     if args.child:
@@ -386,6 +441,9 @@ def main(argv=None):
         return
     if args.sizes:
         sizes()
+        return
+    if args.one_shot_options:
+        one_shot_options(args.processes)
         return
     runs = {False: [], True: []}
     for _ in range(args.processes):

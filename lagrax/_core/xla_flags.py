@@ -1,4 +1,5 @@
-"""One XLA:CPU setting that makes small stepping loops several times faster.
+"""One XLA:CPU setting that makes small stepping loops several times faster, and the
+options of a program that runs one trajectory (`one_shot_options`, at the end).
 
 XLA:CPU runs a compiled program as a sequence of kernels ("thunks"), one per fused
 operation, with a fixed cost each. An ODE step for a small mechanism is a few hundred
@@ -51,3 +52,25 @@ def configure() -> None:
             f"{_KEY}={THRESHOLD}' before starting Python; LAGRAX_XLA_FLAGS=0 silences this.",
             stacklevel=3,
         )
+
+
+# The XLA options of a program that runs one trajectory on concrete inputs (`simulate`'s
+# compiled call, `lagrax._solve.compiled`), on the CPU: XLA:CPU's older loop emitter
+# instead of its fusion emitters, which take longer to compile the long chains of small
+# scalar operations that lagrax's recursions are. Measured in one process, alternating
+# (`benchmarks/bench_compile.py --one-shot-options`): the first call of the ant with
+# contact 25.0 → 21.1 s, solo12 on four feet 18.3 → 15.1 s, humanoid_CMU 7.6 → 7.1 s;
+# later calls unchanged within the machine's noise. Per program, so a user's own
+# programs and the batched sweeps keep XLA's defaults; `LAGRAX_ONE_SHOT_XLA=0` keeps
+# them for these too.
+_ONE_SHOT = {"xla_cpu_use_fusion_emitters": False}
+
+
+def one_shot_options() -> dict | None:
+    """The `compiler_options` of `jax.jit` for a one-trajectory program: `_ONE_SHOT` on
+    the CPU, `None` (XLA's defaults) elsewhere or where `LAGRAX_ONE_SHOT_XLA=0`."""
+    if os.environ.get("LAGRAX_ONE_SHOT_XLA", "1").strip().lower() in ("0", "false", "no", "off"):
+        return None
+    import jax
+
+    return dict(_ONE_SHOT) if jax.default_backend() == "cpu" else None
