@@ -208,7 +208,7 @@ def test_solo12s_base_height_moves_with_its_pd_gains_and_friction_by_its_derivat
     friction (through `params`), by `jax.jacfwd` and `jax.jacrev`, against central
     differences at `1e-10` (relative steps 1e-3 and 1e-4 agreeing to 1e-5 of the
     largest entry). Measured 1.9e-7 of it in both modes (the loop's own JVP, the route a
-    closure took before: 8.8e-7); about 8 minutes on a 2-core CPU."""
+    closure took before: 8.8e-7); about 6 minutes on a 2-core CPU."""
     pattern = "lib/python*/site-packages/cmeel.prefix/share/example-robot-data/robots"
     found = glob.glob(f"{sys.prefix}/{pattern}/solo_description/robots/solo12.urdf")
     if not found:
