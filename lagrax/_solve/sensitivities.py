@@ -44,8 +44,10 @@ alone, `n + 1` of them where the augmented state has `n (1 + k) + 1` (the billia
 `jax.grad`, four tangents: 322 → 231 ms at the same steps).
 
 The rule covers what `simulate`'s forward-mode loops differentiate in practice: the
-initial state, `params` and a constant `tau`. Any other perturbed input (the times, the
-tolerances, the vector field's closure) takes `jax.jvp` of the loop itself, as before. A
+initial state, `params`, a constant `tau` and the values a `tau` function closes over
+(`simulate` hoists them into its fields, `closures.hoisted`, so they are the vector
+field's own perturbed arrays here). Any other perturbed input (the times, the
+tolerances, a tracer still hidden in a closure) takes `jax.jvp` of the loop itself. A
 system that projects its configuration after each step (a floating base's quaternion
 normalized) has its tangents carried by the projection's derivative
 (`integrate.project`), which is the JVP of the projected step.

@@ -18,9 +18,10 @@ perturbed, so only those are seeded.
 
 `simulate` takes this route when it is traced by reverse mode alone, lagrax picks the
 adjoint (`adjoint=None`), the perturbed scalars it can see number at most
-`max_tangents(n)`, and no perturbed value hides in a closure (a `tau` function or an
-energy closing over a differentiated array: those need the checkpointed loop, whose
-closure conversion handles them).
+`max_tangents(n)`, and no perturbed value hides in a closure. (A `tau` function's
+differentiated closed-over values are hoisted into its fields first, so they count
+among the scalars it sees; what else a closure hides takes the checkpointed loop, whose
+closure conversion handles it.)
 """
 
 import functools
