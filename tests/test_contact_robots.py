@@ -142,16 +142,22 @@ FEET = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"]
 STANCE = [0.1, 0.8, -1.6, -0.1, 0.8, -1.6, 0.1, -0.8, 1.6, -0.1, -0.8, 1.6]  # its SRDF's
 
 
+def _solo12_feet():
+    """solo12 from example-robot-data on a floating base with its four feet as spheres
+    (`from_urdf(..., contact=FEET)`): `(scene, params)`; skips where it is not installed."""
+    pattern = "lib/python*/site-packages/cmeel.prefix/share/example-robot-data/robots"
+    found = glob.glob(f"{sys.prefix}/{pattern}/solo_description/robots/solo12.urdf")
+    if not found:
+        pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
+    return lx.chains.from_urdf(found[0], floating_base=True, contact=FEET)
+
+
 def solo12_standing(t1=2.0, defaults=False):
     """solo12 dropped from a base height of 0.3 m (its feet 7 cm up) in its SRDF's
     `standing` posture, held there by joint PD (`kp = 10`, `kd = 0.3`): its scene, params,
     the saves, the solution and its weight. `defaults`: the scene as `from_urdf` makes
     it and the default method, else coefficients and `tsit5` chosen for each other."""
-    pattern = "lib/python*/site-packages/cmeel.prefix/share/example-robot-data/robots"
-    found = glob.glob(f"{sys.prefix}/{pattern}/solo_description/robots/solo12.urdf")
-    if not found:
-        pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
-    feet, params = lx.chains.from_urdf(found[0], floating_base=True, contact=FEET)
+    feet, params = _solo12_feet()
     weight = G * float(params["base_m"] + jnp.sum(params["m"]))
     k, c = _coefficients(weight, 4)
     scene = feet if defaults else ContactSystem(
@@ -205,15 +211,11 @@ def test_solo12s_base_height_moves_with_its_pd_gains_and_friction_by_its_derivat
     """solo12 dropped under joint PD with the default coefficients and method: its base
     height 0.4 s later (landed at 0.12 s, settling) differentiated with respect to the
     gains `kp`, `kd` (in the controller's closure, as a user writes it) and the feet's
-    friction (through `params`), by `jax.jacfwd` and `jax.jacrev`, against central
+    friction (through `params`), by `jax.jacfwd` and `jax.grad`, against central
     differences at `1e-10` (relative steps 1e-3 and 1e-4 agreeing to 1e-5 of the
     largest entry). Measured 1.9e-7 of it in both modes (the loop's own JVP, the route a
     closure took before: 8.8e-7); about 6 minutes on a 2-core CPU."""
-    pattern = "lib/python*/site-packages/cmeel.prefix/share/example-robot-data/robots"
-    found = glob.glob(f"{sys.prefix}/{pattern}/solo_description/robots/solo12.urdf")
-    if not found:
-        pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
-    feet, params = lx.chains.from_urdf(found[0], floating_base=True, contact=FEET)
+    feet, params = _solo12_feet()
     scene = ContactSystem(feet.system, feet.spheres, feet.plane, friction=lambda p: p["mu"])
     stance = jnp.asarray(STANCE)
     q0 = jnp.concatenate([jnp.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 1.0]), stance])

@@ -28,9 +28,14 @@ _KEY = "xla_cpu_small_while_loop_byte_threshold"
 THRESHOLD = 1 << 20
 
 
+def _opted_out(name: str) -> bool:
+    """Whether the environment variable `name` turns a setting off (`0`, `false`, ...)."""
+    return os.environ.get(name, "1").strip().lower() in ("0", "false", "no", "off")
+
+
 def configure() -> None:
     """Add the small-loop threshold to `XLA_FLAGS` when that can still take effect."""
-    if os.environ.get("LAGRAX_XLA_FLAGS", "1").strip().lower() in ("0", "false", "no", "off"):
+    if _opted_out("LAGRAX_XLA_FLAGS"):
         return
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_backend_extra_options" in flags:
@@ -69,7 +74,7 @@ _ONE_SHOT = {"xla_cpu_use_fusion_emitters": False}
 def one_shot_options() -> dict | None:
     """The `compiler_options` of `jax.jit` for a one-trajectory program: `_ONE_SHOT` on
     the CPU, `None` (XLA's defaults) elsewhere or where `LAGRAX_ONE_SHOT_XLA=0`."""
-    if os.environ.get("LAGRAX_ONE_SHOT_XLA", "1").strip().lower() in ("0", "false", "no", "off"):
+    if _opted_out("LAGRAX_ONE_SHOT_XLA"):
         return None
     import jax
 
